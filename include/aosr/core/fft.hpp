@@ -1,0 +1,55 @@
+// 2-D discrete Fourier transforms over FFTW, with plans cached by shape.
+//
+// Conventions:
+//  * Forward transforms are unnormalised:  X(u, v) = sum_{y,x} x(y, x) exp(-2 pi i (u y / R + v x / C)).
+//  * Inverse transforms divide by R*C, so Inverse(Forward(x)) == x.
+//  * Real transforms store the non-redundant half spectrum: R x (C/2 + 1), FFTW's layout.
+//
+// Execution (DESIGN.md §3, "execution is not maths"):
+//  * Plans are made once per (shape, kind, alignment, threads, planner) under a global lock, because
+//    only fftw_execute* is thread-safe; executing a cached plan on new arrays needs no lock.
+//  * Threads and planner rigour are settings (FftSettings), not code paths. Changing them affects
+//    plans made afterwards; results do not depend on them beyond rounding.
+#pragma once
+
+#include <cstddef>
+
+#include "aosr/core/image.hpp"
+
+namespace aosr {
+
+struct FftSettings {
+  // How hard FFTW searches for a fast plan. kEstimate plans instantly; kMeasure times candidate
+  // algorithms once per shape (tens of ms for 512x512) and is the default because every shape is
+  // reused many times by the solvers; kPatient is for long benchmark runs.
+  enum class Planner { kEstimate, kMeasure, kPatient };
+  Planner planner = Planner::kMeasure;
+  // Threads per transform (>= 1). Transforms below ~128x128 are not worth splitting; the cache
+  // decides per shape and uses a single thread for small ones.
+  int threads = 1;
+};
+
+// Global FFT settings. Thread-safe. Throws InvalidArgument for threads < 1.
+void SetFftSettings(const FftSettings& settings);
+FftSettings GetFftSettings();
+
+// Real-to-complex forward transform: R x C -> R x (C/2+1), unnormalised.
+ComplexImage FftR2C(const Image& x);
+// Complex-to-real inverse: R x (C/2+1) -> R x `cols`, divided by R*cols. `cols` must be
+// 2*(X.cols()-1) or 2*(X.cols()-1)+1.
+Image FftC2R(const ComplexImage& X, Index cols);
+// Full complex transforms; Forward unnormalised, Inverse divided by R*C.
+ComplexImage FftForward(const ComplexImage& x);
+ComplexImage FftInverse(const ComplexImage& X);
+
+// Number of distinct plans made so far (for tests and benchmarks of the cache).
+std::size_t FftPlanCount();
+
+// Expands a half spectrum (R x (C/2+1)) of a real signal to the full R x C spectrum using
+// Hermitian symmetry X(-u, -v) = conj X(u, v).
+ComplexImage ExpandHalfSpectrum(const ComplexImage& half, Index cols);
+
+// Signed DFT frequency index of bin k in a transform of length n: k for k <= n/2, else k - n.
+inline Index SignedFrequency(Index k, Index n) { return k <= n / 2 ? k : k - n; }
+
+}  // namespace aosr

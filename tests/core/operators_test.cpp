@@ -1,0 +1,126 @@
+#include "aosr/core/operators.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "aosr/core/adjoint_test.hpp"
+#include "aosr/core/fft.hpp"
+
+namespace aosr {
+namespace {
+
+constexpr double kAdjointTol = 1e-10;
+
+Image RandomImage(Shape s, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Image img(s.rows, s.cols);
+  for (Index i = 0; i < img.size(); ++i) img.data()[i] = u(rng);
+  return img;
+}
+
+Image GaussianKernel(Index n, double sigma) {
+  Image k(n, n);
+  for (Index y = 0; y < n; ++y)
+    for (Index x = 0; x < n; ++x) {
+      const double dy = y - n / 2, dx = x - n / 2;
+      k(y, x) = std::exp(-(dx * dx + dy * dy) / (2 * sigma * sigma)) * (1.0 + 0.1 * dx);  // asymmetric
+    }
+  return k / k.sum();
+}
+
+TEST(OperatorsTest, EveryPrimitivePassesTheAdjointTest) {
+  const Shape s{24, 30};
+  std::vector<OperatorPtr> ops = {
+      PeriodicConvolutionFromKernel(s, GaussianKernel(7, 1.5)),
+      LinearConvolution(s, GaussianKernel(9, 2.0)),
+      Decimate(s, 3),
+      Mask(RandomImage(s, 3)),
+      Gradient(s, Boundary::kPeriodic),
+      Gradient(s, Boundary::kNeumann),
+      ZeroPad(s, {40, 41}, 5, 7),
+      Crop({40, 41}, s, 5, 7),
+      Identity(s.size()),
+  };
+  for (const auto& op : ops) {
+    const AdjointTestResult r = AdjointTest(*op, 7);
+    EXPECT_LT(r.adjoint_error, kAdjointTol) << op->name();
+    EXPECT_LT(r.normal_error, kAdjointTol) << op->name();
+  }
+}
+
+TEST(OperatorsTest, CompositionsPassTheAdjointTest) {
+  const Shape hr{32, 32};
+  auto frame = [&](double sigma) {
+    return Compose(Decimate(hr, 2), PeriodicConvolutionFromKernel(hr, GaussianKernel(9, sigma)));
+  };
+  const OperatorPtr a = Stack({frame(1.0), frame(1.5), frame(2.0)});
+  EXPECT_LT(AdjointTest(*a).worst(), kAdjointTol) << a->name();
+  const OperatorPtr b = Sum({Scale(0.5, Identity(hr.size())), PeriodicConvolutionFromKernel(hr, GaussianKernel(5, 1))});
+  EXPECT_LT(AdjointTest(*b).worst(), kAdjointTol) << b->name();
+  EXPECT_EQ(a->rows(), 3 * 16 * 16);
+  EXPECT_EQ(a->cols(), hr.size());
+}
+
+TEST(OperatorsTest, DecimationAndConvolutionConserveFlux) {
+  const Shape s{36, 48};
+  const Image x = RandomImage(s, 11);
+  const double flux = x.sum();
+  const Vector d = Decimate(s, 4)->Apply(AsVector(x));
+  EXPECT_NEAR(d.sum(), flux, 1e-12 * flux);
+  const Vector c = PeriodicConvolutionFromKernel(s, GaussianKernel(11, 2.0))->Apply(AsVector(x));
+  EXPECT_NEAR(c.sum(), flux, 1e-12 * flux);
+}
+
+TEST(OperatorsTest, DecimationSumsBlocks) {
+  Image x(4, 6);
+  for (Index i = 0; i < x.size(); ++i) x.data()[i] = i;
+  const Image y = ToImage(Decimate({4, 6}, 2)->Apply(AsVector(x)), {2, 3});
+  EXPECT_DOUBLE_EQ(y(0, 0), 0 + 1 + 6 + 7);
+  EXPECT_DOUBLE_EQ(y(1, 2), 16 + 17 + 22 + 23);
+}
+
+TEST(OperatorsTest, ConvolutionWithShiftedDeltaShiftsTowardPositiveX) {
+  const Shape s{8, 8};
+  Image k = Image::Zero(5, 5);
+  k(2, 3) = 1.0;  // centre is (2,2): a delta at +1 in x
+  Image x = Image::Zero(8, 8);
+  x(4, 4) = 1.0;
+  const Image y = ToImage(PeriodicConvolutionFromKernel(s, k)->Apply(AsVector(x)), s);
+  EXPECT_NEAR(y(4, 5), 1.0, 1e-14);
+  const Image z = ToImage(LinearConvolution(s, k)->Apply(AsVector(x)), s);
+  EXPECT_NEAR(z(4, 5), 1.0, 1e-14);
+}
+
+TEST(OperatorsTest, LinearConvolutionDoesNotWrap) {
+  const Shape s{16, 16};
+  Image x = Image::Zero(16, 16);
+  x(0, 0) = 1.0;
+  const Image y = ToImage(LinearConvolution(s, GaussianKernel(5, 1.0))->Apply(AsVector(x)), s);
+  EXPECT_NEAR(y(15, 15), 0.0, 1e-15);  // FFT rounding only
+  EXPECT_NEAR(y(0, 15), 0.0, 1e-15);
+  EXPECT_GT(y(1, 1), 0.0);
+}
+
+TEST(FftTest, RoundTrips) {
+  for (Shape s : {Shape{8, 8}, Shape{7, 13}, Shape{64, 50}, Shape{1, 5}}) {
+    const Image x = RandomImage(s, 5);
+    const Image back = FftC2R(FftR2C(x), s.cols);
+    EXPECT_LT((back - x).abs().maxCoeff(), 1e-13) << ToString(s);
+    const ComplexImage xc = x.cast<Complex>();
+    EXPECT_LT((FftInverse(FftForward(xc)) - xc).abs().maxCoeff(), 1e-13) << ToString(s);
+    EXPECT_LT((ExpandHalfSpectrum(FftR2C(x), s.cols) - FftForward(xc)).abs().maxCoeff(), 1e-12);
+  }
+}
+
+TEST(FftTest, PlansAreCachedByShape) {
+  const Image x = RandomImage({20, 22}, 1);
+  FftR2C(x);
+  const std::size_t n = FftPlanCount();
+  for (int i = 0; i < 5; ++i) FftR2C(x);
+  EXPECT_EQ(FftPlanCount(), n);
+}
+
+}  // namespace
+}  // namespace aosr
