@@ -5,6 +5,7 @@
 #include <map>
 #include <mutex>
 #include <tuple>
+#include <vector>
 
 #include "aosr/core/error.hpp"
 
@@ -172,6 +173,21 @@ ComplexImage ExpandHalfSpectrum(const ComplexImage& half, Index cols) {
     for (Index v = 0; v < cols; ++v)
       full(u, v) = v < half.cols() ? half(u, v) : std::conj(half((R - u) % R, cols - v));
   return full;
+}
+
+ComplexImage HermitianProjection(const ComplexImage& half, Index cols) {
+  CheckArgument(cols / 2 + 1 == half.cols(), "HermitianProjection", "cols", cols,
+                "consistent with half.cols() = " + std::to_string(half.cols()));
+  ComplexImage out = half;
+  const Index R = half.rows();
+  std::vector<Index> self_conjugate_cols = {0};
+  if (cols % 2 == 0 && cols > 1) self_conjugate_cols.push_back(cols / 2);
+  for (Index v : self_conjugate_cols)
+    for (Index u = 0; u < R; ++u) {
+      const Index w = (R - u) % R;
+      out(u, v) = 0.5 * (half(u, v) + std::conj(half(w, v)));
+    }
+  return out;
 }
 
 }  // namespace aosr

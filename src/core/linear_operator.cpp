@@ -196,6 +196,26 @@ class IdentityOp final : public LinearOperator {
   void ApplyNormalImpl(ConstRef x, Ref z) const override { z = x; }
 };
 
+class AdjointOp final : public LinearOperator {
+ public:
+  explicit AdjointOp(OperatorPtr a) : LinearOperator(a->cols(), a->rows(), "Adjoint(" + a->name() + ")"), a_(std::move(a)) {}
+
+ private:
+  void ApplyImpl(ConstRef x, Ref y) const override { a_->ApplyAdjoint(x, y); }
+  void ApplyAdjointImpl(ConstRef y, Ref x) const override { a_->Apply(y, x); }
+  OperatorPtr a_;
+};
+
+class NormalOp final : public LinearOperator {
+ public:
+  explicit NormalOp(OperatorPtr a) : LinearOperator(a->cols(), a->cols(), "Normal(" + a->name() + ")"), a_(std::move(a)) {}
+
+ private:
+  void ApplyImpl(ConstRef x, Ref y) const override { a_->ApplyNormal(x, y); }
+  void ApplyAdjointImpl(ConstRef y, Ref x) const override { a_->ApplyNormal(y, x); }
+  OperatorPtr a_;
+};
+
 void CheckNotNull(const OperatorPtr& p, const char* fn, const char* arg) {
   if (!p) throw InvalidArgument(fn, arg, "null", "a non-null operator");
 }
@@ -238,6 +258,16 @@ OperatorPtr Scale(double alpha, OperatorPtr a) {
   CheckNotNull(a, "Scale", "a");
   CheckArgument(std::isfinite(alpha), "Scale", "alpha", alpha, "a finite number");
   return std::make_shared<ScaleOp>(alpha, std::move(a));
+}
+
+OperatorPtr Adjoint(OperatorPtr a) {
+  CheckNotNull(a, "Adjoint", "a");
+  return std::make_shared<AdjointOp>(std::move(a));
+}
+
+OperatorPtr Normal(OperatorPtr a) {
+  CheckNotNull(a, "Normal", "a");
+  return std::make_shared<NormalOp>(std::move(a));
 }
 
 OperatorPtr Identity(Index n) {

@@ -1,5 +1,7 @@
 #include "aosr/core/operators.hpp"
 
+#include <cmath>
+
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
 
@@ -159,13 +161,27 @@ ComplexImage TransferFunction(Shape s, const Image& centred_kernel) {
   return FftR2C(CentredToOrigin(centred_kernel, s));
 }
 
+ComplexImage ShiftTransfer(Shape s, double dy, double dx) {
+  CheckShape("ShiftTransfer", s);
+  CheckArgument(std::isfinite(dy) && std::isfinite(dx), "ShiftTransfer", "shift",
+                ToString(dy) + ", " + ToString(dx), "finite values");
+  ComplexImage t(s.rows, s.cols / 2 + 1);
+  for (Index fy = 0; fy < s.rows; ++fy)
+    for (Index fx = 0; fx < t.cols(); ++fx) {
+      const double ph = -2.0 * M_PI *
+                        (double(SignedFrequency(fy, s.rows)) * dy / double(s.rows) + double(fx) * dx / double(s.cols));
+      t(fy, fx) = std::polar(1.0, ph);
+    }
+  return HermitianProjection(t, s.cols);
+}
+
 OperatorPtr PeriodicConvolution(Shape s, ComplexImage otf_half) {
   CheckShape("PeriodicConvolution", s);
   if (otf_half.rows() != s.rows || otf_half.cols() != s.cols / 2 + 1)
     throw InvalidArgument("PeriodicConvolution", "otf_half shape", ToString(ShapeOf(otf_half)),
                           ToString(Shape{s.rows, s.cols / 2 + 1}) + " (half spectrum of the grid)");
   CheckArgument(otf_half.isFinite().all(), "PeriodicConvolution", "otf_half", "non-finite values", "finite values");
-  return std::make_shared<PeriodicConvolutionOp>(s, std::move(otf_half));
+  return std::make_shared<PeriodicConvolutionOp>(s, HermitianProjection(otf_half, s.cols));
 }
 
 OperatorPtr PeriodicConvolutionFromKernel(Shape s, const Image& centred_kernel) {

@@ -54,7 +54,7 @@ std::string ToString(const T& value) {
 
 // Throws InvalidArgument(function, argument, ToString(value), allowed) unless `ok`.
 template <typename T>
-void CheckArgument(bool ok, const char* function, const char* argument, const T& value,
+void CheckArgument(bool ok, const std::string& function, const std::string& argument, const T& value,
                    const std::string& allowed) {
   if (!ok) throw InvalidArgument(function, argument, ToString(value), allowed);
 }

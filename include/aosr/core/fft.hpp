@@ -49,6 +49,12 @@ std::size_t FftPlanCount();
 // Hermitian symmetry X(-u, -v) = conj X(u, v).
 ComplexImage ExpandHalfSpectrum(const ComplexImage& half, Index cols);
 
+// Projects a half spectrum onto the spectra of real signals: on the columns that FFTW's c2r reads as
+// self-conjugate (v = 0 and, for even `cols`, v = cols/2) it enforces X(-u, v) = conj X(u, v) by
+// averaging each pair. A transfer function that is not Hermitian (e.g. a fractional phase ramp at the
+// Nyquist bin) would otherwise be applied differently by c2r and by an explicit Fourier-domain solver.
+ComplexImage HermitianProjection(const ComplexImage& half, Index cols);
+
 // Signed DFT frequency index of bin k in a transform of length n: k for k <= n/2, else k - n.
 inline Index SignedFrequency(Index k, Index n) { return k <= n / 2 ? k : k - n; }
 

@@ -12,6 +12,7 @@
 //   Stack({A1..An}) = [A1; ...; An]   (the frames of a sequence; its adjoint sums)
 //   Sum({A1..An})   = A1 + ... + An
 //   Scale(a, A)     = a A
+//   Adjoint(A) = Aᵀ,  Normal(A) = AᵀA
 //
 // API rules for every operator here and in other layers:
 //  * Public Apply* check sizes and throw InvalidArgument naming the operator; the private *Impl
@@ -71,6 +72,10 @@ OperatorPtr Stack(std::vector<OperatorPtr> parts);
 OperatorPtr Sum(std::vector<OperatorPtr> parts);
 // alpha * A (alpha finite).
 OperatorPtr Scale(double alpha, OperatorPtr a);
+// Aᵀ as an operator (Apply and ApplyAdjoint swapped).
+OperatorPtr Adjoint(OperatorPtr a);
+// AᵀA as a (square, self-adjoint) operator; uses a's ApplyNormal, so a cheap normal is kept.
+OperatorPtr Normal(OperatorPtr a);
 // The n x n identity.
 OperatorPtr Identity(Index n);
 

@@ -29,6 +29,11 @@ OperatorPtr PeriodicConvolutionFromKernel(Shape s, const Image& centred_kernel);
 // The half-spectrum transfer function of a centred kernel on grid `s`.
 ComplexImage TransferFunction(Shape s, const Image& centred_kernel);
 
+// Half-spectrum transfer function of a shift by (dy, dx) pixels (+dx toward +x): exp(-2πi(f·d/M)).
+// Integer shifts are exact circular shifts; fractional ones are band-limited (sinc) interpolation, and
+// at the Nyquist bin of an even axis the real part is what a real convolution can apply.
+ComplexImage ShiftTransfer(Shape s, double dy, double dx);
+
 // Zero-padded convolution of an image of shape `s` by a centred kernel; output shape `s`.
 OperatorPtr LinearConvolution(Shape s, const Image& centred_kernel);
 

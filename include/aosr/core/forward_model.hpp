@@ -1,0 +1,69 @@
+// The multi-frame image-formation model shared by the simulator and every reconstructor.
+//
+//     y_i = D_r( h_i ⊛ x ),   i = 0 .. N-1                            (DESIGN.md §1, noise excluded)
+//
+//  x    object on the HR grid (hr_shape), flux per HR pixel.
+//  h_i  exposure i's PSF at HR sampling, applied by periodic convolution through its transfer function
+//       H_i (half spectrum, see fft.hpp). A sub-pixel pointing offset is part of h_i.
+//  D_r  the camera: each LR pixel sums its r x r HR pixels (see image.hpp for the pixel layout).
+//
+// Fourier structure. Write M = hr_shape, m = lr_shape = M / r. D_r is "box-filter then subsample":
+// D_r z = S_r (b ⊛ z) with b the r x r box anchored so that (b ⊛ z)[n] = Σ_{k∈{0..r-1}²} z[n+k], whose
+// transfer function is B(f) = Π_axes Σ_{k=0}^{r-1} exp(+2πi f_a k / M_a). Subsampling folds the HR
+// spectrum, so each LR frequency u couples the r² HR frequencies f = u + k∘m (k ∈ {0..r-1}²):
+//
+//     Y_i(u) = (1/r²) Σ_k B(u + k∘m) H_i(u + k∘m) X(u + k∘m).
+//
+// AliasedSystem(u) returns that N x r² matrix; Fourier-domain solvers build on it. B vanishes on the
+// alias lattice (f_a a non-zero multiple of m_a), so those HR frequencies are invisible to any design.
+#pragma once
+
+#include <Eigen/Dense>
+#include <vector>
+
+#include "aosr/core/linear_operator.hpp"
+
+namespace aosr {
+
+class MultiFrameModel {
+ public:
+  // `otfs[i]` is frame i's half-spectrum transfer function on the HR grid (hr.rows x hr.cols/2+1).
+  // r >= 1 must divide both HR sides. Throws InvalidArgument on any inconsistency.
+  MultiFrameModel(Shape hr, int r, std::vector<ComplexImage> otfs);
+  // From centred PSF kernels at HR sampling (each must fit in the HR grid; not renormalised).
+  static MultiFrameModel FromKernels(Shape hr, int r, const ImageStack& centred_psfs);
+
+  Shape hr_shape() const { return hr_; }
+  Shape lr_shape() const { return {hr_.rows / r_, hr_.cols / r_}; }
+  int r() const { return r_; }
+  int frames() const { return static_cast<int>(otfs_.size()); }
+  const ComplexImage& otf(int i) const { return otfs_.at(i); }
+
+  // D_r ∘ H_i, and the stack over frames (rows = N · lr size, cols = hr size).
+  const OperatorPtr& FrameOperator(int i) const { return frame_ops_.at(i); }
+  const OperatorPtr& Operator() const { return op_; }
+
+  // Noise-free frames of an object on the HR grid.
+  ImageStack Render(const Image& x) const;
+  // Frames <-> the stacked vector Operator() works on. Checks the count and shape of frames.
+  Vector Flatten(const ImageStack& frames) const;
+  ImageStack Unflatten(const Vector& y) const;
+
+  // The pixel transfer function B(f) at full-spectrum HR frequency bin (fy, fx).
+  Complex PixelTransfer(Index fy, Index fx) const;
+  // The N x r² matrix of the LR frequency bin (uy, ux), columns ordered k = ky * r + kx for the HR bins
+  // (uy + ky·m_rows, ux + kx·m_cols).
+  Eigen::MatrixXcd AliasedSystem(Index uy, Index ux) const;
+  // Full-spectrum H_i at HR bin (fy, fx), from the stored half spectrum by Hermitian symmetry.
+  Complex Otf(int i, Index fy, Index fx) const;
+
+ private:
+  Shape hr_;
+  int r_;
+  std::vector<ComplexImage> otfs_;
+  std::vector<OperatorPtr> frame_ops_;
+  OperatorPtr op_;
+  std::vector<Complex> box_y_, box_x_;  // 1-D pixel transfer per axis
+};
+
+}  // namespace aosr

@@ -1,0 +1,87 @@
+#include "aosr/core/forward_model.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "aosr/core/adjoint_test.hpp"
+#include "aosr/core/fft.hpp"
+#include "aosr/core/operators.hpp"
+
+namespace aosr {
+namespace {
+
+Image Random(Shape s, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> n;
+  Image x(s.rows, s.cols);
+  for (Index i = 0; i < x.size(); ++i) x.data()[i] = n(rng);
+  return x;
+}
+
+Image Gaussian(Index n, double sy, double sx, double cy, double cx) {
+  Image k(n, n);
+  for (Index y = 0; y < n; ++y)
+    for (Index x = 0; x < n; ++x) {
+      const double dy = y - n / 2 - cy, dx = x - n / 2 - cx;
+      k(y, x) = std::exp(-0.5 * (dy * dy / (sy * sy) + dx * dx / (sx * sx)));
+    }
+  return k / k.sum();
+}
+
+MultiFrameModel TestModel(Shape hr, int r) {
+  return MultiFrameModel::FromKernels(hr, r, {Gaussian(9, 1.0, 1.3, 0, 0), Gaussian(9, 1.2, 0.9, 0.3, -0.4),
+                                              Gaussian(9, 0.8, 1.0, -1, 0.5)});
+}
+
+TEST(ForwardModelTest, OperatorPassesAdjointTest) {
+  const MultiFrameModel m = TestModel({24, 18}, 3);
+  EXPECT_LT(AdjointTest(*m.Operator()).worst(), 1e-10);
+  EXPECT_EQ(m.Operator()->rows(), 3 * 8 * 6);
+}
+
+// The aliasing formula in forward_model.hpp, checked against the spatial operator: for every LR bin u,
+// FFT(y_i)(u) == Σ_k A(u)_{ik} X(u + k∘m).
+TEST(ForwardModelTest, AliasedSystemMatchesSpatialRendering) {
+  for (int r : {2, 3}) {
+    const Shape hr{12 * r / 2 * 2, 10 * r / 2 * 2};
+    const MultiFrameModel m = TestModel(hr, r);
+    const Image x = Random(hr, 3);
+    const ImageStack frames = m.Render(x);
+    const ComplexImage X = FftForward(x.cast<Complex>());
+    std::vector<ComplexImage> Y;
+    for (const Image& f : frames) Y.push_back(FftForward(f.cast<Complex>()));
+    const Shape lr = m.lr_shape();
+    double worst = 0, scale = 0;
+    for (Index uy = 0; uy < lr.rows; ++uy)
+      for (Index ux = 0; ux < lr.cols; ++ux) {
+        const Eigen::MatrixXcd a = m.AliasedSystem(uy, ux);
+        Eigen::VectorXcd xk(r * r);
+        for (int ky = 0; ky < r; ++ky)
+          for (int kx = 0; kx < r; ++kx) xk[ky * r + kx] = X(uy + ky * lr.rows, ux + kx * lr.cols);
+        const Eigen::VectorXcd pred = a * xk;
+        for (int i = 0; i < m.frames(); ++i) {
+          worst = std::max(worst, std::abs(pred[i] - Y[i](uy, ux)));
+          scale = std::max(scale, std::abs(Y[i](uy, ux)));
+        }
+      }
+    EXPECT_LT(worst, 1e-12 * scale) << "r = " << r;
+  }
+}
+
+TEST(ForwardModelTest, PixelTransferVanishesOnTheAliasLattice) {
+  const MultiFrameModel m = TestModel({16, 16}, 2);
+  EXPECT_NEAR(std::abs(m.PixelTransfer(0, 0)), 4.0, 1e-12);
+  EXPECT_NEAR(std::abs(m.PixelTransfer(8, 0)), 0.0, 1e-12);
+  EXPECT_NEAR(std::abs(m.PixelTransfer(3, 8)), 0.0, 1e-12);
+  EXPECT_GT(std::abs(m.PixelTransfer(7, 7)), 0.1);
+}
+
+TEST(ForwardModelTest, RenderConservesFlux) {
+  const MultiFrameModel m = TestModel({32, 32}, 4);
+  Image x = Random({32, 32}, 9).abs();
+  for (const Image& f : m.Render(x)) EXPECT_NEAR(f.sum(), x.sum(), 1e-12 * x.sum());
+}
+
+}  // namespace
+}  // namespace aosr
