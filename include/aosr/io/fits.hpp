@@ -1,0 +1,115 @@
+// FITS images and cubes (through cfitsio), with their header keywords.
+//
+// Orientation (the one rule that matters when opening our files in DS9 or astropy):
+//   array element (y, x) = (row, column)  <->  FITS pixel (x + 1, y + 1), i.e. NAXIS1 = cols (x),
+//   NAXIS2 = rows (y), NAXIS3 = planes. There is no flip: FITS stores NAXIS1 fastest, exactly as a
+//   row-major array stores x fastest, so the bytes go out in memory order. Viewers draw FITS pixel
+//   (1, 1) at the lower left, so our row 0 appears at the *bottom* in DS9 (and at the top of a PNG
+//   written by WriteViewImage, which follows the image-file convention of row 0 on top).
+//   astropy's fits.getdata() returns exactly our (y, x) array.
+//
+// Data:
+//  * Written as IEEE float32 (BITPIX -32, the default: plenty for detector data and half the size)
+//    or float64 (BITPIX -64, exact). A finite value beyond float32's range is refused rather than
+//    silently written as Inf; choose kFloat64 for such data.
+//  * NaN and Inf are written as they are: NaN is the FITS convention for a bad or missing pixel.
+//  * Read from BITPIX 8/16/32/64/-32/-64; cfitsio applies BSCALE/BZERO, and integer pixels equal to
+//    BLANK (undefined) become NaN. Everything is returned in double precision.
+//
+// Header:
+//  * FitsHeader holds the user keywords in order. Names are case-insensitive and stored upper-case
+//    (the FITS standard's form); names longer than 8 characters are written with the HIERARCH
+//    convention by cfitsio. Strings longer than one card use the CONTINUE convention.
+//  * Structural keywords are owned by the writer and are neither read into nor accepted by a
+//    FitsHeader: SIMPLE, BITPIX, NAXIS, NAXISn, EXTEND, BSCALE, BZERO, BLANK, XTENSION, PCOUNT,
+//    GCOUNT, END, CHECKSUM, DATASUM, plus the commentary keywords COMMENT, HISTORY, CONTINUE and
+//    blank names (which carry no value). Keywords without a value are skipped on reading.
+//  * Reading infers the type from the value's form: T/F -> bool, an integer -> long long (one too
+//    large for 64 bits -> double), a real (E or D exponent) -> double, a quoted string -> string,
+//    anything else (e.g. complex) -> its raw text as a string.
+//  * Doubles are written with the fewest significant digits (15..17) that read back bit-exact.
+//
+// Errors: every cfitsio failure becomes aosr::IoError(path, cfitsio's status text and its message
+// stack). Files are opened with cfitsio's "diskfile" calls, so '[', '(' and '!' in a path are plain
+// characters rather than cfitsio's extended-filename syntax. Writes are atomic (AtomicWrite).
+#pragma once
+
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "aosr/core/image.hpp"
+
+namespace aosr {
+
+using FitsValue = std::variant<bool, long long, double, std::string>;
+
+struct FitsKeyword {
+  std::string name;  // Upper-case.
+  FitsValue value;
+  std::string comment;
+};
+
+class FitsHeader {
+ public:
+  // Adds a keyword, or replaces the value and comment of an existing one (keeping its position).
+  // InvalidArgument for a structural/commentary name (see above), an empty name or one with
+  // characters outside printable ASCII or containing '=', a non-finite double (FITS headers cannot
+  // hold NaN/Inf), or a string with non-printable characters.
+  // Overloads exist so that Set("K", 3) is an integer and Set("K", "text") is a string (a plain
+  // std::variant would turn a const char* into a bool).
+  void Set(const std::string& name, const FitsValue& value, const std::string& comment = "");
+  void Set(const std::string& name, bool value, const std::string& comment = "");
+  void Set(const std::string& name, int value, const std::string& comment = "");
+  void Set(const std::string& name, long value, const std::string& comment = "");
+  void Set(const std::string& name, long long value, const std::string& comment = "");
+  void Set(const std::string& name, double value, const std::string& comment = "");
+  void Set(const std::string& name, const char* value, const std::string& comment = "");
+  void Set(const std::string& name, const std::string& value, const std::string& comment = "");
+
+  bool Has(const std::string& name) const;
+  // Typed access; InvalidArgument naming the keyword when it is missing or holds another type.
+  // GetDouble also accepts an integer keyword (FITS writes 2.0 as "2." but others may write "2").
+  double GetDouble(const std::string& name) const;
+  long long GetInt(const std::string& name) const;
+  std::string GetString(const std::string& name) const;
+  bool GetBool(const std::string& name) const;
+  // Nullptr when absent.
+  const FitsKeyword* Find(const std::string& name) const;
+
+  const std::vector<FitsKeyword>& keywords() const { return keywords_; }
+
+  // True for the keywords that FitsHeader refuses (written by the writer itself, see above).
+  static bool IsStructural(const std::string& name);
+
+ private:
+  std::vector<FitsKeyword> keywords_;
+};
+
+enum class FitsType { kFloat32, kFloat64 };
+
+// Writes one 2-D image (NAXIS = 2) to `path`, replacing any existing file atomically.
+// InvalidArgument for an empty image or (kFloat32) a finite value beyond float32's range.
+void WriteFits(const std::string& path, const Image& img, const FitsHeader& header = {},
+               FitsType type = FitsType::kFloat32);
+
+// Writes planes as one cube (NAXIS = 3, NAXIS3 = planes.size()). All planes must have the same,
+// non-empty shape; otherwise InvalidArgument.
+void WriteFitsCube(const std::string& path, const ImageStack& planes, const FitsHeader& header = {},
+                   FitsType type = FitsType::kFloat32);
+
+struct FitsData {
+  ImageStack planes;  // One plane for NAXIS = 2, NAXIS3 planes for NAXIS = 3.
+  FitsHeader header;  // User keywords of the HDU the data came from.
+};
+
+// Reads the primary HDU, or if it has no data the first image extension that has (e.g. a
+// tile-compressed .fits.fz, or a file whose primary HDU only carries a header).
+// IoError naming `path` for: a missing/unreadable file, a file that is not FITS or is truncated,
+// no image data, NAXIS other than 2 or 3 (NAXIS = 3 with NAXIS3 = 1 is one plane).
+FitsData ReadFits(const std::string& path);
+
+// ReadFits that requires exactly one plane; IoError naming the path and the cube's shape otherwise.
+Image ReadFitsImage(const std::string& path);
+
+}  // namespace aosr

@@ -1,0 +1,423 @@
+#include "aosr/io/fits.hpp"
+
+#include <fitsio.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cfloat>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+
+#include "aosr/core/error.hpp"
+#include "aosr/io/atomic_file.hpp"
+
+namespace aosr {
+namespace {
+
+// ---------------------------------------------------------------------------------------------
+// cfitsio plumbing
+
+// Throws IoError(path, "<what>: <status text> (status N); <message stack>"), draining cfitsio's
+// error-message stack so that stale messages do not leak into a later error.
+[[noreturn]] void ThrowFits(const std::string& path, int status, const std::string& what) {
+  char text[FLEN_STATUS] = {0};
+  fits_get_errstatus(status, text);
+  std::string message = what + ": " + text + " (cfitsio status " + std::to_string(status) + ")";
+  char line[FLEN_ERRMSG] = {0};
+  while (fits_read_errmsg(line)) message += std::string("; ") + line;
+  throw IoError(path, message);
+}
+
+// cfitsio keeps one process-wide stack of messages, and pushes informational ones too (e.g. the
+// card of every HIERARCH keyword written). Each public call starts and ends with an empty stack so
+// that an error message holds only its own story.
+void ClearFitsMessages() { fits_clear_errmsg(); }
+
+// Owns an open fitsfile*; closes it (ignoring errors) if not closed explicitly.
+class FitsFile {
+ public:
+  FitsFile() = default;
+  FitsFile(const FitsFile&) = delete;
+  FitsFile& operator=(const FitsFile&) = delete;
+  ~FitsFile() {
+    if (f_ != nullptr) {
+      int status = 0;
+      fits_close_file(f_, &status);
+      char line[FLEN_ERRMSG];
+      while (fits_read_errmsg(line)) {
+      }
+    }
+  }
+  fitsfile** out() { return &f_; }
+  fitsfile* get() const { return f_; }
+  // Closing flushes buffered data, so its failure (e.g. disk full) is a real error.
+  void Close(const std::string& path) {
+    int status = 0;
+    fitsfile* f = f_;
+    f_ = nullptr;
+    if (fits_close_file(f, &status)) ThrowFits(path, status, "cannot close (flush) the file");
+  }
+
+ private:
+  fitsfile* f_ = nullptr;
+};
+
+std::string Upper(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool IsPrintableAscii(const std::string& s) {
+  return std::all_of(s.begin(), s.end(), [](char c) { return c >= 32 && c <= 126; });
+}
+
+// Fewest significant digits (15..17) that make `v` read back bit-exact through "%.*G".
+int RoundTripDigits(double v) {
+  for (int digits = 15; digits < 17; ++digits) {
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "%.*G", digits, v);
+    if (std::strtod(buf, nullptr) == v) return digits;
+  }
+  return 17;
+}
+
+void WriteKeyword(fitsfile* f, const FitsKeyword& k, const std::string& path) {
+  int status = 0;
+  const char* name = k.name.c_str();
+  const char* comment = k.comment.empty() ? nullptr : k.comment.c_str();
+  if (const bool* b = std::get_if<bool>(&k.value)) {
+    fits_update_key_log(f, name, *b ? 1 : 0, comment, &status);
+  } else if (const long long* i = std::get_if<long long>(&k.value)) {
+    fits_update_key_lng(f, name, static_cast<LONGLONG>(*i), comment, &status);
+  } else if (const double* d = std::get_if<double>(&k.value)) {
+    fits_update_key_dbl(f, name, *d, -RoundTripDigits(*d), comment, &status);
+  } else {
+    // The long-string call writes an ordinary card when the text fits, CONTINUE cards otherwise.
+    fits_update_key_longstr(f, name, std::get<std::string>(k.value).c_str(), comment, &status);
+  }
+  if (status) ThrowFits(path, status, "cannot write keyword " + k.name);
+}
+
+// Parses one keyword's value text (as cfitsio returns it) into a FitsValue. `f` is needed for
+// strings, which may continue over CONTINUE cards.
+FitsValue ParseValue(fitsfile* f, const std::string& name, const std::string& text, const std::string& path) {
+  char type = 0;
+  int status = 0;
+  fits_write_errmark();
+  if (fits_get_keytype(text.c_str(), &type, &status)) {
+    fits_clear_errmark();
+    return text;  // Unrecognised form: keep the raw text.
+  }
+  switch (type) {
+    case 'L':
+      return text == "T";
+    case 'I': {
+      errno = 0;
+      const long long v = std::strtoll(text.c_str(), nullptr, 10);
+      if (errno != ERANGE) return v;
+      return std::strtod(text.c_str(), nullptr);  // Too large for 64 bits.
+    }
+    case 'F': {
+      std::string t = text;
+      std::replace(t.begin(), t.end(), 'D', 'E');  // FITS allows a Fortran 'D' exponent.
+      std::replace(t.begin(), t.end(), 'd', 'E');
+      return std::strtod(t.c_str(), nullptr);
+    }
+    case 'C': {
+      char* long_value = nullptr;
+      if (fits_read_key_longstr(f, name.c_str(), &long_value, nullptr, &status)) {
+        ThrowFits(path, status, "cannot read string keyword " + name);
+      }
+      std::string s = long_value;
+      fits_free_memory(long_value, &status);
+      return s;
+    }
+    default:
+      return text;  // 'X' (complex) and anything newer: raw text.
+  }
+}
+
+FitsHeader ReadHeader(fitsfile* f, const std::string& path) {
+  int status = 0, count = 0, more = 0;
+  if (fits_get_hdrspace(f, &count, &more, &status)) ThrowFits(path, status, "cannot read the header");
+  FitsHeader header;
+  for (int n = 1; n <= count; ++n) {
+    char name[FLEN_KEYWORD] = {0}, value[FLEN_VALUE] = {0}, comment[FLEN_COMMENT] = {0};
+    if (fits_read_keyn(f, n, name, value, comment, &status)) {
+      ThrowFits(path, status, "cannot read header card " + std::to_string(n));
+    }
+    if (value[0] == '\0' || FitsHeader::IsStructural(name)) continue;
+    header.Set(name, ParseValue(f, name, value, path), IsPrintableAscii(comment) ? comment : "");
+  }
+  return header;
+}
+
+struct ImageInfo {
+  int bitpix = 0;
+  std::vector<LONGLONG> axes;  // NAXIS1 (x), NAXIS2 (y)[, NAXIS3 (planes)]
+};
+
+// Moves to the first HDU holding image data (the primary HDU unless it is empty) and returns its
+// BITPIX and axis lengths; IoError when there is none or it is not 2-D/3-D.
+ImageInfo FindImage(fitsfile* f, const std::string& path) {
+  int status = 0, hdus = 0;
+  if (fits_get_num_hdus(f, &hdus, &status)) ThrowFits(path, status, "cannot count the HDUs");
+  for (int h = 1; h <= hdus; ++h) {
+    int type = 0;
+    if (fits_movabs_hdu(f, h, &type, &status))
+      ThrowFits(path, status, "cannot move to HDU " + std::to_string(h));
+    if (type != IMAGE_HDU) continue;
+    int bitpix = 0, naxis = 0;
+    LONGLONG naxes[3] = {0, 0, 0};
+    if (fits_get_img_paramll(f, 3, &bitpix, &naxis, naxes, &status)) {
+      ThrowFits(path, status, "cannot read the image parameters of HDU " + std::to_string(h));
+    }
+    if (naxis == 0) continue;
+    if (naxis < 2 || naxis > 3) {
+      throw IoError(path, "HDU " + std::to_string(h) + " has NAXIS = " + std::to_string(naxis) +
+                              "; aosr reads 2-D images and 3-D cubes only");
+    }
+    std::vector<LONGLONG> axes(naxes, naxes + naxis);
+    if (std::find(axes.begin(), axes.end(), 0) != axes.end()) continue;  // Zero-length axis: no data.
+    return {bitpix, axes};
+  }
+  throw IoError(path, "no image data in any of its " + std::to_string(hdus) + " HDU(s)");
+}
+
+// Copies the planes into one buffer in file order, converting to float32 if asked.
+template <typename T>
+std::vector<T> Flatten(const ImageStack& planes) {
+  std::vector<T> out;
+  out.reserve(planes.size() * static_cast<size_t>(planes.front().size()));
+  for (const Image& p : planes) out.insert(out.end(), p.data(), p.data() + p.size());
+  return out;
+}
+
+void WriteCube(const char* function, const std::string& path, const ImageStack& planes,
+               const FitsHeader& header, FitsType type, int naxis) {
+  CheckArgument(!planes.empty(), function, "planes", "0 planes", "at least one plane");
+  const Shape shape = ShapeOf(planes.front());
+  CheckArgument(shape.size() > 0, function, "image shape", ToString(shape), "non-empty");
+  for (size_t p = 0; p < planes.size(); ++p) {
+    if (ShapeOf(planes[p]) != shape) {
+      throw InvalidArgument(function, "plane " + std::to_string(p) + " shape", ToString(ShapeOf(planes[p])),
+                            "the shape of plane 0, " + ToString(shape));
+    }
+  }
+  if (type == FitsType::kFloat32) {
+    for (const Image& p : planes) {
+      for (Index i = 0; i < p.size(); ++i) {
+        const double v = p.data()[i];
+        if (std::isfinite(v) && std::abs(v) > FLT_MAX) {
+          throw InvalidArgument(function, "pixel value", ToString(v),
+                                "|v| <= 3.4e38 for float32 (write with FitsType::kFloat64)");
+        }
+      }
+    }
+  }
+
+  AtomicWrite(path, [&](const std::string& tmp) {
+    ClearFitsMessages();
+    FitsFile file;
+    int status = 0;
+    if (fits_create_diskfile(file.out(), tmp.c_str(), &status)) ThrowFits(path, status, "cannot create");
+    LONGLONG axes[3] = {shape.cols, shape.rows, static_cast<LONGLONG>(planes.size())};  // x fastest.
+    const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
+    if (fits_create_imgll(file.get(), bitpix, naxis, axes, &status)) {
+      ThrowFits(path, status, "cannot create the image HDU");
+    }
+    for (const FitsKeyword& k : header.keywords()) WriteKeyword(file.get(), k, path);
+    const LONGLONG n = static_cast<LONGLONG>(planes.size()) * shape.size();
+    if (type == FitsType::kFloat32) {
+      std::vector<float> data = Flatten<float>(planes);
+      fits_write_img(file.get(), TFLOAT, 1, n, data.data(), &status);
+    } else {
+      std::vector<double> data = Flatten<double>(planes);
+      fits_write_img(file.get(), TDOUBLE, 1, n, data.data(), &status);
+    }
+    if (status) ThrowFits(path, status, "cannot write the pixels");
+    file.Close(path);
+    ClearFitsMessages();
+  });
+}
+
+const FitsKeyword& Require(const FitsHeader& h, const std::string& name, const char* function) {
+  const FitsKeyword* k = h.Find(name);
+  if (k == nullptr) throw InvalidArgument(function, "keyword", name, "a keyword present in the header");
+  return *k;
+}
+
+std::string TypeName(const FitsValue& v) {
+  static const char* kNames[] = {"a logical", "an integer", "a real", "a string"};
+  return kNames[v.index()];
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// FitsHeader
+
+bool FitsHeader::IsStructural(const std::string& name) {
+  const std::string n = Upper(name);
+  static const char* kReserved[] = {"SIMPLE",  "BITPIX",   "NAXIS",   "EXTEND",   "BSCALE", "BZERO",
+                                    "BLANK",   "XTENSION", "PCOUNT",  "GCOUNT",   "END",    "CHECKSUM",
+                                    "DATASUM", "COMMENT",  "HISTORY", "CONTINUE", ""};
+  for (const char* r : kReserved) {
+    if (n == r) return true;
+  }
+  // NAXISn: NAXIS followed by digits only.
+  return n.size() > 5 && n.compare(0, 5, "NAXIS") == 0 && std::all_of(n.begin() + 5, n.end(), [](char c) {
+           return std::isdigit(static_cast<unsigned char>(c));
+         });
+}
+
+void FitsHeader::Set(const std::string& name, const FitsValue& value, const std::string& comment) {
+  const char* fn = "FitsHeader::Set";
+  const std::string n = Upper(name);
+  CheckArgument(!n.empty() && n.size() <= 60 && IsPrintableAscii(n) && n.find('=') == std::string::npos &&
+                    n.front() != ' ' && n.back() != ' ',
+                fn, "keyword name", "'" + name + "'",
+                "1..60 printable ASCII characters without '=' or surrounding blanks");
+  CheckArgument(!IsStructural(n), fn, "keyword name", n,
+                "a user keyword (structural and commentary keywords are written by the writer)");
+  if (const double* d = std::get_if<double>(&value)) {
+    CheckArgument(std::isfinite(*d), fn, n + " value", *d,
+                  "a finite number (FITS headers cannot hold NaN/Inf)");
+  }
+  if (const std::string* s = std::get_if<std::string>(&value)) {
+    CheckArgument(IsPrintableAscii(*s), fn, n + " value", *s, "printable ASCII text");
+  }
+  CheckArgument(IsPrintableAscii(comment), fn, n + " comment", comment, "printable ASCII text");
+  for (FitsKeyword& k : keywords_) {
+    if (k.name == n) {
+      k.value = value;
+      k.comment = comment;
+      return;
+    }
+  }
+  keywords_.push_back({n, value, comment});
+}
+
+void FitsHeader::Set(const std::string& name, bool value, const std::string& comment) {
+  Set(name, FitsValue(value), comment);
+}
+void FitsHeader::Set(const std::string& name, int value, const std::string& comment) {
+  Set(name, FitsValue(static_cast<long long>(value)), comment);
+}
+void FitsHeader::Set(const std::string& name, long value, const std::string& comment) {
+  Set(name, FitsValue(static_cast<long long>(value)), comment);
+}
+void FitsHeader::Set(const std::string& name, long long value, const std::string& comment) {
+  Set(name, FitsValue(value), comment);
+}
+void FitsHeader::Set(const std::string& name, double value, const std::string& comment) {
+  Set(name, FitsValue(value), comment);
+}
+void FitsHeader::Set(const std::string& name, const char* value, const std::string& comment) {
+  Set(name, FitsValue(std::string(value)), comment);
+}
+void FitsHeader::Set(const std::string& name, const std::string& value, const std::string& comment) {
+  Set(name, FitsValue(value), comment);
+}
+
+const FitsKeyword* FitsHeader::Find(const std::string& name) const {
+  const std::string n = Upper(name);
+  for (const FitsKeyword& k : keywords_) {
+    if (k.name == n) return &k;
+  }
+  return nullptr;
+}
+
+bool FitsHeader::Has(const std::string& name) const { return Find(name) != nullptr; }
+
+double FitsHeader::GetDouble(const std::string& name) const {
+  const FitsKeyword& k = Require(*this, name, "FitsHeader::GetDouble");
+  if (const double* d = std::get_if<double>(&k.value)) return *d;
+  if (const long long* i = std::get_if<long long>(&k.value)) return static_cast<double>(*i);
+  throw InvalidArgument("FitsHeader::GetDouble", "keyword " + k.name, TypeName(k.value),
+                        "a real or an integer");
+}
+
+long long FitsHeader::GetInt(const std::string& name) const {
+  const FitsKeyword& k = Require(*this, name, "FitsHeader::GetInt");
+  if (const long long* i = std::get_if<long long>(&k.value)) return *i;
+  throw InvalidArgument("FitsHeader::GetInt", "keyword " + k.name, TypeName(k.value), "an integer");
+}
+
+std::string FitsHeader::GetString(const std::string& name) const {
+  const FitsKeyword& k = Require(*this, name, "FitsHeader::GetString");
+  if (const std::string* s = std::get_if<std::string>(&k.value)) return *s;
+  throw InvalidArgument("FitsHeader::GetString", "keyword " + k.name, TypeName(k.value), "a string");
+}
+
+bool FitsHeader::GetBool(const std::string& name) const {
+  const FitsKeyword& k = Require(*this, name, "FitsHeader::GetBool");
+  if (const bool* b = std::get_if<bool>(&k.value)) return *b;
+  throw InvalidArgument("FitsHeader::GetBool", "keyword " + k.name, TypeName(k.value), "a logical");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Files
+
+void WriteFits(const std::string& path, const Image& img, const FitsHeader& header, FitsType type) {
+  WriteCube("WriteFits", path, ImageStack{img}, header, type, 2);
+}
+
+void WriteFitsCube(const std::string& path, const ImageStack& planes, const FitsHeader& header,
+                   FitsType type) {
+  WriteCube("WriteFitsCube", path, planes, header, type, 3);
+}
+
+FitsData ReadFits(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");
+  if (std::filesystem::is_directory(path, ec)) throw IoError(path, "is a directory, not a FITS file");
+
+  ClearFitsMessages();
+  FitsFile file;
+  int status = 0;
+  if (fits_open_diskfile(file.out(), path.c_str(), READONLY, &status)) {
+    ThrowFits(path, status, "cannot open as FITS");
+  }
+  const ImageInfo info = FindImage(file.get(), path);
+  const std::vector<LONGLONG>& axes = info.axes;
+  const Index cols = axes[0], rows = axes[1];
+  const Index planes = axes.size() == 3 ? axes[2] : 1;
+
+  FitsData data;
+  data.header = ReadHeader(file.get(), path);
+  data.planes.reserve(planes);
+  // Integer data: pixels equal to BLANK become NaN. Float data: no null checking, because cfitsio
+  // would treat every IEEE special value (Inf as well as NaN) as null; NaN and Inf pass unchanged.
+  double nan = std::numeric_limits<double>::quiet_NaN();
+  double* null_value = info.bitpix > 0 ? &nan : nullptr;
+  for (Index p = 0; p < planes; ++p) {
+    Image plane(rows, cols);
+    int any_null = 0;
+    if (fits_read_img(file.get(), TDOUBLE, 1 + p * rows * cols, rows * cols, null_value, plane.data(),
+                      &any_null, &status)) {
+      ThrowFits(path, status,
+                "cannot read plane " + std::to_string(p) + " of " + std::to_string(planes) + " (" +
+                    std::to_string(rows) + "x" + std::to_string(cols) + ")");
+    }
+    data.planes.push_back(std::move(plane));
+  }
+  file.Close(path);
+  ClearFitsMessages();
+  return data;
+}
+
+Image ReadFitsImage(const std::string& path) {
+  FitsData data = ReadFits(path);
+  if (data.planes.size() != 1) {
+    throw IoError(path, "expected a single image but found a cube of " + std::to_string(data.planes.size()) +
+                            " planes of " + ToString(ShapeOf(data.planes.front())));
+  }
+  return std::move(data.planes.front());
+}
+
+}  // namespace aosr

@@ -1,0 +1,225 @@
+#include "aosr/io/image_io.hpp"
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+
+#include "aosr/core/error.hpp"
+#include "aosr/io/atomic_file.hpp"
+#include "aosr/io/fits.hpp"
+
+namespace aosr {
+namespace {
+
+std::string LowerExtension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext;
+}
+
+bool LooksLikeFits(const std::string& path) {
+  const std::string ext = LowerExtension(path);
+  if (ext == ".fits" || ext == ".fit" || ext == ".fts") return true;
+  std::ifstream in(path, std::ios::binary);
+  char magic[9] = {0};
+  in.read(magic, sizeof magic);
+  return in.gcount() == 9 && std::string(magic, 9) == "SIMPLE  =";
+}
+
+// Percentile p (in %) of sorted values, linear interpolation between order statistics.
+double Percentile(const std::vector<double>& sorted, double p) {
+  const double rank = p / 100.0 * static_cast<double>(sorted.size() - 1);
+  const size_t i = static_cast<size_t>(std::floor(rank));
+  if (i + 1 >= sorted.size()) return sorted.back();
+  const double frac = rank - static_cast<double>(i);
+  return sorted[i] + frac * (sorted[i + 1] - sorted[i]);
+}
+
+// Rounds t in [0, 1] to the nearest of 0..max_value.
+template <typename T>
+std::vector<T> Quantise(const Image& t, double max_value) {
+  std::vector<T> out(static_cast<size_t>(t.size()));
+  for (Index i = 0; i < t.size(); ++i) out[i] = static_cast<T>(std::lround(t.data()[i] * max_value));
+  return out;
+}
+
+std::string OiioError(const std::string& fallback) {
+  std::string e = OIIO::geterror();
+  return e.empty() ? fallback : e;
+}
+
+}  // namespace
+
+bool ViewOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (stretch != Stretch::kLinear && stretch != Stretch::kLog && stretch != Stretch::kAsinh) {
+    return fail("stretch = " + std::to_string(static_cast<int>(stretch)) + " is not a Stretch value");
+  }
+  if (!(low_percentile >= 0.0 && low_percentile < high_percentile && high_percentile <= 100.0)) {
+    return fail("low_percentile = " + ToString(low_percentile) +
+                ", high_percentile = " + ToString(high_percentile) + "; need 0 <= low < high <= 100");
+  }
+  if (bits != 8 && bits != 16 && bits != 32)
+    return fail("bits = " + std::to_string(bits) + "; need 8, 16 or 32");
+  if (!(std::isfinite(asinh_softening) && asinh_softening > 0.0)) {
+    return fail("asinh_softening = " + ToString(asinh_softening) + "; need a finite value > 0");
+  }
+  return true;
+}
+
+Image ApplyStretch(const Image& img, const ViewOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument("ApplyStretch: invalid ViewOptions: " + why);
+  std::vector<double> finite;
+  finite.reserve(static_cast<size_t>(img.size()));
+  for (Index i = 0; i < img.size(); ++i) {
+    if (std::isfinite(img.data()[i])) finite.push_back(img.data()[i]);
+  }
+  Image out = Image::Zero(img.rows(), img.cols());
+  if (finite.empty()) return out;
+  std::sort(finite.begin(), finite.end());
+  const double lo = Percentile(finite, options.low_percentile);
+  const double hi = Percentile(finite, options.high_percentile);
+  if (!(hi > lo)) return out;
+
+  const double s = options.asinh_softening;
+  const double log_norm = std::log10(1001.0), asinh_norm = std::asinh(1.0 / s);
+  for (Index i = 0; i < img.size(); ++i) {
+    const double v = img.data()[i];
+    if (std::isnan(v)) continue;                                  // NaN -> 0.
+    const double t = std::clamp((v - lo) / (hi - lo), 0.0, 1.0);  // +-Inf clamp to 1 / 0.
+    switch (options.stretch) {
+      case Stretch::kLinear:
+        out.data()[i] = t;
+        break;
+      case Stretch::kLog:
+        out.data()[i] = std::log10(1.0 + 1000.0 * t) / log_norm;
+        break;
+      case Stretch::kAsinh:
+        out.data()[i] = std::asinh(t / s) / asinh_norm;
+        break;
+    }
+  }
+  return out;
+}
+
+void WriteViewImage(const std::string& path, const Image& img, const ViewOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument("WriteViewImage: invalid ViewOptions: " + why);
+  const std::string ext = LowerExtension(path);
+  std::string format;
+  if (ext == ".png") {
+    format = "png";
+  } else if (ext == ".tif" || ext == ".tiff") {
+    format = "tiff";
+  } else {
+    throw InvalidArgument("WriteViewImage", "file extension", "'" + ext + "' (" + path + ")",
+                          ".png, .tif or .tiff");
+  }
+  CheckArgument(format == "tiff" || options.bits != 32, "WriteViewImage", "bits", options.bits,
+                "8 or 16 for PNG (32 = float is TIFF only)");
+  CheckArgument(img.size() > 0, "WriteViewImage", "image shape", ToString(ShapeOf(img)), "non-empty");
+
+  const Image t = ApplyStretch(img, options);
+  std::vector<std::uint8_t> u8;
+  std::vector<std::uint16_t> u16;
+  std::vector<float> f32;
+  OIIO::TypeDesc type;
+  const void* pixels = nullptr;
+  if (options.bits == 8) {
+    u8 = Quantise<std::uint8_t>(t, 255.0);
+    type = OIIO::TypeDesc::UINT8;
+    pixels = u8.data();
+  } else if (options.bits == 16) {
+    u16 = Quantise<std::uint16_t>(t, 65535.0);
+    type = OIIO::TypeDesc::UINT16;
+    pixels = u16.data();
+  } else {
+    f32.assign(t.data(), t.data() + t.size());
+    type = OIIO::TypeDesc::FLOAT;
+    pixels = f32.data();
+  }
+
+  AtomicWrite(path, [&](const std::string& tmp) {
+    // Created by format name: the temporary file's name does not end in the format's extension.
+    auto out = OIIO::ImageOutput::create(format);
+    if (!out) throw IoError(path, OiioError("no OpenImageIO writer for " + format));
+    const OIIO::ImageSpec spec(static_cast<int>(img.cols()), static_cast<int>(img.rows()), 1, type);
+    if (!out->open(tmp, spec)) throw IoError(path, "cannot open for writing: " + out->geterror());
+    if (!out->write_image(type, pixels)) throw IoError(path, "cannot write pixels: " + out->geterror());
+    if (!out->close()) throw IoError(path, "cannot close: " + out->geterror());
+  });
+}
+
+Image ReadImage(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");
+  if (std::filesystem::is_directory(path, ec)) throw IoError(path, "is a directory, not an image file");
+  if (LooksLikeFits(path)) return ReadFitsImage(path);
+
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw IoError(path, "cannot open as an image: " + OiioError("unknown format"));
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.depth > 1)
+    throw IoError(path, "volume images (depth " + std::to_string(spec.depth) + ") are not supported");
+  if (spec.deep) throw IoError(path, "deep images are not supported");
+  const int channels = spec.nchannels;
+  const Index rows = spec.height, cols = spec.width;
+  if (channels < 1 || rows < 1 || cols < 1) throw IoError(path, "empty image");
+
+  std::vector<float> buffer(static_cast<size_t>(rows * cols * channels));
+  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, buffer.data())) {
+    throw IoError(path, "cannot read pixels: " + in->geterror());
+  }
+  in->close();
+
+  // Colour channels: all but alpha and depth (z); a lone alpha-like channel is used as it is.
+  std::vector<int> colour;
+  for (int c = 0; c < channels; ++c) {
+    if (c != spec.alpha_channel && c != spec.z_channel) colour.push_back(c);
+  }
+  if (colour.empty()) colour.push_back(0);
+
+  Image img(rows, cols);
+  for (Index i = 0; i < rows * cols; ++i) {
+    double sum = 0.0;
+    for (int c : colour) sum += buffer[static_cast<size_t>(i * channels + c)];
+    img.data()[i] = sum / static_cast<double>(colour.size());
+  }
+  return img;
+}
+
+Image Montage(const std::vector<Image>& tiles, int columns, int gap_px, double gap_value) {
+  CheckArgument(!tiles.empty(), "Montage", "tiles", "0 tiles", "at least one tile");
+  CheckArgument(columns >= 1, "Montage", "columns", columns, ">= 1");
+  CheckArgument(gap_px >= 0, "Montage", "gap_px", gap_px, ">= 0");
+  Index cell_rows = 0, cell_cols = 0;
+  for (size_t i = 0; i < tiles.size(); ++i) {
+    CheckArgument(tiles[i].size() > 0, "Montage", ("tile " + std::to_string(i) + " shape").c_str(),
+                  ToString(ShapeOf(tiles[i])), "non-empty");
+    cell_rows = std::max(cell_rows, tiles[i].rows());
+    cell_cols = std::max(cell_cols, tiles[i].cols());
+  }
+  const Index n = static_cast<Index>(tiles.size());
+  const Index grid_cols = std::min<Index>(columns, n);
+  const Index grid_rows = (n + grid_cols - 1) / grid_cols;
+  Image out = Image::Constant(grid_rows * cell_rows + (grid_rows - 1) * gap_px,
+                              grid_cols * cell_cols + (grid_cols - 1) * gap_px, gap_value);
+  for (Index i = 0; i < n; ++i) {
+    const Image& tile = tiles[static_cast<size_t>(i)];
+    const Index top = (i / grid_cols) * (cell_rows + gap_px) + (cell_rows - tile.rows()) / 2;
+    const Index left = (i % grid_cols) * (cell_cols + gap_px) + (cell_cols - tile.cols()) / 2;
+    out.block(top, left, tile.rows(), tile.cols()) = tile;
+  }
+  return out;
+}
+
+}  // namespace aosr
