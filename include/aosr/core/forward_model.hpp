@@ -25,6 +25,13 @@
 
 namespace aosr {
 
+// A frame's pointing offset in HR pixels (+dx moves the scene toward +x). Designed tip/tilt offsets are
+// carried by the PSFs; this records them for the methods that register frames instead of modelling them.
+struct FrameOffset {
+  double dy = 0.0;
+  double dx = 0.0;
+};
+
 class MultiFrameModel {
  public:
   // `otfs[i]` is frame i's half-spectrum transfer function on the HR grid (hr.rows x hr.cols/2+1).

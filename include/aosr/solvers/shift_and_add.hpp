@@ -13,15 +13,10 @@
 
 #include <vector>
 
-#include "aosr/core/image.hpp"
+#include "aosr/core/forward_model.hpp"
 #include "aosr/solvers/summary.hpp"
 
 namespace aosr {
-
-struct FrameOffset {
-  double dy = 0.0;  // pointing offset of the frame, in HR pixels (+ moves the scene toward +y)
-  double dx = 0.0;
-};
 
 enum class Combine { kMean, kMedian };
 
