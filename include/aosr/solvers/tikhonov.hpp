@@ -31,11 +31,21 @@ const char* ToString(TikhonovPrior p);
 // Parses "identity" | "gradient" | "laplacian"; InvalidArgument otherwise.
 TikhonovPrior ParseTikhonovPrior(const std::string& name);
 
+// How λ is chosen: as given, or by generalised cross-validation (GCV; Golub, Heath & Wahba 1979,
+// Technometrics 21, 215), which needs no noise estimate and is computed exactly per frequency bin.
+enum class TikhonovLambdaRule { kFixed, kGcv };
+
 struct TikhonovOptions {
   TikhonovPrior prior = TikhonovPrior::kGradient;
-  // Regularisation weight λ >= 0, in the units of the objective above (frame units squared per prior
-  // unit squared). 0 gives the (minimum-norm) least-squares solution.
+  TikhonovLambdaRule lambda_rule = TikhonovLambdaRule::kFixed;
+  // Regularisation weight λ >= 0 for kFixed, in the units of the objective above (frame units squared
+  // per prior unit squared). 0 gives the (minimum-norm) least-squares solution.
   double lambda = 1e-2;
+  // kGcv searches λ = λ₀·10^t on a grid of t in [-gcv_decades, 0] with gcv_steps_per_decade points per
+  // decade, where λ₀ = Σ_u tr(A(u)ᴴA(u)) / Σ_u tr P(u) is the scale at which data and prior weigh
+  // alike. Each grid point costs one pass of per-bin solves. Defaults: 8 decades, 4 per decade.
+  double gcv_decades = 8.0;
+  int gcv_steps_per_decade = 4;
   // A singular value of A(u) below rank_tolerance × the largest singular value over all bins counts as
   // zero when reporting unconstrained frequencies. In (0, 1).
   double rank_tolerance = 1e-9;
@@ -43,6 +53,8 @@ struct TikhonovOptions {
 };
 
 struct TikhonovSummary : SolverSummary {
+  double lambda = 0.0;                  // the λ used (chosen by GCV or given)
+  double gcv = 0.0;                     // GCV score at that λ (0 for kFixed)
   Index lr_bins = 0;                    // number of per-frequency systems solved
   Index rank_deficient_bins = 0;        // bins where rank A(u) < r²
   Index unconstrained_frequencies = 0;  // Σ_u (r² − rank A(u)): HR bins the data do not determine
