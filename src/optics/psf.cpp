@@ -132,6 +132,96 @@ double StrehlFromPupil(const Image& amplitude, const Image& opd_m, double wavele
   return (re * re + im * im) / (sum_a * sum_a);
 }
 
+bool SpectralBand::IsValid(std::string* why) const {
+  std::string msg;
+  if (wavelengths_m.empty()) {
+    msg = "wavelengths_m = (empty); allowed: at least one wavelength";
+  } else if (weights.size() != wavelengths_m.size()) {
+    msg = "weights = (" + std::to_string(weights.size()) + " values); allowed: one per wavelength (" +
+          std::to_string(wavelengths_m.size()) + ")";
+  }
+  double sum = 0.0;
+  for (std::size_t k = 0; msg.empty() && k < wavelengths_m.size(); ++k) {
+    if (!(std::isfinite(wavelengths_m[k]) && wavelengths_m[k] > 0.0)) {
+      msg = "wavelengths_m[" + std::to_string(k) + "] = " + ToString(wavelengths_m[k]) +
+            "; allowed: > 0 and finite [m]";
+    } else if (!(std::isfinite(weights[k]) && weights[k] >= 0.0)) {
+      msg = "weights[" + std::to_string(k) + "] = " + ToString(weights[k]) + "; allowed: >= 0 and finite";
+    } else {
+      sum += weights[k];
+    }
+  }
+  if (msg.empty() && !(sum > 0.0)) msg = "weights = (all zero); allowed: sum > 0";
+  if (msg.empty()) return true;
+  if (why != nullptr) *why = msg;
+  return false;
+}
+
+SpectralBand UniformBand(double centre_m, double width_m, int samples) {
+  CheckArgument(std::isfinite(centre_m) && centre_m > 0.0, "UniformBand", "centre_m", centre_m,
+                "> 0 and finite [m]");
+  CheckArgument(std::isfinite(width_m) && width_m >= 0.0 && width_m < 2.0 * centre_m, "UniformBand",
+                "width_m", width_m, ">= 0 and < 2 centre_m [m]");
+  CheckArgument(samples >= 1, "UniformBand", "samples", samples, ">= 1");
+  SpectralBand band;
+  for (int k = 0; k < samples; ++k) {
+    band.wavelengths_m.push_back(centre_m + width_m * ((k + 0.5) / samples - 0.5));
+    band.weights.push_back(1.0);
+  }
+  return band;
+}
+
+namespace {
+
+std::vector<PsfCalculator> BandCalculators(Index pupil_n, double diameter_m, const SpectralBand& band,
+                                           double pixel_scale_rad, Index rows, Index cols) {
+  std::string why;
+  if (!band.IsValid(&why)) throw InvalidArgument("BandPsfCalculator: invalid band." + why);
+  CheckArgument(pupil_n >= 1, "BandPsfCalculator", "pupil_n", pupil_n, ">= 1");
+  CheckDiameter(diameter_m, "BandPsfCalculator");
+  CheckArgument(std::isfinite(pixel_scale_rad) && pixel_scale_rad > 0.0, "BandPsfCalculator",
+                "pixel_scale_rad", pixel_scale_rad, "> 0 and finite [rad]");
+  CheckArgument(rows >= 1, "BandPsfCalculator", "rows", rows, ">= 1");
+  CheckArgument(cols >= 1, "BandPsfCalculator", "cols", cols, ">= 1");
+  std::vector<PsfCalculator> calculators;
+  calculators.reserve(band.wavelengths_m.size());
+  for (double lambda : band.wavelengths_m) {
+    calculators.emplace_back(pupil_n, diameter_m, PsfSampling{lambda, pixel_scale_rad, rows, cols});
+  }
+  return calculators;
+}
+
+}  // namespace
+
+BandPsfCalculator::BandPsfCalculator(Index pupil_n, double diameter_m, const SpectralBand& band,
+                                     double pixel_scale_rad, Index rows, Index cols)
+    : band_(band), calculators_(BandCalculators(pupil_n, diameter_m, band, pixel_scale_rad, rows, cols)) {
+  double sum = 0.0;
+  for (double w : band_.weights) sum += w;
+  for (double w : band_.weights) weights_.push_back(w / sum);
+}
+
+BandPsf BandPsfCalculator::Compute(const Image& amplitude, const Image& opd_m) const {
+  BandPsf out;
+  double num = 0.0, den = 0.0;
+  for (std::size_t k = 0; k < calculators_.size(); ++k) {
+    // PsfCalculator::Compute validates the shapes and values (its messages name it).
+    Image psf_k = calculators_[k].Compute(amplitude, opd_m);
+    if (k == 0) {
+      out.psf = weights_[k] * psf_k;
+    } else {
+      out.psf += weights_[k] * psf_k;
+    }
+    const double lambda = band_.wavelengths_m[k];
+    const double strehl = StrehlFromPupil(amplitude, opd_m, lambda);
+    out.strehl.push_back(strehl);
+    num += weights_[k] / (lambda * lambda) * strehl;
+    den += weights_[k] / (lambda * lambda);
+  }
+  out.band_strehl = num / den;
+  return out;
+}
+
 double PeakStrehl(const Image& psf, const Image& reference_psf) {
   CheckArgument(psf.size() > 0 && psf.isFinite().all(), "PeakStrehl", "psf", ToString(ShapeOf(psf)),
                 "a non-empty image of finite values");

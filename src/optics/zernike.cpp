@@ -245,6 +245,64 @@ Vector ProjectOntoZernike(const Image& phase, const Image& pupil, int J) {
   return qr.solve(b);
 }
 
+ImageStack OrthonormalZernikeBasis(const Image& pupil, int J, Eigen::MatrixXd* zernike_to_mode) {
+  CheckArgument(J >= 1, "OrthonormalZernikeBasis", "J", J, ">= 1 (number of modes)");
+  CheckArgument(pupil.rows() >= 1 && pupil.rows() == pupil.cols(), "OrthonormalZernikeBasis", "pupil shape",
+                ToString(ShapeOf(pupil)), "square n x n pupil grid, n >= 1");
+  CheckArgument(pupil.isFinite().all() && (pupil >= 0.0).all(), "OrthonormalZernikeBasis", "pupil",
+                "negative or non-finite values", "finite weights >= 0");
+  const Index n = pupil.rows();
+  std::vector<Index> pixels;
+  double total = 0.0;
+  for (Index p = 0; p < pupil.size(); ++p) {
+    if (pupil.data()[p] > 0.0) {
+      pixels.push_back(p);
+      total += pupil.data()[p];
+    }
+  }
+  CheckArgument(static_cast<Index>(pixels.size()) >= J, "OrthonormalZernikeBasis", "J", J,
+                "at most the number of pupil pixels (" + std::to_string(pixels.size()) + ")");
+  // Z (P x J), unweighted, and its row-weighted copy sqrt(A) Z.
+  const Index rows = static_cast<Index>(pixels.size());
+  Eigen::MatrixXd z(rows, J);
+  Vector sqrt_w(rows);
+  ModeEvaluator eval(J);
+  std::vector<double> values(J);
+  for (Index r = 0; r < rows; ++r) {
+    const Index p = pixels[r];
+    eval.Evaluate(NormalisedPupilPosition(p % n, n), NormalisedPupilPosition(p / n, n), values.data());
+    for (int q = 0; q < J; ++q) z(r, q) = values[q];
+    sqrt_w[r] = std::sqrt(pupil.data()[p] / total);  // weights normalised: <f, g>_A = sum (w f)(w g)
+  }
+  // Two passes of "M <- M R^-1" with R from the QR of diag(sqrt_w) M (Householder, no pivoting so the Noll
+  // order and the triangular structure are kept). T accumulates the product of the R^-1.
+  Eigen::MatrixXd m = z;
+  Eigen::MatrixXd t = Eigen::MatrixXd::Identity(J, J);
+  for (int pass = 0; pass < 2; ++pass) {
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(sqrt_w.asDiagonal() * m);
+    Eigen::MatrixXd r = qr.matrixQR().topRows(J).triangularView<Eigen::Upper>();
+    // Positive diagonal: flip the sign of rows of R (and so of columns of Q) where needed.
+    for (int q = 0; q < J; ++q) {
+      if (r(q, q) < 0.0) r.row(q) *= -1.0;
+    }
+    const double largest = r.diagonal().cwiseAbs().maxCoeff();
+    for (int q = 0; q < J; ++q) {
+      CheckArgument(r(q, q) > 1e-10 * largest, "OrthonormalZernikeBasis", "J", J,
+                    "modes that are linearly independent on the pupil (mode " + std::to_string(q + 1) +
+                        " is not); use fewer modes or a finer grid");
+    }
+    const Eigen::MatrixXd r_inv = r.triangularView<Eigen::Upper>().solve(Eigen::MatrixXd::Identity(J, J));
+    m = m * r_inv;
+    t = t * r_inv;
+  }
+  if (zernike_to_mode != nullptr) *zernike_to_mode = t;
+  ImageStack modes(J, Image::Zero(n, n));
+  for (Index r = 0; r < rows; ++r) {
+    for (int q = 0; q < J; ++q) modes[q].data()[pixels[r]] = m(r, q);
+  }
+  return modes;
+}
+
 double TiltCoefficientForShift(double shift_rad, double diameter_m) {
   CheckArgument(std::isfinite(diameter_m) && diameter_m > 0.0, "TiltCoefficientForShift", "diameter_m",
                 diameter_m, "> 0 and finite [m]");

@@ -32,10 +32,10 @@
 // (rho = 1 at the rim of a grid that spans D) and set pixels whose centre lies outside the pupil to 0: the
 // same rule as CircularPupil(n, geometry, 1), so a mode and the binary pupil share their support. With a
 // central obstruction the modes are the *circular* Zernikes masked by the annulus: they are no longer exactly
-// orthogonal there (annular Zernikes are a later extension); ProjectOntoZernike() stays exact because it
-// solves least squares rather than taking inner products. For grey-edged pupils, whose edge pixels can have
-// centres just beyond rho = 1, build OPDs with ZernikeUnmasked() so every transmitting pixel carries the
-// mode.
+// orthogonal there; ProjectOntoZernike() stays exact because it solves least squares rather than taking inner
+// products, and OrthonormalZernikeBasis() builds modes that are orthonormal over any given pupil (below). For
+// grey-edged pupils, whose edge pixels can have centres just beyond rho = 1, build OPDs with
+// ZernikeUnmasked() so every transmitting pixel carries the mode.
 //
 // Tip/tilt and image motion. With the pupil field E = A exp(i 2 pi w / lambda) (w: OPD in metres) and
 // PSF = |F{E}|^2 under the forward kernel exp(-2 pi i u.alpha) (psf.hpp, mft.hpp), an OPD w = s x of slope s
@@ -44,6 +44,8 @@
 // so a coefficient a [metres, RMS-normalised mode] moves the image by 4a/D radians, and conversely
 // a = shift * D / 4. The same holds for a Z3 coefficient along +y (larger row index).
 #pragma once
+
+#include <Eigen/Core>
 
 #include "aosr/core/image.hpp"
 
@@ -91,6 +93,31 @@ ImageStack ZernikeBasis(int J, Index n_pix, double obstruction = 0.0);
 // Throws InvalidArgument for J < 1, shape mismatch, non-square or empty images, negative or non-finite
 // pupil values, non-finite phase on the pupil, or too few pupil pixels to determine J modes.
 Vector ProjectOntoZernike(const Image& phase, const Image& pupil, int J);
+
+// Zernike modes orthonormalised over an arbitrary pupil (obstructed, with spiders, segmented, grey-edged).
+//
+// Maths. With the pupil-weighted inner product and its RMS
+//     <f, g>_A = sum_p A_p f_p g_p / sum_p A_p,        RMS_A(f) = sqrt(<f, f>_A),
+// (A: the pupil amplitude, or any weights >= 0) the circular Z_1..Z_J are no longer orthogonal on an annulus
+// or a cut pupil. Gram-Schmidt in Noll order gives modes
+//     M_j = sum_{i <= j} Z_i T(i, j),     <M_i, M_j>_A = delta_ij,     T upper triangular, T(j, j) > 0,
+// so M_1 is the constant 1 (piston) over the pupil, every M_j (j > 1) has zero weighted mean and RMS 1, and
+// M_j differs from Z_j only by what Z_j shares with Z_1..Z_{j-1} on this pupil: on an unobstructed disk the
+// M_j are the Z_j up to the grid's discretisation (tested), on an annulus they are the sampled analogue of
+// annular Zernikes (V. N. Mahajan, "Zernike annular polynomials for imaging systems with annular pupils",
+// J. Opt. Soc. Am. 71, 75-85 (1981)) up to sign conventions and discretisation.
+// Numerics: Householder QR of diag(sqrt(A / sum A)) Z (P pupil pixels x J) gives that matrix = Q R, so
+// M = Z R^-1 (with R's diagonal made positive); a second QR pass on the result removes the rounding left by
+// the conditioning of Z (cond(Z) grows with the obstruction), giving orthonormality to ~1e-14.
+//
+// Zernike polynomials are evaluated unmasked at every pixel centre with A > 0 (like ProjectOntoZernike) and
+// the modes are 0 where A = 0.
+//
+// Returns the J mode images (element j-1 is M_j) on the pupil's grid; if `zernike_to_mode` is non-null it
+// receives T (J x J), so a combination sum_j b_j M_j equals sum_i (T b)_i Z_i. Cost O(P J^2).
+// Throws InvalidArgument for J < 1, a non-square or empty pupil, negative or non-finite weights, or modes
+// that are linearly dependent on the pupil (too few pixels for J modes).
+ImageStack OrthonormalZernikeBasis(const Image& pupil, int J, Eigen::MatrixXd* zernike_to_mode = nullptr);
 
 // Z2 (or Z3) coefficient [m of OPD, RMS-normalised mode] that moves the image by `shift_rad` [rad] along +x
 // (or +y) for a telescope of diameter `diameter_m` [m]: a = shift * D / 4 (derivation above).
