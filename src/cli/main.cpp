@@ -1,9 +1,33 @@
-// aosr command-line entry point (placeholder replaced by the CLI commands as they land).
-#include <CLI/CLI.hpp>
+// aosr: super-resolved imaging with adaptive optics. Entry point of the command-line tool.
+//
+// Exit codes: 0 success, 1 a usage or input error (the message names what is wrong), 2 an internal error.
+#include <cstdio>
+#include <exception>
+
+#include "aosr/core/error.hpp"
+#include "commands.hpp"
 
 int main(int argc, char** argv) {
-  CLI::App app{"aosr: super-resolved imaging with adaptive optics"};
-  app.require_subcommand(0, 1);
-  CLI11_PARSE(app, argc, argv);
+  CLI::App app{
+      "aosr: super-resolved imaging with adaptive optics.\n"
+      "The DM adds a designed phase to each of N sub-exposures; reconstructing the N undersampled frames\n"
+      "jointly gives an image r times finer than the camera's pixels."};
+  app.set_version_flag("--version", std::string("aosr ") + AOSR_VERSION);
+  app.require_subcommand(1);
+  aosr::cli::RegisterDemo(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const aosr::InvalidArgument& e) {
+    std::fprintf(stderr, "aosr: error: %s\n", e.what());
+    return 1;
+  } catch (const aosr::IoError& e) {
+    std::fprintf(stderr, "aosr: error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "aosr: internal error: %s\n", e.what());
+    return 2;
+  }
   return 0;
 }

@@ -1,0 +1,49 @@
+#include "cli_util.hpp"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "aosr/core/error.hpp"
+
+namespace aosr::cli {
+
+Progress::Progress(bool enabled) : enabled_(enabled && isatty(fileno(stderr))) {}
+
+void Progress::Step(const std::string& message) const {
+  if (enabled_) std::fprintf(stderr, "[aosr] %s\n", message.c_str());
+}
+
+CLI::Validator NonNegativeFinite() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        double v = 0;
+        std::size_t used = 0;
+        try {
+          v = std::stod(text, &used);
+        } catch (const std::exception&) {
+          return "expected a number, got '" + text + "'";
+        }
+        if (used != text.size() || !std::isfinite(v) || v < 0) return "must be a finite number >= 0, got " + text;
+        return "";
+      },
+      "NUMBER >= 0");
+}
+
+void EnsureDirectory(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    if (!fs::is_directory(dir, ec)) throw IoError(dir, "exists and is not a directory");
+    return;
+  }
+  if (!fs::create_directories(dir, ec) || ec) throw IoError(dir, "cannot create directory: " + ec.message());
+}
+
+std::string JoinPath(const std::string& dir, const std::string& name) {
+  return (std::filesystem::path(dir) / name).string();
+}
+
+}  // namespace aosr::cli

@@ -1,0 +1,40 @@
+// Small helpers shared by the CLI subcommands: progress on a terminal, timing, output folders.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <string>
+
+namespace aosr::cli {
+
+// Prints "[aosr] message" to stderr when stderr is a terminal and `enabled`; silent otherwise
+// (so --json output and pipes stay clean).
+class Progress {
+ public:
+  explicit Progress(bool enabled);
+  void Step(const std::string& message) const;
+
+ private:
+  bool enabled_;
+};
+
+// Wall-clock stopwatch in seconds.
+class Stopwatch {
+ public:
+  Stopwatch() : start_(std::chrono::steady_clock::now()) {}
+  double Seconds() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count(); }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+};
+
+// A CLI11 validator for finite numbers >= 0 whose message states the rule plainly.
+CLI::Validator NonNegativeFinite();
+
+// Creates `dir` (and parents) if needed; IoError naming it if it cannot be made or is not a directory.
+void EnsureDirectory(const std::string& dir);
+
+// Joins a directory and a file name.
+std::string JoinPath(const std::string& dir, const std::string& name);
+
+}  // namespace aosr::cli

@@ -1,0 +1,11 @@
+// Registration of the `aosr` subcommands. Each Register* adds its subcommand with options and a
+// callback to `app`; main() only parses and maps exceptions to exit codes.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace aosr::cli {
+
+void RegisterDemo(CLI::App& app);
+
+}  // namespace aosr::cli

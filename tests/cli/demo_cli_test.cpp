@@ -1,0 +1,68 @@
+// End-to-end checks of `aosr demo` through the real executable.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace {
+
+struct CliRun {
+  int status;
+  std::string out;
+};
+
+CliRun RunCli(const std::string& args) {
+  const std::string cmd = std::string(AOSR_CLI_PATH) + " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  while (std::size_t n = fread(buf, 1, sizeof buf, p)) out.append(buf, n);
+  const int status = pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+// The acceptance: Tikhonov at least 3 dB above single-frame bicubic and shift-and-add.
+TEST(DemoCliTest, TikhonovBeatsTheBaselinesByThreeDecibels) {
+  const CliRun r = RunCli("demo --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  double psnr_bicubic = 0, psnr_sa = 0, psnr_tik = 0;
+  for (const auto& m : j["methods"]) {
+    if (m["method"] == "bicubic") psnr_bicubic = m["psnr_db"];
+    if (m["method"] == "shift-and-add") psnr_sa = m["psnr_db"];
+    if (m["method"] == "tikhonov") psnr_tik = m["psnr_db"];
+  }
+  EXPECT_GE(psnr_tik, psnr_bicubic + 3.0) << r.out;
+  EXPECT_GE(psnr_tik, psnr_sa + 3.0) << r.out;
+}
+
+TEST(DemoCliTest, WritesEveryOutput) {
+  const auto dir = std::filesystem::temp_directory_path() / ("aosr_demo_cli_" + std::to_string(getpid()));
+  const CliRun r = RunCli("demo --lr-size 32 -o " + dir.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* f : {"truth.fits", "frames.fits", "psfs.fits", "bicubic.fits", "shift-and-add.fits",
+                        "tikhonov.fits", "montage.png"})
+    EXPECT_TRUE(std::filesystem::exists(dir / f)) << f;
+  std::filesystem::remove_all(dir);
+}
+
+TEST(DemoCliTest, BadArgumentsGiveAClearErrorAndNonZeroExit) {
+  using ::testing::HasSubstr;
+  CliRun r = RunCli("demo --noise -1");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("--noise"));
+  EXPECT_THAT(r.out, HasSubstr(">= 0"));
+  r = RunCli("demo -r 12");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("--factor"));
+  r = RunCli("demo -o /dev/null/x");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("/dev/null"));
+  r = RunCli("no-such-command");
+  EXPECT_NE(r.status, 0);
+}
+
+}  // namespace
