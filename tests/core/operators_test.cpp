@@ -122,5 +122,19 @@ TEST(FftTest, PlansAreCachedByShape) {
   EXPECT_EQ(FftPlanCount(), n);
 }
 
+// Threads and planner rigour are settings, not maths: results agree to rounding.
+TEST(FftTest, ThreadsAndPlannerDoNotChangeResults) {
+  const FftSettings saved = GetFftSettings();
+  const Image x = RandomImage({256, 192}, 21);
+  const ComplexImage reference = FftR2C(x);
+  FftSettings s;
+  s.threads = 2;
+  s.planner = FftSettings::Planner::kEstimate;
+  SetFftSettings(s);
+  const ComplexImage threaded = FftR2C(x);
+  SetFftSettings(saved);
+  EXPECT_LT((threaded - reference).abs().maxCoeff(), 1e-12 * reference.abs().maxCoeff());
+}
+
 }  // namespace
 }  // namespace aosr
