@@ -1,0 +1,246 @@
+#include "aosr/ao/atmosphere.hpp"
+
+#include <cmath>
+#include <limits>
+
+#include "aosr/ao/random.hpp"
+#include "aosr/ao/von_karman.hpp"
+#include "aosr/core/error.hpp"
+
+namespace aosr {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// cos/sin with round-off snapped to exact 0 and +-1, so that winds along the axes (theta = k pi/2) move the
+// screen by exact whole pixels.
+double Snap(double v) {
+  if (std::abs(v) < 1e-12) return 0.0;
+  if (std::abs(std::abs(v) - 1.0) < 1e-15) return v > 0.0 ? 1.0 : -1.0;
+  return v;
+}
+
+}  // namespace
+
+// Geometry of one layer in its screen's pixel coordinates (rows rho run against the wind, columns kappa
+// across it). Pupil pixel (i, k) at (x, y) = (k - (n-1)/2, i - (n-1)/2) pixels from the pupil centre reads
+//     rho   = rho0 + speed_px t - (x cos + y sin)        (absolute row of the infinite strip)
+//     kappa = kappa0 - x sin + y cos.
+struct Atmosphere::LayerState {
+  double r0_m = 0.0;  // at r0_wavelength_m; +inf when inactive
+  bool active = false;
+  double cos_t = 1.0, sin_t = 0.0;
+  double speed_px = 0.0;  // wind speed in pupil pixels per second
+  double rho0 = 0.0, kappa0 = 0.0;
+  std::unique_ptr<InfinitePhaseScreen> screen;
+  std::vector<double> x_cos, x_sin;  // x_k cos, x_k sin for the columns of the pupil grid
+};
+
+bool AtmosphereOptions::IsValid(std::string* why) const {
+  std::string msg;
+  auto finite_positive = [](double v) { return std::isfinite(v) && v > 0.0; };
+  if (!finite_positive(r0_m)) {
+    msg = "r0_m = " + ToString(r0_m) + "; allowed: > 0 and finite [m]";
+  } else if (!finite_positive(r0_wavelength_m)) {
+    msg = "r0_wavelength_m = " + ToString(r0_wavelength_m) + "; allowed: > 0 and finite [m]";
+  } else if (!finite_positive(L0_m)) {
+    msg = "L0_m = " + ToString(L0_m) + "; allowed: > 0 and finite [m]";
+  } else if (interpolation != Interpolation::kBilinear && interpolation != Interpolation::kCubic) {
+    msg = "interpolation = " + ToString(static_cast<int>(interpolation)) + "; allowed: kBilinear, kCubic";
+  } else if (layers.empty()) {
+    msg = "layers = (empty); allowed: at least one layer";
+  } else {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < layers.size() && msg.empty(); ++i) {
+      const Layer& l = layers[i];
+      const std::string name = "layers[" + std::to_string(i) + "].";
+      if (!(std::isfinite(l.altitude_m) && l.altitude_m >= 0.0)) {
+        msg = name + "altitude_m = " + ToString(l.altitude_m) + "; allowed: >= 0 and finite [m]";
+      } else if (!(std::isfinite(l.cn2_fraction) && l.cn2_fraction >= 0.0 && l.cn2_fraction <= 1.0)) {
+        msg = name + "cn2_fraction = " + ToString(l.cn2_fraction) + "; allowed: [0, 1]";
+      } else if (!(std::isfinite(l.wind_speed_mps) && l.wind_speed_mps >= 0.0)) {
+        msg = name + "wind_speed_mps = " + ToString(l.wind_speed_mps) + "; allowed: >= 0 and finite [m/s]";
+      } else if (!std::isfinite(l.wind_direction_rad)) {
+        msg = name + "wind_direction_rad = " + ToString(l.wind_direction_rad) + "; allowed: finite [rad]";
+      }
+      sum += l.cn2_fraction;
+    }
+    if (msg.empty() && !(std::abs(sum - 1.0) <= 1e-6)) {
+      msg =
+          "layers[*].cn2_fraction (sum) = " + ToString(sum) + "; allowed: fractions summing to 1 within 1e-6";
+    }
+  }
+  if (msg.empty()) return true;
+  if (why != nullptr) *why = msg;
+  return false;
+}
+
+Atmosphere::Atmosphere(const AtmosphereOptions& options, Index pupil_n, double diameter_m)
+    : options_(options), pupil_n_(pupil_n), diameter_m_(diameter_m) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument("Atmosphere: invalid options." + why);
+  CheckArgument(pupil_n >= 2 && pupil_n <= 1024, "Atmosphere", "pupil_n", pupil_n, "2 .. 1024 [pixels]");
+  CheckArgument(std::isfinite(diameter_m) && diameter_m > 0.0, "Atmosphere", "diameter_m", diameter_m,
+                "> 0 and finite [m]");
+  const double dx = diameter_m / static_cast<double>(pupil_n);
+  CheckArgument(options.L0_m <= 1e6 * dx, "Atmosphere", "options.L0_m", options.L0_m,
+                "<= 1e6 pupil pixels (D/n) [m]");
+  const double half_n = 0.5 * static_cast<double>(pupil_n - 1);
+  for (std::size_t i = 0; i < options.layers.size(); ++i) {
+    const Layer& l = options.layers[i];
+    auto state = std::make_unique<LayerState>();
+    state->active = l.cn2_fraction > 0.0;
+    state->r0_m = state->active ? options.r0_m * std::pow(l.cn2_fraction, -0.6)
+                                : std::numeric_limits<double>::infinity();
+    state->cos_t = Snap(std::cos(l.wind_direction_rad));
+    state->sin_t = Snap(std::sin(l.wind_direction_rad));
+    state->speed_px = l.wind_speed_mps / dx;
+    if (state->active) {
+      // Footprint half-extent h along and across the wind. The pupil centre sits at (rho0, kappa0) = (h + 3,
+      // h + 3) at t = 0: 3 pixels of margin for the interpolation taps (floor - 1 .. floor + 2), and for a
+      // wind along an axis (h = (n-1)/2) pupil pixel centres fall exactly on screen pixel centres, so such a
+      // layer is read without interpolation whenever it has moved a whole number of pixels. The strip is
+      // ceil(2h) + 6 columns wide; the window keeps 4 more rows than that, so calls may step back in time by
+      // a few pixels of travel.
+      const double h = half_n * (std::abs(state->cos_t) + std::abs(state->sin_t));
+      const Index size = static_cast<Index>(std::ceil(2.0 * h - 1e-9)) + 6;
+      state->kappa0 = h + 3.0;
+      state->rho0 = h + 3.0;
+      InfinitePhaseScreenOptions so;
+      so.width = size;
+      so.length = size + 4;
+      so.pixel_scale_m = dx;
+      so.r0_m = state->r0_m;
+      so.L0_m = options.L0_m;
+      state->screen = std::make_unique<InfinitePhaseScreen>(so, DeriveSeed(options.seed, i));
+      state->x_cos.resize(pupil_n);
+      state->x_sin.resize(pupil_n);
+      for (Index k = 0; k < pupil_n; ++k) {
+        const double x = static_cast<double>(k) - half_n;
+        state->x_cos[k] = x * state->cos_t;
+        state->x_sin[k] = x * state->sin_t;
+      }
+    }
+    layers_.push_back(std::move(state));
+  }
+}
+
+Atmosphere::~Atmosphere() = default;
+Atmosphere::Atmosphere(Atmosphere&&) noexcept = default;
+Atmosphere& Atmosphere::operator=(Atmosphere&&) noexcept = default;
+
+void Atmosphere::Prepare(LayerState& layer, double t_s, const char* function) {
+  const double half_n = 0.5 * static_cast<double>(pupil_n_ - 1);
+  const double h = half_n * (std::abs(layer.cos_t) + std::abs(layer.sin_t));
+  const double centre = layer.rho0 + layer.speed_px * t_s;  // absolute row of the pupil centre
+  InfinitePhaseScreen& screen = *layer.screen;
+  const Index length = screen.options().length;
+  // Rows needed by the interpolation taps: floor(centre - h) - 1 .. floor(centre + h) + 2.
+  const double last_needed = std::floor(centre + h) + 2.0;
+  const double have_last = static_cast<double>(screen.rows_extruded() + length - 1);
+  if (last_needed > have_last) screen.Extrude(static_cast<Index>(last_needed - have_last));
+  const double first_needed = std::floor(centre - h) - 1.0;
+  CheckArgument(first_needed >= static_cast<double>(screen.rows_extruded()), function, "t_s", t_s,
+                "a time whose screen rows are still held (the screens only keep a few pixels of wind travel "
+                "behind the latest time requested)");
+}
+
+void Atmosphere::Accumulate(LayerState& layer, double t_s, double* out) const {
+  const Index n = pupil_n_;
+  const double half_n = 0.5 * static_cast<double>(n - 1);
+  const InfinitePhaseScreen& screen = *layer.screen;
+  const Index w = screen.options().width;
+  const double* data = screen.Row(0);
+  const double scale = options_.r0_wavelength_m / (2.0 * kPi);  // rad at lambda_ref -> m
+  // Window-relative row of the pupil centre; the difference of two large numbers is formed first so that
+  // long runs keep full sub-pixel precision.
+  const double base = (layer.rho0 - static_cast<double>(screen.rows_extruded())) + layer.speed_px * t_s;
+  const double* xc = layer.x_cos.data();
+  const double* xs = layer.x_sin.data();
+  const bool cubic = options_.interpolation == AtmosphereOptions::Interpolation::kCubic;
+  for (Index i = 0; i < n; ++i) {
+    const double y = static_cast<double>(i) - half_n;
+    const double rho_i = base - y * layer.sin_t;
+    const double kappa_i = layer.kappa0 + y * layer.cos_t;
+    double* o = out + i * n;
+    for (Index k = 0; k < n; ++k) {
+      const double r = rho_i - xc[k];
+      const double q = kappa_i - xs[k];
+      const Index ri = static_cast<Index>(r);  // r, q >= 1 by construction: truncation is floor
+      const Index qi = static_cast<Index>(q);
+      const double fr = r - static_cast<double>(ri);
+      const double fq = q - static_cast<double>(qi);
+      const double* p = data + ri * w + qi;
+      if (!cubic) {
+        const double top = p[0] + fq * (p[1] - p[0]);
+        const double bottom = p[w] + fq * (p[w + 1] - p[w]);
+        o[k] += scale * (top + fr * (bottom - top));
+      } else {
+        // Keys (1981) cubic convolution, a = -1/2: weights of taps -1, 0, 1, 2 for fraction f; exactly
+        // (0, 1, 0, 0) at f = 0.
+        auto weights = [](double f, double* c) {
+          const double f2 = f * f, f3 = f2 * f;
+          c[0] = 0.5 * (-f3 + 2.0 * f2 - f);
+          c[1] = 0.5 * (3.0 * f3 - 5.0 * f2 + 2.0);
+          c[2] = 0.5 * (-3.0 * f3 + 4.0 * f2 + f);
+          c[3] = 0.5 * (f3 - f2);
+        };
+        double cr[4], cq[4];
+        weights(fr, cr);
+        weights(fq, cq);
+        double v = 0.0;
+        for (int a = 0; a < 4; ++a) {
+          const double* row = p + (a - 1) * w - 1;
+          v += cr[a] * (cq[0] * row[0] + cq[1] * row[1] + cq[2] * row[2] + cq[3] * row[3]);
+        }
+        o[k] += scale * v;
+      }
+    }
+  }
+}
+
+void Atmosphere::Opd(double t_s, Image* opd) {
+  CheckArgument(opd != nullptr, "Atmosphere::Opd", "opd", "null", "an Image to write into");
+  CheckArgument(std::isfinite(t_s) && t_s >= 0.0, "Atmosphere::Opd", "t_s", t_s, ">= 0 and finite [s]");
+  for (auto& layer : layers_) {
+    if (layer->active) Prepare(*layer, t_s, "Atmosphere::Opd");
+  }
+  if (opd->rows() != pupil_n_ || opd->cols() != pupil_n_) opd->resize(pupil_n_, pupil_n_);
+  opd->setZero();
+  for (auto& layer : layers_) {
+    if (layer->active) Accumulate(*layer, t_s, opd->data());
+  }
+}
+
+Image Atmosphere::Opd(double t_s) {
+  Image opd;
+  Opd(t_s, &opd);
+  return opd;
+}
+
+Image Atmosphere::LayerOpd(int layer, double t_s) {
+  CheckArgument(layer >= 0 && layer < static_cast<int>(layers_.size()), "Atmosphere::LayerOpd", "layer",
+                layer, "0 .. " + std::to_string(layers_.size() - 1));
+  CheckArgument(std::isfinite(t_s) && t_s >= 0.0, "Atmosphere::LayerOpd", "t_s", t_s, ">= 0 and finite [s]");
+  Image opd = Image::Zero(pupil_n_, pupil_n_);
+  LayerState& state = *layers_[layer];
+  if (state.active) {
+    Prepare(state, t_s, "Atmosphere::LayerOpd");
+    Accumulate(state, t_s, opd.data());
+  }
+  return opd;
+}
+
+double Atmosphere::LayerR0(int layer) const {
+  CheckArgument(layer >= 0 && layer < static_cast<int>(layers_.size()), "Atmosphere::LayerR0", "layer", layer,
+                "0 .. " + std::to_string(layers_.size() - 1));
+  return layers_[layer]->r0_m;
+}
+
+double Atmosphere::R0At(double wavelength_m) const {
+  CheckArgument(std::isfinite(wavelength_m) && wavelength_m > 0.0, "Atmosphere::R0At", "wavelength_m",
+                wavelength_m, "> 0 and finite [m]");
+  return ScaleR0(options_.r0_m, options_.r0_wavelength_m, wavelength_m);
+}
+
+}  // namespace aosr
