@@ -42,6 +42,15 @@ void EnsureDirectory(const std::string& dir) {
   if (!fs::create_directories(dir, ec) || ec) throw IoError(dir, "cannot create directory: " + ec.message());
 }
 
+void CheckWritableFile(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path p(path);
+  if (fs::is_directory(p, ec)) throw IoError(path, "is a directory; give a file name");
+  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  if (!fs::is_directory(dir, ec)) throw IoError(path, "its folder " + dir.string() + " does not exist");
+}
+
 std::string JoinPath(const std::string& dir, const std::string& name) {
   return (std::filesystem::path(dir) / name).string();
 }

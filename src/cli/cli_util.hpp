@@ -34,6 +34,9 @@ CLI::Validator NonNegativeFinite();
 // Creates `dir` (and parents) if needed; IoError naming it if it cannot be made or is not a directory.
 void EnsureDirectory(const std::string& dir);
 
+// Checks before any computation that `path` can be written: its folder exists and it is not a folder.
+void CheckWritableFile(const std::string& path);
+
 // Joins a directory and a file name.
 std::string JoinPath(const std::string& dir, const std::string& name);
 

@@ -7,5 +7,6 @@
 namespace aosr::cli {
 
 void RegisterDemo(CLI::App& app);
+void RegisterPsf(CLI::App& app);
 
 }  // namespace aosr::cli

@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("aosr ") + AOSR_VERSION);
   app.require_subcommand(1);
   aosr::cli::RegisterDemo(app);
+  aosr::cli::RegisterPsf(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

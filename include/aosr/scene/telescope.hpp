@@ -1,0 +1,65 @@
+// Telescope presets: one JSON file per system in data/telescopes/ (documented in data/README.md).
+//
+// A preset says what the telescope, the science camera, the atmosphere (optional) and the AO system
+// (optional) are. Everything is SI once loaded: metres, radians, seconds. Camera pixel scale may be given
+// as `camera_pixel_lambda_over_d` (in units of λ/D at the science wavelength), `camera_pixel_mas`, or, for
+// a bench, `camera_pixel_m` with the telescope's `focal_length_m`.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+
+#include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/atmosphere.hpp"
+#include "aosr/optics/aperture.hpp"
+#include "aosr/optics/deformable_mirror.hpp"
+
+namespace aosr {
+
+struct WfsPreset {
+  int lenslets_across = 16;
+  double wavelength_m = 640e-9;
+  double guide_star_magnitude = 8.0;  // in the WFS band (Vega magnitudes)
+  double throughput = 0.5;            // telescope + WFS optics + detector QE, in (0, 1]
+};
+
+struct LoopPreset {
+  double rate_hz = 800.0;
+  double gain = 0.35;
+  double delay_frames = 1.0;      // read-out + compute delay after WFS integration (analytic_ao.hpp)
+  std::string control = "pol";    // "integrator" or "pol" (pseudo-open-loop)
+};
+
+struct AoPreset {
+  DeformableMirrorOptions dm;  // pitch set from the diameter: D / (actuators_across - 1), Fried geometry
+  WfsPreset wfs;
+  LoopPreset loop;
+};
+
+struct TelescopePreset {
+  std::string name;
+  std::string source;           // the file it came from
+  ApertureGeometry aperture;
+  Index pupil_px = 128;
+  double science_wavelength_m = 2.2e-6;
+  double camera_pixel_rad = 0;  // angular pitch of one camera pixel
+  std::optional<AtmosphereOptions> atmosphere;  // none: no turbulence
+  std::optional<AoPreset> ao;                   // none: no AO
+
+  double LambdaOverD() const { return science_wavelength_m / aperture.pupil.diameter_m; }
+  // The analytic long-exposure AO model of this system (requires atmosphere and ao).
+  AnalyticAoOptions ToAnalyticAo() const;
+};
+
+// The data folder: $AOSR_DATA_DIR if set, else the source tree's data/ (compiled in).
+std::string DataDirectory();
+
+// Loads `name_or_path`: a path to a .json file, or a preset name looked up as
+// DataDirectory()/telescopes/<name>.json. Errors name the file and the field.
+TelescopePreset LoadTelescopePreset(const std::string& name_or_path);
+
+// Parses a preset from an already-read JSON object (`source` names it in messages).
+TelescopePreset ParseTelescopePreset(const nlohmann::json& json, const std::string& source);
+
+}  // namespace aosr

@@ -1,0 +1,167 @@
+// `aosr psf PRESET`: the science PSF of a telescope preset, with optional DM offsets.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "aosr/ao/analytic_ao.hpp"
+#include "aosr/core/error.hpp"
+#include "aosr/io/fits.hpp"
+#include "aosr/optics/aperture.hpp"
+#include "aosr/optics/psf.hpp"
+#include "aosr/optics/psf_metrics.hpp"
+#include "aosr/optics/zernike.hpp"
+#include "aosr/scene/telescope.hpp"
+#include "cli_util.hpp"
+#include "commands.hpp"
+
+namespace aosr::cli {
+namespace {
+
+struct PsfArgs {
+  std::string preset;
+  std::string mode;  // empty: analytic when the preset has atmosphere and AO, else diffraction
+  std::vector<std::string> offsets;
+  int r = 2;
+  double pixel_lod = 0;  // > 0 overrides camera_pixel / r
+  int size = 128;
+  std::string output;
+  bool json = false;
+};
+
+struct ZernikeOffset {
+  int j;
+  double nm;
+};
+
+// "J=NM" -> (j, nm). Noll index j >= 2 (piston does nothing), coefficient in nm of wavefront OPD RMS.
+ZernikeOffset ParseOffset(const std::string& text) {
+  const auto eq = text.find('=');
+  const std::string allowed = "J=NM with Noll index J >= 2 and a finite coefficient in nm RMS, e.g. 4=50";
+  if (eq == std::string::npos) throw InvalidArgument("aosr psf", "--offset", text, allowed);
+  try {
+    std::size_t used_j = 0, used_c = 0;
+    const int j = std::stoi(text.substr(0, eq), &used_j);
+    const double nm = std::stod(text.substr(eq + 1), &used_c);
+    if (used_j != eq || used_c != text.size() - eq - 1 || j < 2 || j > 1000 || !std::isfinite(nm))
+      throw InvalidArgument("aosr psf", "--offset", text, allowed);
+    return {j, nm};
+  } catch (const std::logic_error&) {
+    throw InvalidArgument("aosr psf", "--offset", text, allowed);
+  }
+}
+
+void RunPsf(const PsfArgs& args) {
+  const Progress progress(!args.json);
+  Stopwatch clock;
+  std::vector<ZernikeOffset> offsets;
+  for (const auto& t : args.offsets) offsets.push_back(ParseOffset(t));
+  const TelescopePreset preset = LoadTelescopePreset(args.preset);
+  std::string mode = args.mode;
+  if (mode.empty()) mode = preset.atmosphere && preset.ao ? "analytic" : "diffraction";
+  if (mode == "analytic" && !(preset.atmosphere && preset.ao))
+    throw InvalidArgument("aosr psf", "--mode", mode, "diffraction (preset " + preset.name + " has no atmosphere or AO)");
+  if (mode == "closed-loop")
+    throw InvalidArgument("aosr psf", "--mode", mode, "analytic or diffraction (the closed loop is not wired yet)");
+  if (!args.output.empty()) CheckWritableFile(args.output);
+
+  const Index n = preset.pupil_px;
+  const double diameter = preset.aperture.pupil.diameter_m;
+  const Image amplitude = Aperture(n, preset.aperture);
+  Image opd = Image::Zero(n, n);
+  for (const ZernikeOffset& o : offsets) opd += o.nm * 1e-9 * Zernike(o.j, n, preset.aperture.pupil.obstruction);
+  PsfSampling sampling;
+  sampling.wavelength_m = preset.science_wavelength_m;
+  sampling.pixel_scale_rad = args.pixel_lod > 0 ? args.pixel_lod * preset.LambdaOverD() : preset.camera_pixel_rad / args.r;
+  sampling.rows = sampling.cols = args.size;
+  // The PSF of a pupil sampled by n pixels repeats every n λ/D: a wider field would show aliased copies.
+  const double field_lod = args.size * sampling.PixelScaleLambdaOverD(diameter);
+  if (field_lod > double(n))
+    throw InvalidArgument("aosr psf", "--size", std::to_string(args.size),
+                          "at most " + std::to_string(int(n / sampling.PixelScaleLambdaOverD(diameter))) +
+                              " pixels: the field (" + ToString(field_lod) + " lambda/D) must fit in the " +
+                              std::to_string(n) + " lambda/D period of the " + std::to_string(n) + "-pixel pupil");
+
+  progress.Step("computing the " + mode + " PSF of " + preset.name);
+  const PsfCalculator diffraction(n, diameter, sampling);
+  const Image perfect = diffraction.Compute(amplitude, Image::Zero(n, n));
+  Image psf;
+  double residual_nm = 0;
+  if (mode == "analytic") {
+    const AnalyticAoPsfCalculator ao(preset.ToAnalyticAo(), n, sampling);
+    const AnalyticAoPsf p = ao.Compute(amplitude, opd);
+    psf = p.psf;
+    residual_nm = p.residual_rms_nm;
+  } else {
+    psf = diffraction.Compute(amplitude, opd);
+  }
+  const PsfStats stats = MeasurePsf(psf);
+  const double strehl = psf.maxCoeff() / perfect.maxCoeff();
+  const double lod_px = preset.LambdaOverD() / sampling.pixel_scale_rad;
+  const std::vector<double> radii = {1.0 * lod_px, 2.0 * lod_px, 5.0 * lod_px};
+  const std::vector<double> ee = EncircledEnergy(psf, radii);
+  const double seconds = clock.Seconds();
+
+  if (!args.output.empty()) {
+    FitsHeader h;
+    h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
+    h.Set("PRESET", preset.name, "telescope preset");
+    h.Set("PSFMODE", mode, "analytic: long-exposure AO residual model");
+    h.Set("WAVELEN", sampling.wavelength_m, "[m] science wavelength");
+    h.Set("PIXSCALE", sampling.pixel_scale_rad, "[rad] pixel angular pitch");
+    h.Set("STREHL", strehl, "peak / diffraction-limited peak");
+    h.Set("NORMALIS", "whole focal plane sums to 1", "window sum = light in the window");
+    for (std::size_t i = 0; i < offsets.size(); ++i)
+      h.Set("ZOFF" + std::to_string(i), std::to_string(offsets[i].j) + "=" + ToString(offsets[i].nm) + " nm",
+            "Noll index = wavefront OPD RMS offset");
+    WriteFits(args.output, psf, h, FitsType::kFloat64);
+  }
+  if (args.json) {
+    nlohmann::json j = {{"preset", preset.name},
+                        {"mode", mode},
+                        {"wavelength_m", sampling.wavelength_m},
+                        {"pixel_scale_rad", sampling.pixel_scale_rad},
+                        {"pixel_scale_lambda_over_d", 1.0 / lod_px},
+                        {"strehl", strehl},
+                        {"fwhm_px", stats.fwhm_px},
+                        {"fwhm_lambda_over_d", stats.fwhm_px / lod_px},
+                        {"encircled_energy", {{"radius_lambda_over_d", {1, 2, 5}}, {"fraction_of_window", ee}}},
+                        {"window_sum", stats.window_sum},
+                        {"residual_rms_nm", residual_nm},
+                        {"seconds", seconds}};
+    if (!args.output.empty()) j["output"] = args.output;
+    std::printf("%s\n", j.dump(2).c_str());
+    return;
+  }
+  std::printf("aosr psf %s (%s) at %.3g um, pixel %.3g lambda/D, %dx%d\n", preset.name.c_str(), mode.c_str(),
+              sampling.wavelength_m * 1e6, 1.0 / lod_px, args.size, args.size);
+  std::printf("  Strehl %.4f   FWHM %.3f lambda/D   residual %.1f nm RMS\n", strehl, stats.fwhm_px / lod_px, residual_nm);
+  std::printf("  EE(1, 2, 5 lambda/D) = %.4f, %.4f, %.4f of the window (window holds %.4f of all light)\n", ee[0],
+              ee[1], ee[2], stats.window_sum);
+  std::printf("  %.3f s\n", seconds);
+}
+
+}  // namespace
+
+void RegisterPsf(CLI::App& app) {
+  auto args = std::make_shared<PsfArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "psf",
+      "Compute the science PSF of a telescope preset (a name from data/telescopes/ or a .json path): "
+      "diffraction-limited, or long-exposure through the analytic AO residual model, with optional DM "
+      "offsets given as Zernike coefficients. Prints Strehl, FWHM, encircled energy, residual and time.");
+  cmd->add_option("preset", args->preset, "telescope preset name or .json path")->required();
+  cmd->add_option("--mode", args->mode, "analytic | diffraction (default: analytic when the preset has AO)")
+      ->check(CLI::IsMember({"analytic", "diffraction", "closed-loop"}));
+  cmd->add_option("--offset", args->offsets, "DM offset J=NM: Noll index J, wavefront OPD RMS in nm (repeatable)");
+  cmd->add_option("-r,--factor", args->r, "HR factor: pixel = camera pixel / r")->capture_default_str()->check(CLI::Range(1, 16));
+  cmd->add_option("--pixel-lod", args->pixel_lod, "pixel scale in lambda/D (overrides -r)")->check(NonNegativeFinite());
+  cmd->add_option("--size", args->size, "PSF side in pixels")->capture_default_str()->check(CLI::Range(8, 4096));
+  cmd->add_option("-o,--output", args->output, "write the PSF as FITS (float64)");
+  cmd->add_flag("--json", args->json, "print the results as JSON");
+  cmd->callback([args] { RunPsf(*args); });
+}
+
+}  // namespace aosr::cli

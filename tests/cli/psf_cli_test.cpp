@@ -1,0 +1,61 @@
+// `aosr psf` through the real executable.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+namespace {
+
+struct CliRun {
+  int status;
+  std::string out;
+};
+
+CliRun RunCli(const std::string& args) {
+  const std::string cmd = std::string(AOSR_CLI_PATH) + " " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  while (std::size_t n = fread(buf, 1, sizeof buf, p)) out.append(buf, n);
+  const int status = pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+TEST(PsfCliTest, AnalyticPaperSystemAndAFocusOffsetLowersStrehl) {
+  const CliRun a = RunCli("psf paper-8m --json --size 64");
+  ASSERT_EQ(a.status, 0) << a.out;
+  const auto ja = nlohmann::json::parse(a.out);
+  EXPECT_EQ(ja["mode"], "analytic");
+  EXPECT_GT(ja["strehl"].get<double>(), 0.8);
+  EXPECT_LT(ja["strehl"].get<double>(), 0.92);
+  const CliRun b = RunCli("psf paper-8m --json --size 64 --offset 4=100");
+  ASSERT_EQ(b.status, 0) << b.out;
+  const double sb = nlohmann::json::parse(b.out)["strehl"];
+  // Maréchal: 100 nm RMS of focus at 2.2 µm costs a factor exp(-(2π·100/2200)²) = 0.922.
+  EXPECT_NEAR(sb / ja["strehl"].get<double>(), std::exp(-std::pow(2 * M_PI * 100 / 2200, 2)), 0.01);
+}
+
+TEST(PsfCliTest, WritesFitsAndRejectsBadInput) {
+  using ::testing::HasSubstr;
+  const auto path = std::filesystem::temp_directory_path() / ("aosr_psf_" + std::to_string(getpid()) + ".fits");
+  CliRun r = RunCli("psf paper-8m --mode diffraction --size 32 -o " + path.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_TRUE(std::filesystem::exists(path));
+  std::filesystem::remove(path);
+  r = RunCli("psf paper-8m --offset 1x=3");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("--offset"));
+  r = RunCli("psf nowhere");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("paper-8m"));
+  r = RunCli("psf paper-bench --size 4000");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("--size"));
+  r = RunCli("psf paper-8m -o /nonexistent-dir/p.fits");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("does not exist"));
+}
+
+}  // namespace

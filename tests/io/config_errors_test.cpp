@@ -1,0 +1,51 @@
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aosr/core/error.hpp"
+#include "aosr/io/config.hpp"
+
+namespace aosr {
+namespace {
+
+using ::testing::HasSubstr;
+
+template <typename F>
+std::string ErrorOf(F f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(ConfigErrorsTest, MessagesNameTheFileAndTheFullFieldPath) {
+  const auto j = nlohmann::json::parse(R"({"a": {"layers": [{"x": 1}, {"x": -2}]}, "s": "k", "b": true})");
+  const ConfigNode root(j, "f.json");
+  const auto layers = root.Child("a").Array("layers");
+  EXPECT_DOUBLE_EQ(layers[0].Number("x", 0, 1), 1.0);
+  EXPECT_THAT(ErrorOf([&] { layers[1].Number("x", 0, 1); }), HasSubstr("f.json: a.layers[1].x = -2"));
+  EXPECT_THAT(ErrorOf([&] { root.Positive("missing"); }), HasSubstr("missing = (missing)"));
+  EXPECT_THAT(ErrorOf([&] { root.Choice("s", {"p", "q"}); }), HasSubstr("one of p, q"));
+  EXPECT_THAT(ErrorOf([&] { root.Integer("b", 0, 2); }), HasSubstr("an integer"));
+}
+
+TEST(ConfigErrorsTest, UnknownFieldsAreErrorsButCommentsAreNot) {
+  const auto j = nlohmann::json::parse(R"({"diameter_m": 8, "diamter_m": 8, "comment": "x"})");
+  const ConfigNode root(j, "t.json");
+  root.Positive("diameter_m");
+  EXPECT_THAT(ErrorOf([&] { root.CheckNoOtherFields(); }), HasSubstr("diamter_m = (unknown field)"));
+}
+
+TEST(ConfigErrorsTest, MissingAndMalformedFiles) {
+  EXPECT_THAT(ErrorOf([] { ReadJsonFile("/nonexistent/x.json"); }), HasSubstr("/nonexistent/x.json"));
+  const std::string path = testing::TempDir() + "/aosr_bad.json";
+  FILE* f = fopen(path.c_str(), "w");
+  fputs("{\"a\": 1,,}", f);
+  fclose(f);
+  EXPECT_THAT(ErrorOf([&] { ReadJsonFile(path); }), HasSubstr("malformed JSON"));
+  std::remove(path.c_str());
+}
+
+}  // namespace
+}  // namespace aosr
