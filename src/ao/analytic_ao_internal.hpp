@@ -12,9 +12,6 @@ namespace analytic_ao_internal {
 constexpr double kPi = 3.141592653589793238462643383279;
 constexpr double kTwoPi = 2.0 * kPi;
 
-// c = (24/5 Gamma(6/5))^(5/6) Gamma(11/6)^2 / (2 pi^(11/3)) = 0.022896 (von Karman phase PSD constant).
-double VonKarmanConstant();
-
 // Throws InvalidArgument("<function>: invalid options. <why>") unless options.IsValid().
 void CheckOptions(const AnalyticAoOptions& options, const char* function);
 

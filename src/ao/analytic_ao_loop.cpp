@@ -14,11 +14,6 @@ using analytic_ao_internal::kTwoPi;
 
 namespace analytic_ao_internal {
 
-double VonKarmanConstant() {
-  static const double c = std::pow(24.0 / 5.0 * std::tgamma(6.0 / 5.0), 5.0 / 6.0) *
-                          std::pow(std::tgamma(11.0 / 6.0), 2.0) / (2.0 * std::pow(kPi, 11.0 / 3.0));
-  return c;
-}
 
 void CheckOptions(const AnalyticAoOptions& options, const char* function) {
   std::string why;
@@ -101,7 +96,7 @@ bool AnalyticAoOptions::IsValid(std::string* why) const {
   if (layers.empty()) return Fail(why, "layers: empty; allowed: at least one layer");
   double fraction_sum = 0.0;
   for (std::size_t l = 0; l < layers.size(); ++l) {
-    const AnalyticAoLayer& layer = layers[l];
+    const Layer& layer = layers[l];
     const std::string name = "layers[" + std::to_string(l) + "].";
     if (!(std::isfinite(layer.altitude_m) && layer.altitude_m >= 0.0)) {
       return Fail(why,

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "analytic_ao_internal.hpp"
+#include "aosr/ao/von_karman.hpp"
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/core/error.hpp"
 
@@ -146,7 +147,7 @@ ResidualPsd ComputeResidualPsd(const AnalyticAoOptions& options, Index grid_n, d
   const double lambda = options.science_wavelength_m;
   const double r0 = options.R0At(lambda);
   const double amp =
-      std::isinf(r0) ? 0.0 : analytic_ao_internal::VonKarmanConstant() * std::pow(r0, -5.0 / 3.0);
+      std::isinf(r0) ? 0.0 : VonKarmanPsdConstant() * std::pow(r0, -5.0 / 3.0);
   const double k0sq =
       std::isinf(options.outer_scale_m) ? 0.0 : 1.0 / (options.outer_scale_m * options.outer_scale_m);
   auto phi = [&](double f2) { return amp == 0.0 ? 0.0 : amp * std::pow(f2 + k0sq, -11.0 / 6.0); };
@@ -155,7 +156,7 @@ ResidualPsd ComputeResidualPsd(const AnalyticAoOptions& options, Index grid_n, d
   const analytic_ao_internal::LoopModel loop{options.loop_gain, options.loop_delay_frames};
   std::vector<Wind> winds;
   const int directions = options.average_wind_direction ? 24 : 1;
-  for (const AnalyticAoLayer& layer : options.layers) {
+  for (const Layer& layer : options.layers) {
     if (layer.cn2_fraction == 0.0) continue;
     for (int q = 0; q < directions; ++q) {
       // Midpoints on [0, pi): |E(nu)|^2 is even in nu, so half a turn covers every direction.

@@ -71,9 +71,7 @@ AnalyticAoOptions TelescopePreset::ToAnalyticAo() const {
   o.r0_m = atmosphere->r0_m;
   o.reference_wavelength_m = atmosphere->r0_wavelength_m;
   o.outer_scale_m = atmosphere->L0_m;
-  o.layers.clear();
-  for (const Layer& l : atmosphere->layers)
-    o.layers.push_back({l.altitude_m, l.cn2_fraction, l.wind_speed_mps, l.wind_direction_rad});
+  o.layers = atmosphere->layers;
   o.loop_rate_hz = ao->loop.rate_hz;
   o.loop_gain = ao->loop.gain;
   o.loop_delay_frames = ao->loop.delay_frames;

@@ -33,7 +33,7 @@ AnalyticAoOptions PureFitting(ControlDomain domain) {
   o.reference_wavelength_m = 2.2e-6;
   o.science_wavelength_m = 2.2e-6;
   o.outer_scale_m = kInf;
-  o.layers = {AnalyticAoLayer{0.0, 1.0, 0.0, 0.0}};
+  o.layers = {Layer{0.0, 1.0, 0.0, 0.0}};
   o.aliasing = false;
   return o;
 }
@@ -182,7 +182,7 @@ TEST(AnalyticAoTest, BudgetConvergesWithFrequencyPadding) {
 // turbulence (|H_n(0)|^2 = 1) the aliasing PSD at a controlled cell is sum c_mn^2 Phi(f_mn).
 TEST(AnalyticAoTest, AliasingMatchesTheShackHartmannModel) {
   AnalyticAoOptions o;
-  o.layers = {AnalyticAoLayer{0.0, 1.0, 0.0, 0.0}};
+  o.layers = {Layer{0.0, 1.0, 0.0, 0.0}};
   o.aliasing_orders = 3;
   const Index p = 112;
   const double df = 1.0 / (4.0 * o.diameter_m);
@@ -229,7 +229,7 @@ TEST(AnalyticAoTest, AliasingOrdersConverge) {
 // Averaging the wind over directions gives an isotropic servo PSD (f -> rotated f by 90 degrees equal).
 TEST(AnalyticAoTest, DirectionAveragedWindIsIsotropic) {
   AnalyticAoOptions o;
-  o.layers = {AnalyticAoLayer{0.0, 1.0, 20.0, 0.3}};
+  o.layers = {Layer{0.0, 1.0, 20.0, 0.3}};
   o.average_wind_direction = true;
   const Index p = 112;
   const ResidualPsd psd = ComputeResidualPsd(o, p, 1.0 / (4.0 * o.diameter_m));

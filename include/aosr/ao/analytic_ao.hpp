@@ -94,6 +94,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/ao/atmosphere.hpp"
 #include "aosr/core/image.hpp"
 #include "aosr/optics/mft.hpp"
 #include "aosr/optics/psf.hpp"
@@ -106,18 +107,6 @@ enum class ControlDomain {
   kCircle,  // |f| < 1/(2d): for circular-mask reconstructors, and to check against closed forms.
 };
 
-// One turbulent layer (frozen flow).
-struct AnalyticAoLayer {
-  // Altitude above the telescope [m], >= 0. Recorded for later anisoplanatism terms; the on-axis
-  // model here does not use it.
-  double altitude_m = 0.0;
-  // Fraction of the integrated Cn^2 in this layer, in [0, 1]; the fractions of all layers sum to 1.
-  double cn2_fraction = 1.0;
-  // Wind speed [m/s], >= 0 and finite. 0 freezes the layer (no servo-lag error).
-  double wind_speed_mps = 10.0;
-  // Wind direction [rad], measured from +x toward +y (pupil.hpp's azimuth). Finite.
-  double wind_direction_rad = 0.0;
-};
 
 struct AnalyticAoOptions {
   // --- Telescope ---
@@ -143,7 +132,7 @@ struct AnalyticAoOptions {
   double outer_scale_m = 25.0;
   // Turbulent layers, at least one; their cn2_fraction must sum to 1 (within 1e-6). A single layer of
   // fraction 1 is the "effective wind speed" model. Default: one ground layer at 10 m/s along +x.
-  std::vector<AnalyticAoLayer> layers = {AnalyticAoLayer{}};
+  std::vector<Layer> layers = {Layer{0.0, 1.0, 10.0, 0.0}};  // atmosphere.hpp; altitude unused on axis
   // When true, the servo-lag and aliasing terms average |E|^2 over wind directions uniformly
   // (directions in `layers` are ignored): a round servo halo for unknown directions. Default false: the
   // layers' directions are used (the halo is elongated along the wind, as in a simulation).
