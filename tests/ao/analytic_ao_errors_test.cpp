@@ -11,25 +11,18 @@
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/optics/pupil.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
+
+using aosr::test::ErrorOf;
 
 using ::testing::HasSubstr;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InvalidArgument& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    return std::string("wrong exception type: ") + e.what();
-  }
-  return "no exception";
-}
 
 // Each mutation of valid options must fail IsValid with a message naming `field`, and every entry point
 // taking options must throw with that message.

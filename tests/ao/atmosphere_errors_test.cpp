@@ -12,25 +12,18 @@
 #include "aosr/ao/phase_screen.hpp"
 #include "aosr/ao/von_karman.hpp"
 #include "aosr/core/error.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
+
+using aosr::test::ErrorOf;
 
 using ::testing::HasSubstr;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InvalidArgument& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    return std::string("wrong exception type: ") + e.what();
-  }
-  return "no exception";
-}
 
 AtmosphereOptions Valid() {
   AtmosphereOptions o;

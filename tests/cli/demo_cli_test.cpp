@@ -5,24 +5,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+
+#include "support/testing.hpp"
 #include <string>
 
 namespace {
 
-struct CliRun {
-  int status;
-  std::string out;
-};
-
-CliRun RunCli(const std::string& args) {
-  const std::string cmd = std::string(AOSR_CLI_PATH) + " " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  while (std::size_t n = fread(buf, 1, sizeof buf, p)) out.append(buf, n);
-  const int status = pclose(p);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
-}
+using aosr::test::CliRun;
+using aosr::test::RunCli;
 
 // The acceptance: Tikhonov at least 3 dB above single-frame bicubic and shift-and-add.
 TEST(DemoCliTest, TikhonovBeatsTheBaselinesByThreeDecibels) {

@@ -7,17 +7,12 @@
 #include "aosr/core/adjoint_test.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
-Image Random(Shape s, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> n;
-  Image x(s.rows, s.cols);
-  for (Index i = 0; i < x.size(); ++i) x.data()[i] = n(rng);
-  return x;
-}
+Image Random(Shape s, std::uint64_t seed) { return aosr::test::RandomImage(s, seed); }
 
 Image Gaussian(Index n, double sy, double sx, double cy, double cx) {
   Image k(n, n);

@@ -5,25 +5,16 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/metrics.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
+using aosr::test::ErrorOf;
+
 using ::testing::AllOf;
 using ::testing::HasSubstr;
 
-// Runs `f` and returns the InvalidArgument message ("" if nothing or something else was thrown).
-template <typename F>
-std::string MessageOf(F f) {
-  try {
-    f();
-  } catch (const InvalidArgument& e) {
-    return e.what();
-  } catch (...) {
-    return "<other exception>";
-  }
-  return "<no exception>";
-}
 
 Image Ramp(Index rows, Index cols) {
   Image img(rows, cols);
@@ -33,67 +24,67 @@ Image Ramp(Index rows, Index cols) {
 
 TEST(MetricsErrorsTest, ShapeMismatchNamesTheEstimateShape) {
   const Image a = Ramp(20, 20), b = Ramp(20, 21);
-  EXPECT_THAT(MessageOf([&] { Rmse(a, b); }), AllOf(HasSubstr("Rmse"), HasSubstr("estimate shape"),
+  EXPECT_THAT(ErrorOf([&] { Rmse(a, b); }), AllOf(HasSubstr("Rmse"), HasSubstr("estimate shape"),
                                                     HasSubstr("20x21"), HasSubstr("20x20")));
-  EXPECT_THAT(MessageOf([&] { Psnr(a, b); }), AllOf(HasSubstr("Psnr"), HasSubstr("estimate shape")));
-  EXPECT_THAT(MessageOf([&] { Ssim(a, b); }), AllOf(HasSubstr("Ssim"), HasSubstr("estimate shape")));
-  EXPECT_THAT(MessageOf([&] { SsimMap(a, b); }), AllOf(HasSubstr("SsimMap"), HasSubstr("estimate shape")));
-  EXPECT_THAT(MessageOf([&] { CompareImages(a, b); }),
+  EXPECT_THAT(ErrorOf([&] { Psnr(a, b); }), AllOf(HasSubstr("Psnr"), HasSubstr("estimate shape")));
+  EXPECT_THAT(ErrorOf([&] { Ssim(a, b); }), AllOf(HasSubstr("Ssim"), HasSubstr("estimate shape")));
+  EXPECT_THAT(ErrorOf([&] { SsimMap(a, b); }), AllOf(HasSubstr("SsimMap"), HasSubstr("estimate shape")));
+  EXPECT_THAT(ErrorOf([&] { CompareImages(a, b); }),
               AllOf(HasSubstr("CompareImages"), HasSubstr("estimate shape")));
 }
 
 TEST(MetricsErrorsTest, EmptyImagesAreRejected) {
   const Image empty;
-  EXPECT_THAT(MessageOf([&] { Rmse(empty, empty); }), AllOf(HasSubstr("Rmse"), HasSubstr("truth")));
+  EXPECT_THAT(ErrorOf([&] { Rmse(empty, empty); }), AllOf(HasSubstr("Rmse"), HasSubstr("truth")));
 }
 
 TEST(MetricsErrorsTest, CropLeavingLessThanTheSsimWindow) {
   const Image a = Ramp(20, 30);
   MetricOptions opts;
   opts.crop_px = 5;  // leaves 10 x 20: smaller than the 11 x 11 window
-  EXPECT_THAT(MessageOf([&] { Ssim(a, a, opts); }),
+  EXPECT_THAT(ErrorOf([&] { Ssim(a, a, opts); }),
               AllOf(HasSubstr("Ssim"), HasSubstr("crop_px = 5"), HasSubstr("11x11")));
-  EXPECT_THAT(MessageOf([&] { CompareImages(a, a, opts); }),
+  EXPECT_THAT(ErrorOf([&] { CompareImages(a, a, opts); }),
               AllOf(HasSubstr("CompareImages"), HasSubstr("crop_px")));
   // RMSE and PSNR only need one pixel: crop 5 is fine for them, crop 10 is not.
   EXPECT_NO_THROW(Rmse(a, a, opts));
   opts.crop_px = 10;
-  EXPECT_THAT(MessageOf([&] { Rmse(a, a, opts); }), AllOf(HasSubstr("Rmse"), HasSubstr("crop_px = 10")));
-  EXPECT_THAT(MessageOf([&] { Psnr(a, a, opts); }), AllOf(HasSubstr("Psnr"), HasSubstr("crop_px")));
+  EXPECT_THAT(ErrorOf([&] { Rmse(a, a, opts); }), AllOf(HasSubstr("Rmse"), HasSubstr("crop_px = 10")));
+  EXPECT_THAT(ErrorOf([&] { Psnr(a, a, opts); }), AllOf(HasSubstr("Psnr"), HasSubstr("crop_px")));
   // An image smaller than the window fails even without a crop.
-  EXPECT_THAT(MessageOf([&] { Ssim(Ramp(10, 40), Ramp(10, 40)); }), HasSubstr("SSIM window"));
+  EXPECT_THAT(ErrorOf([&] { Ssim(Ramp(10, 40), Ramp(10, 40)); }), HasSubstr("SSIM window"));
 }
 
 TEST(MetricsErrorsTest, NonFiniteValuesNameTheImage) {
   const Image good = Ramp(16, 16);
   Image bad = good;
   bad(3, 4) = std::numeric_limits<double>::quiet_NaN();
-  EXPECT_THAT(MessageOf([&] { Rmse(good, bad); }), AllOf(HasSubstr("Rmse"), HasSubstr("estimate"),
+  EXPECT_THAT(ErrorOf([&] { Rmse(good, bad); }), AllOf(HasSubstr("Rmse"), HasSubstr("estimate"),
                                                          HasSubstr("NaN")));
-  EXPECT_THAT(MessageOf([&] { Ssim(bad, good); }), AllOf(HasSubstr("Ssim"), HasSubstr("truth"),
+  EXPECT_THAT(ErrorOf([&] { Ssim(bad, good); }), AllOf(HasSubstr("Ssim"), HasSubstr("truth"),
                                                          HasSubstr("NaN")));
   bad(3, 4) = std::numeric_limits<double>::infinity();
-  EXPECT_THAT(MessageOf([&] { Psnr(bad, good); }), AllOf(HasSubstr("Psnr"), HasSubstr("truth")));
+  EXPECT_THAT(ErrorOf([&] { Psnr(bad, good); }), AllOf(HasSubstr("Psnr"), HasSubstr("truth")));
 }
 
 TEST(MetricsErrorsTest, NegativeOrNonFinitePeakAndNegativeCrop) {
   const Image a = Ramp(16, 16);
   MetricOptions opts;
   opts.peak = -1.0;
-  EXPECT_THAT(MessageOf([&] { Psnr(a, a, opts); }), AllOf(HasSubstr("Psnr"), HasSubstr("peak = -1")));
-  EXPECT_THAT(MessageOf([&] { Ssim(a, a, opts); }), AllOf(HasSubstr("Ssim"), HasSubstr("peak")));
+  EXPECT_THAT(ErrorOf([&] { Psnr(a, a, opts); }), AllOf(HasSubstr("Psnr"), HasSubstr("peak = -1")));
+  EXPECT_THAT(ErrorOf([&] { Ssim(a, a, opts); }), AllOf(HasSubstr("Ssim"), HasSubstr("peak")));
   opts.peak = std::numeric_limits<double>::infinity();
-  EXPECT_THAT(MessageOf([&] { CompareImages(a, a, opts); }), HasSubstr("peak"));
+  EXPECT_THAT(ErrorOf([&] { CompareImages(a, a, opts); }), HasSubstr("peak"));
   opts = MetricOptions{};
   opts.crop_px = -2;
-  EXPECT_THAT(MessageOf([&] { Rmse(a, a, opts); }), AllOf(HasSubstr("Rmse"), HasSubstr("crop_px = -2")));
+  EXPECT_THAT(ErrorOf([&] { Rmse(a, a, opts); }), AllOf(HasSubstr("Rmse"), HasSubstr("crop_px = -2")));
 }
 
 TEST(MetricsErrorsTest, ConstantTruthNeedsAnExplicitPeak) {
   const Image flat = Image::Constant(16, 16, 0.5);
   const Image other = Image::Constant(16, 16, 0.4);
-  EXPECT_THAT(MessageOf([&] { Psnr(flat, other); }), AllOf(HasSubstr("Psnr"), HasSubstr("peak")));
-  EXPECT_THAT(MessageOf([&] { Ssim(flat, other); }), AllOf(HasSubstr("Ssim"), HasSubstr("peak")));
+  EXPECT_THAT(ErrorOf([&] { Psnr(flat, other); }), AllOf(HasSubstr("Psnr"), HasSubstr("peak")));
+  EXPECT_THAT(ErrorOf([&] { Ssim(flat, other); }), AllOf(HasSubstr("Ssim"), HasSubstr("peak")));
   // RMSE does not need a dynamic range.
   EXPECT_NEAR(Rmse(flat, other), 0.1, 1e-15);
 }

@@ -6,19 +6,14 @@
 
 #include "aosr/core/adjoint_test.hpp"
 #include "aosr/core/fft.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
 constexpr double kAdjointTol = 1e-10;
 
-Image RandomImage(Shape s, std::uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  Image img(s.rows, s.cols);
-  for (Index i = 0; i < img.size(); ++i) img.data()[i] = u(rng);
-  return img;
-}
+Image RandomImage(Shape s, std::uint64_t seed) { return aosr::test::RandomImage(s, seed, /*normal=*/false); }
 
 Image GaussianKernel(Index n, double sigma) {
   Image k(n, n);

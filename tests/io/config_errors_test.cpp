@@ -3,21 +3,15 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/io/config.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
+using aosr::test::ErrorOf;
+
 using ::testing::HasSubstr;
 
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "no error";
-}
 
 TEST(ConfigErrorsTest, MessagesNameTheFileAndTheFullFieldPath) {
   const auto j = nlohmann::json::parse(R"({"a": {"layers": [{"x": 1}, {"x": -2}]}, "s": "k", "b": true})");
@@ -38,12 +32,12 @@ TEST(ConfigErrorsTest, UnknownFieldsAreErrorsButCommentsAreNot) {
 }
 
 TEST(ConfigErrorsTest, MissingAndMalformedFiles) {
-  EXPECT_THAT(ErrorOf([] { ReadJsonFile("/nonexistent/x.json"); }), HasSubstr("/nonexistent/x.json"));
+  EXPECT_THAT(ErrorOf<Error>([] { ReadJsonFile("/nonexistent/x.json"); }), HasSubstr("/nonexistent/x.json"));
   const std::string path = testing::TempDir() + "/aosr_bad.json";
   FILE* f = fopen(path.c_str(), "w");
   fputs("{\"a\": 1,,}", f);
   fclose(f);
-  EXPECT_THAT(ErrorOf([&] { ReadJsonFile(path); }), HasSubstr("malformed JSON"));
+  EXPECT_THAT(ErrorOf<Error>([&] { ReadJsonFile(path); }), HasSubstr("malformed JSON"));
   std::remove(path.c_str());
 }
 

@@ -14,22 +14,15 @@
 #include "aosr/optics/psf.hpp"
 #include "aosr/optics/pupil.hpp"
 #include "aosr/optics/zernike.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
+using aosr::test::ErrorOf;
+
 using ::testing::HasSubstr;
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InvalidArgument& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    return std::string("wrong exception type: ") + e.what();
-  }
-  return "no exception";
-}
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();

@@ -5,21 +5,15 @@
 #include "aosr/scene/demo.hpp"
 #include "aosr/scene/noise.hpp"
 #include "aosr/scene/raster.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
+using aosr::test::ErrorOf;
+
 using ::testing::HasSubstr;
 
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "no error";
-}
 
 TEST(SceneErrorsTest, DemoOptionsNameTheBadField) {
   DemoOptions o;

@@ -7,21 +7,15 @@
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/shift_and_add.hpp"
 #include "aosr/solvers/tikhonov.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
+using aosr::test::ErrorOf;
+
 using ::testing::HasSubstr;
 
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "no error";
-}
 
 MultiFrameModel Model() {
   Image k = Image::Zero(3, 3);

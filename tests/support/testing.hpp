@@ -1,0 +1,61 @@
+// Helpers shared by aosr's tests (header-only; include as "support/testing.hpp").
+#pragma once
+
+#include <sys/wait.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <exception>
+#include <random>
+#include <string>
+
+#include "aosr/core/error.hpp"
+#include "aosr/core/image.hpp"
+
+namespace aosr::test {
+
+// Runs `f` and returns the message of the exception of type E it throws; "no exception" if none, and
+// "wrong exception type: ..." for any other exception, so HasSubstr checks also pin the type.
+template <typename E = InvalidArgument, typename F>
+std::string ErrorOf(F&& f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  } catch (const std::exception& e) {
+    return std::string("wrong exception type: ") + e.what();
+  }
+  return "no exception";
+}
+
+// An image of independent N(0, 1) (normal = true) or U(0, 1) values from a fixed seed.
+inline Image RandomImage(Shape s, std::uint64_t seed, bool normal = true) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> n01;
+  std::uniform_real_distribution<double> u01;
+  Image img(s.rows, s.cols);
+  for (Index i = 0; i < img.size(); ++i) img.data()[i] = normal ? n01(rng) : u01(rng);
+  return img;
+}
+
+// Runs the built `aosr` executable with `args` (stderr merged into the output).
+struct CliRun {
+  int status = -1;
+  std::string out;
+};
+
+#ifdef AOSR_CLI_PATH
+inline CliRun RunCli(const std::string& args) {
+  const std::string cmd = std::string(AOSR_CLI_PATH) + " " + args + " 2>&1";
+  CliRun run;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return run;
+  char buf[4096];
+  while (std::size_t n = fread(buf, 1, sizeof buf, p)) run.out.append(buf, n);
+  const int status = pclose(p);
+  run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+#endif
+
+}  // namespace aosr::test
