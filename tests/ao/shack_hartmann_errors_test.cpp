@@ -11,25 +11,16 @@
 #include "aosr/ao/wavefront_sensor.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/optics/pupil.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
+using ::aosr::test::ErrorOf;
 using ::testing::HasSubstr;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InvalidArgument& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    return std::string("wrong exception type: ") + e.what();
-  }
-  return "no exception";
-}
 
 Image Pupil() { return CircularPupil(64, PupilGeometry{8.0, 0.0}); }
 
