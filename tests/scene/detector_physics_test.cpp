@@ -1,6 +1,5 @@
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 
@@ -110,36 +109,6 @@ TEST(DetectorPhysicsTest, NoiselessChainConservesElectrons) {
     EXPECT_NEAR(back / (electrons + n * 0.7 * o.exposure_time_s), 1.0, 1e-10);
     // Exactly λ/g + bias, λ = s + background (FFT rounding's ~1e-17 negatives count as 0).
     EXPECT_TRUE((recorded[i].adu == (frames[i].max(0.0) + 0.7 * o.exposure_time_s) / 2.2 + 1000.0).all());
-  }
-}
-
-// Performance: 10⁶ pixels of Poisson + read noise (the brief asks for well under 100 ms). Timed as in a
-// sequence loop, recording into a reused DetectorFrame; the first call also pays for first-touching the four
-// output images, reported separately because it depends on the machine's page-fault cost, not on this code.
-// Best of 7 repeats, so a busy machine does not fail the test; measured 55-70 ms on a shared 2-core VM.
-TEST(DetectorPhysicsTest, MegapixelOfPoissonAndReadNoiseIsFast) {
-  DetectorOptions o;
-  o.read_noise_e = 5.0;
-  const Detector d(o);
-  for (double mean_e : {0.5, 5.0, 50.0, 5000.0}) {
-    const Image s = Image::Constant(1000, 1000, mean_e);
-    DetectorFrame f;
-    double first_ms = 0, best_ms = 1e9;
-    for (int rep = 0; rep < 8; ++rep) {
-      const auto t0 = std::chrono::steady_clock::now();
-      d.Record(s, rep, 0, &f);
-      const auto t1 = std::chrono::steady_clock::now();
-      const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-      if (rep == 0)
-        first_ms = ms;
-      else
-        best_ms = std::min(best_ms, ms);
-    }
-    std::printf("10^6 px Poisson(%g e-) + read noise: %.1f ms (first call, fresh buffers: %.1f ms)\n", mean_e,
-                best_ms, first_ms);
-#ifdef NDEBUG  // timings of unoptimised builds mean nothing
-    EXPECT_LT(best_ms, 100.0);
-#endif
   }
 }
 
