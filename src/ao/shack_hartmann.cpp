@@ -309,6 +309,9 @@ ShackHartmann::ShackHartmann(const Image& amplitude, double diameter_m, const Sh
       }
     }
     spots_ = Image::Zero(nv, m_ * m_);
+    phase_.assign(lit_pupil_.size(), 0.0);
+    cos_.assign(lit_pupil_.size(), 0.0);
+    sin_.assign(lit_pupil_.size(), 0.0);
   }
   CalibrateReference();
 }
@@ -369,10 +372,14 @@ void ShackHartmann::MeasureDiffractive(const Image& opd_m, bool noisy, Eigen::Re
   const double read = noisy ? options_.noise.read_noise_e : 0.0;
   const double threshold = options_.threshold_fraction;
   const double* w = opd_m.data();
+  // The phases of every lit pixel at once (a vectorised sin/cos), then each lenslet's field.
+  const long lit = static_cast<long>(lit_pupil_.size());
+  for (long j = 0; j < lit; ++j) phase_[j] = wavenumber * w[lit_pupil_[j]];
+  internal::SinCosBatch(phase_.data(), lit, cos_.data(), sin_.data());
   for (Index v = 0; v < nv; ++v) {
     Complex* field = fields_[v].data();
     for (Index j = lit_start_[v]; j < lit_start_[v + 1]; ++j) {
-      field[lit_local_[j]] = lit_amp_[j] * internal::UnitPhasor(wavenumber * w[lit_pupil_[j]]);
+      field[lit_local_[j]] = Complex(lit_amp_[j] * cos_[j], lit_amp_[j] * sin_[j]);
     }
     double* spot = &spots_(v, 0);
     const double norm = norm_[v];

@@ -1,0 +1,358 @@
+#include "aosr/ao/closed_loop.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+#include "aosr/ao/shack_hartmann.hpp"
+#include "aosr/core/error.hpp"
+#include "aosr/core/fft.hpp"
+#include "fast_trig.hpp"
+
+namespace aosr {
+namespace {
+
+constexpr double kTwoPi = 6.283185307179586476925286766559;
+
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+bool Fail(std::string* why, const std::string& msg) {
+  if (why != nullptr) *why = msg;
+  return false;
+}
+
+void CheckStaticOpd(const Image& opd, const Image& amplitude, const char* name) {
+  if (opd.size() == 0) return;
+  const Index n = amplitude.rows();
+  CheckArgument(opd.rows() == n && opd.cols() == n, "ClosedLoop", std::string("options.") + name + " shape",
+                ToString(ShapeOf(opd)), "empty or " + ToString(Shape{n, n}) + " (the pupil grid)");
+  for (Index p = 0; p < opd.size(); ++p) {
+    if (amplitude.data()[p] > 0.0 && !std::isfinite(opd.data()[p])) {
+      throw InvalidArgument("ClosedLoop", std::string("options.") + name, ToString(opd.data()[p]),
+                            "finite values where the pupil transmits");
+    }
+  }
+}
+
+// Validates everything before any member is built; returns the options.
+const ClosedLoopOptions& CheckedLoopOptions(const Image& amplitude, double diameter_m, Atmosphere* atmosphere,
+                                            const DeformableMirrorPtr& dm, WavefrontSensor* wfs,
+                                            Controller* controller, const ClosedLoopOptions& options) {
+  const char* fn = "ClosedLoop";
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(fn) + ": invalid options." + why);
+  CheckArgument(amplitude.rows() >= 2 && amplitude.rows() == amplitude.cols(), fn, "amplitude shape",
+                ToString(ShapeOf(amplitude)), "a square n x n pupil grid, n >= 2");
+  CheckArgument(amplitude.isFinite().all() && (amplitude >= 0.0).all(), fn, "amplitude",
+                "negative or non-finite values", "finite values >= 0");
+  CheckArgument(amplitude.sum() > 0.0, fn, "amplitude", "all zero", "some pixel > 0 (an open aperture)");
+  CheckArgument(std::isfinite(diameter_m) && diameter_m > 0.0, fn, "diameter_m", diameter_m,
+                "> 0 and finite [m]");
+  const Index n = amplitude.rows();
+  const std::string grid = std::to_string(n) + " (the amplitude's grid)";
+  CheckArgument(dm != nullptr, fn, "dm", "null", "a deformable mirror");
+  CheckArgument(wfs != nullptr, fn, "wfs", "null", "a wavefront sensor");
+  CheckArgument(controller != nullptr, fn, "controller", "null", "a controller");
+  CheckArgument(dm->pupil_n() == n, fn, "dm pupil grid", dm->pupil_n(), grid);
+  CheckArgument(std::abs(dm->pupil().diameter_m - diameter_m) <= 1e-9 * diameter_m, fn, "dm diameter",
+                dm->pupil().diameter_m, ToString(diameter_m) + " [m] (diameter_m)");
+  CheckArgument(wfs->pupil_n() == n, fn, "wfs pupil grid", wfs->pupil_n(), grid);
+  if (atmosphere != nullptr) {
+    CheckArgument(atmosphere->pupil_n() == n, fn, "atmosphere pupil grid", atmosphere->pupil_n(), grid);
+    CheckArgument(std::abs(atmosphere->diameter_m() - diameter_m) <= 1e-9 * diameter_m, fn,
+                  "atmosphere diameter", atmosphere->diameter_m(),
+                  ToString(diameter_m) + " [m] (diameter_m)");
+  }
+  CheckArgument(controller->n_actuators() == dm->n_active(), fn, "controller actuators",
+                controller->n_actuators(),
+                std::to_string(dm->n_active()) + " (the mirror's active actuators)");
+  CheckArgument(controller->n_measurements() == wfs->n_measurements(), fn, "controller measurements",
+                controller->n_measurements(), std::to_string(wfs->n_measurements()) + " (the sensor's)");
+  if (const auto* sh = dynamic_cast<const ShackHartmann*>(wfs)) {
+    const ShackHartmannNoise& noise = sh->options().noise;
+    const double t = controller->frame_time_s();
+    if ((noise.photon_noise || noise.read_noise_e > 0.0) && std::abs(noise.frame_time_s - t) > 1e-6 * t) {
+      throw InvalidArgument(
+          fn, "wfs noise.frame_time_s", ToString(noise.frame_time_s),
+          ToString(t) + " [s] (1 / the controller's loop_rate_hz) when the sensor has noise");
+    }
+  }
+  CheckStaticOpd(options.common_static_opd_m, amplitude, "common_static_opd_m");
+  CheckStaticOpd(options.science_static_opd_m, amplitude, "science_static_opd_m");
+  return options;
+}
+
+}  // namespace
+
+bool ClosedLoopOptions::IsValid(std::string* why) const {
+  std::string sub;
+  if (!science.IsValid(&sub)) return Fail(why, "science." + sub);
+  if (psf_every_steps < 1) {
+    return Fail(why, "psf_every_steps = " + ToString(psf_every_steps) + "; allowed: >= 1 [frames]");
+  }
+  if (!(std::isfinite(start_time_s) && start_time_s >= 0.0)) {
+    return Fail(why, "start_time_s = " + ToString(start_time_s) + "; allowed: >= 0 and finite [s]");
+  }
+  return true;
+}
+
+double ClosedLoopResult::RmsResidualM() const {
+  if (residual_rms_m.empty()) return 0.0;
+  double sum2 = 0.0;
+  for (double r : residual_rms_m) sum2 += r * r;
+  return std::sqrt(sum2 / static_cast<double>(residual_rms_m.size()));
+}
+
+std::string ClosedLoopResult::BriefReport() const {
+  char buf[320];
+  std::snprintf(buf, sizeof(buf),
+                "%d frames (+%d settling) at %.6g Hz: residual %.4g nm RMS, LE Strehl %.4f, PSF of %d frames "
+                "(Strehl %.4f), %d frames clipped",
+                steps, settling_steps, frame_time_s > 0.0 ? 1.0 / frame_time_s : 0.0, RmsResidualM() * 1e9,
+                long_exposure_strehl, psf_frames, psf_strehl, clipped_frames);
+  return buf;
+}
+
+// Per-exposure accumulators.
+struct ClosedLoop::Recorder {
+  std::vector<double> residual_rms_m;
+  std::vector<double> strehl;
+  int steps = 0;
+  int psf_frames = 0;
+  double psf_strehl_sum = 0.0;
+  int clipped_frames = 0;
+};
+
+ClosedLoop::ClosedLoop(const Image& amplitude, double diameter_m, Atmosphere* atmosphere,
+                       DeformableMirrorPtr dm, WavefrontSensor* wfs, Controller* controller,
+                       const ClosedLoopOptions& options)
+    : options_(CheckedLoopOptions(amplitude, diameter_m, atmosphere, dm, wfs, controller, options)),
+      amplitude_(amplitude),
+      diameter_m_(diameter_m),
+      atmosphere_(atmosphere),
+      dm_(std::move(dm)),
+      wfs_(wfs),
+      controller_(controller) {
+  const Index n = amplitude_.rows();
+  turbulence_ = Image::Zero(n, n);
+  dm_opd_ = Image::Zero(n, n);
+  residual_ = Image::Zero(n, n);
+  measurement_ = Vector::Zero(wfs_->n_measurements());
+  clipped_ = Vector::Zero(dm_->n_active());
+  const Index m = 2 * n;
+  for (Index i = 0; i < n; ++i) {
+    for (Index k = 0; k < n; ++k) {
+      const double a = amplitude_(i, k);
+      if (a <= 0.0) continue;
+      lit_pupil_.push_back(i * n + k);
+      lit_field_.push_back(i * m + k);
+      lit_amp_.push_back(a);
+      sum_amplitude_ += a;
+      energy_ += a * a;
+    }
+  }
+  field_ = ComplexImage::Zero(m, m);
+  phase_.assign(lit_pupil_.size(), 0.0);
+  cos_.assign(lit_pupil_.size(), 0.0);
+  sin_.assign(lit_pupil_.size(), 0.0);
+  accumulator_ = Image::Zero(m, m);
+  if (options_.compute_psf) {
+    // The (2n-1)^2 lag lattice k D/n, centred at (n-1, n-1), onto the science grid (analytic_ao.hpp).
+    MftGeometry g;
+    g.input = {2 * n - 1, 2 * n - 1};
+    g.pupil_span_px = static_cast<double>(n);
+    g.output = {options_.science.rows, options_.science.cols};
+    g.pixel_scale_lod = options_.science.PixelScaleLambdaOverD(diameter_m_);
+    lattice_mft_ = std::make_unique<MatrixFourierTransform>(g);
+  }
+}
+
+ClosedLoop::~ClosedLoop() = default;
+
+double ClosedLoop::time_s() const {
+  return options_.start_time_s + (static_cast<double>(frame_) + 0.5) * controller_->frame_time_s();
+}
+
+void ClosedLoop::Step(bool record) {
+  const Index n = amplitude_.rows();
+  const double t = time_s();
+  const auto t0 = Clock::now();
+  // 1. Atmosphere.
+  if (atmosphere_ != nullptr) {
+    atmosphere_->Opd(t, &turbulence_);
+  }
+  const auto t1 = Clock::now();
+  // 2. DM: the command of this frame, the mirror's OPD and the residual.
+  const Vector& applied = controller_->applied_commands();
+  dm_->Apply(applied, Eigen::Map<Vector>(dm_opd_.data(), n * n));
+  residual_ = dm_opd_;
+  if (atmosphere_ != nullptr) residual_ += turbulence_;
+  if (options_.common_static_opd_m.size() > 0) residual_ += options_.common_static_opd_m;
+  const auto t2 = Clock::now();
+  // 3. WFS.
+  wfs_->Measure(residual_, measurement_);
+  const auto t3 = Clock::now();
+  // 4. Control: c_{n+1}, clipped to the stroke before it reaches the mirror.
+  const Vector& next = controller_->Update(measurement_);
+  bool clipped = false;
+  if (options_.clip_to_stroke) {
+    const double stroke = dm_->options().stroke_m;
+    if (next.cwiseAbs().maxCoeff() > stroke) {
+      clipped_ = next;
+      dm_->Clip(&clipped_);
+      controller_->OverrideApplied(clipped_);
+      clipped = true;
+    }
+  }
+  const auto t4 = Clock::now();
+  // 5. Science.
+  if (record) {
+    if (!recorder_) BeginRecording();
+    Recorder& r = *recorder_;
+    const bool psf_frame = options_.compute_psf && r.steps % options_.psf_every_steps == 0;
+    ScienceStage(psf_frame);
+    if (clipped) ++r.clipped_frames;
+    ++r.steps;
+  }
+  const auto t5 = Clock::now();
+  times_.atmosphere_s += Seconds(t0, t1);
+  times_.dm_s += Seconds(t1, t2);
+  times_.wfs_s += Seconds(t2, t3);
+  times_.control_s += Seconds(t3, t4);
+  times_.science_s += Seconds(t4, t5);
+  ++times_.frames;
+  ++frame_;
+}
+
+void ClosedLoop::ScienceStage(bool psf_frame) {
+  Recorder& r = *recorder_;
+  // Residual RMS over the pupil, amplitude-weighted, piston removed.
+  const double* w = residual_.data();
+  double s1 = 0.0, s2 = 0.0;
+  for (std::size_t j = 0; j < lit_pupil_.size(); ++j) {
+    const double v = w[lit_pupil_[j]], a = lit_amp_[j];
+    s1 += a * v;
+    s2 += a * v * v;
+  }
+  const double mean = s1 / sum_amplitude_;
+  r.residual_rms_m.push_back(std::sqrt(std::max(0.0, s2 / sum_amplitude_ - mean * mean)));
+  // Science field and its on-axis sum.
+  const double k = kTwoPi / options_.science.wavelength_m;
+  const bool ncp = options_.science_static_opd_m.size() > 0;
+  const double* wn = ncp ? options_.science_static_opd_m.data() : nullptr;
+  const long lit = static_cast<long>(lit_pupil_.size());
+  if (ncp) {
+    for (long j = 0; j < lit; ++j) phase_[j] = k * (w[lit_pupil_[j]] + wn[lit_pupil_[j]]);
+  } else {
+    for (long j = 0; j < lit; ++j) phase_[j] = k * w[lit_pupil_[j]];
+  }
+  internal::SinCosBatch(phase_.data(), lit, cos_.data(), sin_.data());
+  Complex* field = field_.data();
+  double re = 0.0, im = 0.0;
+  for (long j = 0; j < lit; ++j) {
+    const double er = lit_amp_[j] * cos_[j], ei = lit_amp_[j] * sin_[j];
+    field[lit_field_[j]] = Complex(er, ei);
+    re += er;
+    im += ei;
+  }
+  const Complex on_axis(re, im);
+  const double strehl = std::norm(on_axis) / (sum_amplitude_ * sum_amplitude_);
+  r.strehl.push_back(strehl);
+  if (psf_frame) {
+    const ComplexImage spectrum = FftForward(field_);
+    accumulator_ += spectrum.abs2();
+    ++r.psf_frames;
+    r.psf_strehl_sum += strehl;
+  }
+}
+
+void ClosedLoop::BeginRecording() {
+  recorder_ = std::make_unique<Recorder>();
+  accumulator_.setZero();
+}
+
+ClosedLoopResult ClosedLoop::FinishRecording(int settling_steps, double start_time_s) {
+  Recorder& r = *recorder_;
+  ClosedLoopResult out;
+  out.start_time_s = start_time_s;
+  out.frame_time_s = controller_->frame_time_s();
+  out.settling_steps = settling_steps;
+  out.steps = r.steps;
+  out.clipped_frames = r.clipped_frames;
+  out.psf_frames = r.psf_frames;
+  double sum = 0.0;
+  for (double s : r.strehl) sum += s;
+  out.long_exposure_strehl = r.steps > 0 ? sum / r.steps : 0.0;
+  out.psf_strehl = r.psf_frames > 0 ? r.psf_strehl_sum / r.psf_frames : 0.0;
+  out.residual_rms_m = std::move(r.residual_rms_m);
+  out.strehl = std::move(r.strehl);
+  if (options_.compute_psf && r.psf_frames > 0) {
+    // Gamma = IDFT(<|DFT E|^2>) on the 2n grid, gathered on the (2n-1)^2 lag lattice, then the MFT.
+    const Index n = amplitude_.rows(), m = 2 * n;
+    const ComplexImage gamma = FftInverse((accumulator_ / static_cast<double>(r.psf_frames)).cast<Complex>());
+    ComplexImage lattice(2 * n - 1, 2 * n - 1);
+    for (Index ky = -(n - 1); ky <= n - 1; ++ky) {
+      for (Index kx = -(n - 1); kx <= n - 1; ++kx) {
+        lattice(ky + n - 1, kx + n - 1) = gamma((ky + m) % m, (kx + m) % m);
+      }
+    }
+    const double s = lattice_mft_->geometry().pixel_scale_lod;
+    out.psf = lattice_mft_->Apply(lattice).real() * (s * s / energy_);
+  }
+  recorder_.reset();
+  return out;
+}
+
+ClosedLoopResult ClosedLoop::Run(double duration_s, double settling_s) {
+  const char* fn = "ClosedLoop::Run";
+  const double t = controller_->frame_time_s();
+  CheckArgument(std::isfinite(duration_s) && duration_s > 0.0 && std::llround(duration_s / t) >= 1, fn,
+                "duration_s", duration_s, "finite and at least one frame (" + ToString(t) + " s)");
+  CheckArgument(std::isfinite(settling_s) && settling_s >= 0.0, fn, "settling_s", settling_s,
+                ">= 0 and finite [s]");
+  const long steps = std::llround(duration_s / t);
+  const long settle = std::llround(settling_s / t);
+  for (long i = 0; i < settle; ++i) Step(false);
+  const double start = time_s();
+  BeginRecording();
+  for (long i = 0; i < steps; ++i) Step(true);
+  return FinishRecording(static_cast<int>(settle), start);
+}
+
+std::vector<ClosedLoopResult> ClosedLoop::RunSubExposures(const std::vector<Image>& dm_offsets_m,
+                                                          double exposure_s, double settling_s) {
+  const char* fn = "ClosedLoop::RunSubExposures";
+  CheckArgument(!dm_offsets_m.empty(), fn, "dm_offsets_m", "empty", "at least one DM offset");
+  const double t = controller_->frame_time_s();
+  CheckArgument(std::isfinite(exposure_s) && exposure_s > 0.0 && std::llround(exposure_s / t) >= 1, fn,
+                "exposure_s", exposure_s, "finite and at least one frame (" + ToString(t) + " s)");
+  CheckArgument(std::isfinite(settling_s) && settling_s >= 0.0, fn, "settling_s", settling_s,
+                ">= 0 and finite [s]");
+  const Index n = amplitude_.rows();
+  // Compute every offset first, so bad input fails before the loop runs.
+  std::vector<Vector> offsets;
+  for (std::size_t i = 0; i < dm_offsets_m.size(); ++i) {
+    const Image& w = dm_offsets_m[i];
+    CheckArgument(w.rows() == n && w.cols() == n, fn, "dm_offsets_m[" + std::to_string(i) + "] shape",
+                  ToString(ShapeOf(w)), ToString(Shape{n, n}) + " (the pupil grid)");
+    try {
+      offsets.push_back(wfs_->ReferenceOffsetForOpd(w));
+    } catch (const InvalidArgument&) {
+      throw InvalidArgument(fn, "dm_offsets_m[" + std::to_string(i) + "]", "non-finite values",
+                            "finite values where the pupil transmits");
+    }
+  }
+  std::vector<ClosedLoopResult> results;
+  for (const Vector& offset : offsets) {
+    wfs_->SetReferenceOffset(offset);
+    results.push_back(Run(exposure_s, settling_s));
+  }
+  return results;
+}
+
+}  // namespace aosr

@@ -1,0 +1,164 @@
+// Physics of the closed loop (closed_loop.hpp, control.hpp): convergence on a static aberration to the DM
+// fitting residual, holding a DM offset applied through the reference slopes, and the paper's system against
+// the analytic AO model. Fixed seeds; tolerances stated at each check. Kept short (a few seconds of CPU):
+// longer, more precise versions are in closed_loop_slow_test.cpp.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/closed_loop.hpp"
+#include "aosr/optics/psf.hpp"
+#include "aosr/optics/zernike.hpp"
+#include "loop_fixture.hpp"
+
+namespace aosr {
+namespace {
+
+using test::KBandScience;
+using test::kPaperDiameter;
+using test::MakePaperSystem;
+using test::SensorKind;
+
+// Piston-removed, amplitude-weighted RMS [m].
+double PupilRms(const Image& w, const Image& a) {
+  const double sa = a.sum();
+  const double mean = (a * w).sum() / sa;
+  return std::sqrt((a * (w - mean).square()).sum() / sa);
+}
+
+// Low and mid orders the 17 x 17 DM reaches (Zernike radial orders 2 .. 6, ~124 nm RMS), optionally with a
+// 20 nm RMS Z70 (radial order 11) beyond the DM's control radius, which a Shack-Hartmann aliases.
+Image StaticAberration(Index n, bool high_order) {
+  Image w = 80e-9 * ZernikeUnmasked(4, n) + 60e-9 * ZernikeUnmasked(6, n) + 50e-9 * ZernikeUnmasked(9, n) +
+            40e-9 * ZernikeUnmasked(16, n) + 30e-9 * ZernikeUnmasked(29, n);
+  if (high_order) w += 20e-9 * ZernikeUnmasked(70, n);
+  return w;
+}
+
+const char* Name(SensorKind kind) {
+  return kind == SensorKind::kIdeal ? "ideal" : kind == SensorKind::kGeometric ? "geometric" : "diffractive";
+}
+
+TEST(ClosedLoopPhysicsTest, StaticAberrationConvergesToTheDmFittingResidual) {
+  // Gain 0.5, one frame of delay, 60 frames, no turbulence (the error decays as sqrt(0.5)^n: 1e-9 after 60).
+  //  * Ideal sensor: the loop converges to the least-squares DM fit itself; its residual equals
+  //    DmFitter::Residual within 1e-4 of the fitting residual's RMS (the control matrix cuts the modes of the
+  //    barely lit rim actuators, whose fit the loop therefore does not reproduce exactly).
+  //  * Geometric SH: the loop converges exactly (1e-6) to its own fixed point w - H M G w (M: the control
+  //    matrix), the DM fitting residual of the sensor's least-squares reconstructor. That reconstructor
+  //    minimises slope errors, not OPD errors: for the low orders the DM reaches, its residual is 1.0 - 1.6x
+  //    the OPD least-squares fitting residual (measured 1.48x: 8.1 against 5.5 nm, from 123 nm; the
+  //    difference lies both at the rim and inside), and with order-11 content beyond the DM's reach the SH
+  //    also aliases it into the slopes (measured 17.0 against 11.5 nm; printed, not bounded).
+  //  * Diffractive SH: non-linear, so only the comparison with the fitting residual (1.0 - 1.6x).
+  const Index n = 128;
+  ControllerOptions control;
+  control.gain = 0.5;
+  control.delay_frames = 1;
+  for (bool high_order : {false, true}) {
+    const Image aberration = StaticAberration(n, high_order);
+    for (SensorKind kind : {SensorKind::kIdeal, SensorKind::kGeometric, SensorKind::kDiffractive}) {
+      test::LoopSystem s = MakePaperSystem(kind, false, 1, control, n);
+      ClosedLoopOptions options = KBandScience();
+      options.compute_psf = false;
+      options.common_static_opd_m = aberration;
+      ClosedLoop loop(s.amplitude, kPaperDiameter, nullptr, s.dm, s.wfs.get(), s.controller.get(), options);
+      const ClosedLoopResult r = loop.Run(60 / 800.0);
+      DmFitter fitter(s.dm, s.amplitude);
+      const Image fit_residual = fitter.Residual(aberration);
+      const double fit_rms = PupilRms(fit_residual, s.amplitude);
+      const double loop_rms = r.residual_rms_m.back();
+      const double distance = PupilRms(loop.residual_opd_m() - fit_residual, s.amplitude);
+      std::printf(
+          "%-11s %s: initial %.2f nm, after 60 frames %.3f nm; DM fitting residual %.3f nm; "
+          "|loop - fit| %.3g nm\n",
+          Name(kind), high_order ? "with Z70" : "low order", r.residual_rms_m[0] * 1e9, loop_rms * 1e9,
+          fit_rms * 1e9, distance * 1e9);
+      EXPECT_NEAR(r.residual_rms_m[50] / loop_rms, 1.0, 1e-3) << Name(kind);  // converged
+      if (kind == SensorKind::kIdeal) {
+        EXPECT_LT(distance, 1e-4 * fit_rms);
+      } else if (kind == SensorKind::kGeometric) {
+        const Vector c = -s.control_matrix.matrix * s.wfs->MeasureNoiseless(aberration);
+        const Image fixed_point = aberration + s.dm->Opd(c);
+        EXPECT_LT(PupilRms(loop.residual_opd_m() - fixed_point, s.amplitude), 1e-6 * loop_rms);
+        if (!high_order) {
+          EXPECT_GE(loop_rms / fit_rms, 1.0);
+          EXPECT_LT(loop_rms / fit_rms, 1.6);
+        }
+      } else if (!high_order) {
+        EXPECT_GE(loop_rms / fit_rms, 1.0);
+        EXPECT_LT(loop_rms / fit_rms, 1.6);
+      }
+    }
+  }
+}
+
+TEST(ClosedLoopPhysicsTest, ReferenceSlopeOffsetMakesTheLoopHoldTheShape) {
+  // No turbulence. The offset shape is DM-representable and visible to the SH: the mirror's OPD for the
+  // least-squares fit of a mix of Zernikes (so it has no waffle). After convergence the residual (what the
+  // science camera sees) equals the shape within 1% RMS (stated tolerance; piston removed).
+  const Index n = 128;
+  ControllerOptions control;
+  control.gain = 0.5;
+  for (SensorKind kind : {SensorKind::kIdeal, SensorKind::kGeometric, SensorKind::kDiffractive}) {
+    test::LoopSystem s = MakePaperSystem(kind, false, 1, control, n);
+    DmFitter fitter(s.dm, s.amplitude);
+    const Image target = 60e-9 * ZernikeUnmasked(2, n) + 50e-9 * ZernikeUnmasked(5, n) +
+                         40e-9 * ZernikeUnmasked(8, n) + 30e-9 * ZernikeUnmasked(13, n);
+    const Image shape = s.dm->Opd(fitter.Fit(target));
+    ClosedLoopOptions options = KBandScience();
+    options.compute_psf = false;
+    ClosedLoop loop(s.amplitude, kPaperDiameter, nullptr, s.dm, s.wfs.get(), s.controller.get(), options);
+    const std::vector<ClosedLoopResult> r = loop.RunSubExposures({shape}, 60 / 800.0, 0.0);
+    const double error = PupilRms(loop.residual_opd_m() - shape, s.amplitude) / PupilRms(shape, s.amplitude);
+    std::printf("%-11s holds the %.1f nm RMS offset shape to %.3g (relative RMS)\n", Name(kind),
+                PupilRms(shape, s.amplitude) * 1e9, error);
+    EXPECT_LT(error, 0.01);
+  }
+}
+
+TEST(ClosedLoopPhysicsTest, PaperSystemAgainstTheAnalyticModel) {
+  // The paper's system (loop_fixture.hpp), noiseless, integrator gain 0.35, one frame of delay (mean lag 2 T,
+  // analytic_ao.hpp's convention), K-band PSF every 4th frame, 0.1 s settling then 0.4 s recorded. Stated
+  // tolerances: the ideal sensor's long-exposure Strehl within 0.02 of AnalyticAoPsfCalculator with aliasing
+  // off; the diffractive SH (Nyquist pixels, 16 x 16 px = 8 lambda/d, plain centre of gravity) in 0.6 - 0.87.
+  ControllerOptions control;
+  control.gain = 0.35;
+  control.delay_frames = 1;
+  const ClosedLoopOptions options = KBandScience(4);
+  AnalyticAoPsfCalculator analytic(test::PaperAnalytic(control, false), 128, options.science);
+  const Image amplitude = CircularPupil(128, PupilGeometry{kPaperDiameter, 0.0});
+  const AnalyticAoPsf model = analytic.Compute(amplitude, Image::Zero(128, 128));
+  AnalyticAoPsfCalculator analytic_alias(test::PaperAnalytic(control, true), 128, options.science);
+  const AnalyticAoPsf model_alias = analytic_alias.Compute(amplitude, Image::Zero(128, 128));
+  std::printf("analytic: Strehl %.4f without aliasing, %.4f with\n%s\n", model.strehl, model_alias.strehl,
+              analytic.residual().budget().BriefReport().c_str());
+  for (SensorKind kind : {SensorKind::kIdeal, SensorKind::kDiffractive}) {
+    const auto t0 = std::chrono::steady_clock::now();
+    test::LoopSystem s = MakePaperSystem(kind, true, 11, control);
+    ClosedLoop loop(s.amplitude, kPaperDiameter, s.atmosphere.get(), s.dm, s.wfs.get(), s.controller.get(),
+                    options);
+    const auto t1 = std::chrono::steady_clock::now();
+    const ClosedLoopResult r = loop.Run(0.4, 0.1);
+    const auto t2 = std::chrono::steady_clock::now();
+    const double peak = PeakStrehl(
+        r.psf, PsfCalculator(128, kPaperDiameter, options.science).Compute(amplitude, Image::Zero(128, 128)));
+    std::printf("%s: %s; peak Strehl of the PSF %.4f; set-up %.2f s, %.3f ms per frame\n",
+                s.wfs->Describe().c_str(), r.BriefReport().c_str(), peak,
+                std::chrono::duration<double>(t1 - t0).count(),
+                1e3 * std::chrono::duration<double>(t2 - t1).count() / (r.steps + r.settling_steps));
+    if (kind == SensorKind::kIdeal) {
+      EXPECT_NEAR(r.long_exposure_strehl, model.strehl, 0.02);
+    } else {
+      EXPECT_GT(r.long_exposure_strehl, 0.6);
+      EXPECT_LT(r.long_exposure_strehl, 0.87);
+    }
+    EXPECT_EQ(r.clipped_frames, 0);
+  }
+}
+
+}  // namespace
+}  // namespace aosr
