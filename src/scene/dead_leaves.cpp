@@ -68,9 +68,21 @@ Image DeadLeaves(Shape hr, const DeadLeavesOptions& options, std::uint64_t seed,
 
   DeadLeavesSummary stats;
   stats.samples = uncovered;
-  // Window in HR coordinates, and its dilation by r_max for the centres.
+  // Window in HR coordinates.
   const double wy0 = -0.5, wy1 = hr.rows - 0.5, wx0 = -0.5, wx1 = hr.cols - 0.5;
-  const double r_max = options.r_max_px;
+  const double height = wy1 - wy0, width = wx1 - wx0;
+  // Proposal for the leaves that can meet the window (dead_leaves.hpp): r with density
+  // ∝ r^-alpha (H + 2r)(W + 2r) = HW r^-alpha + 2(H + W) r^(1-alpha) + 4 r^(2-alpha), a mixture of three
+  // truncated power laws with weights HW J(-alpha), 2(H + W) J(1-alpha), 4 J(2-alpha), J(k) = ∫ r^k dr.
+  const double alpha = options.radius_exponent, r_lo = options.r_min_px, r_hi = options.r_max_px;
+  const auto integral = [r_lo, r_hi](double k) {  // ∫_{r_lo}^{r_hi} r^k dr
+    const double lr = std::log(r_hi / r_lo);
+    const double scaled = std::abs(k + 1.0) < 1e-12 ? lr : std::expm1((k + 1.0) * lr) / (k + 1.0);
+    return std::pow(r_lo, k + 1.0) * scaled;
+  };
+  const double w0 = height * width * integral(-alpha), w1 = 2.0 * (height + width) * integral(1.0 - alpha);
+  const double w2 = 4.0 * integral(2.0 - alpha);
+  const double p0 = w0 / (w0 + w1 + w2), p1 = (w0 + w1) / (w0 + w1 + w2);
   scene_internal::UniformGenerator rng(DeriveSeed(seed, kLeavesStream));
   // Fine sample (i, j) sits at HR coordinate ((i + 1/2)/s - 1/2, (j + 1/2)/s - 1/2); its inverse below.
   const auto fine_coordinate = [s](Index i) { return (static_cast<double>(i) + 0.5) / s - 0.5; };
@@ -78,12 +90,15 @@ Image DeadLeaves(Shape hr, const DeadLeavesOptions& options, std::uint64_t seed,
   const auto last_fine = [s](double t) { return static_cast<Index>(std::floor((t + 0.5) * s - 0.5)); };
 
   while (uncovered > 0 && stats.leaves_drawn < options.max_leaves) {
-    const double cy = rng.Uniform(wy0 - r_max, wy1 + r_max);
-    const double cx = rng.Uniform(wx0 - r_max, wx1 + r_max);
-    const double r = scene_internal::PowerLawQuantile(rng.Next(), options.radius_exponent, options.r_min_px,
-                                                      options.r_max_px);
+    // Five deviates per proposal: mixture component, radius, centre y, centre x, grey.
+    const double pick = rng.Next();
+    const double exponent = pick < p0 ? alpha : (pick < p1 ? alpha - 1.0 : alpha - 2.0);
+    const double r = scene_internal::PowerLawQuantile(rng.Next(), exponent, r_lo, r_hi);
+    const double cy = rng.Uniform(wy0 - r, wy1 + r);
+    const double cx = rng.Uniform(wx0 - r, wx1 + r);
     const double grey = rng.Uniform(options.grey_min, options.grey_max);
-    if (DistanceToRect2(cy, cx, wy0, wy1, wx0, wx1) > r * r) continue;  // misses the window
+    // Centres in the corners of the dilated rectangle may still miss the window: reject the whole proposal.
+    if (DistanceToRect2(cy, cx, wy0, wy1, wx0, wx1) > r * r) continue;
     ++stats.leaves_drawn;
     const Index i0 = std::max<Index>(0, first_fine(cy - r)),
                 i1 = std::min<Index>(fine_rows - 1, last_fine(cy + r));

@@ -287,18 +287,29 @@ bool SersicRenderOptions::IsValid(std::string* why) const {
   return true;
 }
 
+namespace {
+
+void CheckRender(const std::string& fn, Shape hr, const SersicRenderOptions& options) {
+  CheckArgument(hr.rows >= 1 && hr.cols >= 1, fn, "hr", ToString(hr), "rows and cols >= 1");
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument(fn + ": invalid options: " + why);
+}
+
+}  // namespace
+
 Image RenderSersic(Shape hr, const SersicGalaxy& galaxy, const SersicRenderOptions& options) {
-  return RenderGalaxies(hr, {galaxy}, options);
+  CheckRender("RenderSersic", hr, options);
+  CheckGalaxy("RenderSersic", "galaxy", galaxy);
+  Image image = Image::Zero(hr.rows, hr.cols);
+  AddSersic(galaxy, options, &image);
+  return image;
 }
 
 Image RenderGalaxies(Shape hr, const std::vector<SersicGalaxy>& galaxies,
                      const SersicRenderOptions& options) {
-  const std::string fn = galaxies.size() == 1 ? "RenderSersic" : "RenderGalaxies";
-  CheckArgument(hr.rows >= 1 && hr.cols >= 1, fn, "hr", ToString(hr), "rows and cols >= 1");
-  std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument(fn + ": invalid options: " + why);
+  CheckRender("RenderGalaxies", hr, options);
   for (std::size_t k = 0; k < galaxies.size(); ++k)
-    CheckGalaxy(fn, galaxies.size() == 1 ? "galaxy" : "galaxies[" + std::to_string(k) + "]", galaxies[k]);
+    CheckGalaxy("RenderGalaxies", "galaxies[" + std::to_string(k) + "]", galaxies[k]);
   Image image = Image::Zero(hr.rows, hr.cols);
   for (const SersicGalaxy& g : galaxies) AddSersic(g, options, &image);
   return image;

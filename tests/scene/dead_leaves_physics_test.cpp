@@ -74,6 +74,19 @@ TEST(DeadLeavesTest, LeafCapLeavesReportedHoles) {
   EXPECT_TRUE(AllFinite(img));
 }
 
+TEST(DeadLeavesTest, LeavesMuchLargerThanTheFieldCostNothingExtra) {
+  // Window-meeting leaves are proposed directly, so r_max >> field wastes no draws: with r_max = 5000 on an
+  // 8x8 field nearly every accepted leaf is huge and one or two of them cover the field.
+  DeadLeavesOptions options;
+  options.r_min_px = 1000.0;
+  options.r_max_px = 5000.0;
+  DeadLeavesSummary summary;
+  const Image img = DeadLeaves({8, 8}, options, 9, &summary);
+  EXPECT_TRUE(summary.complete());
+  EXPECT_LE(summary.leaves_drawn, 2);
+  EXPECT_EQ(img.maxCoeff(), img.minCoeff());
+}
+
 TEST(DeadLeavesTest, SingleSamplePixelsHoldLeafGreys) {
   // supersample = 1 is point sampling: every pixel is exactly one leaf's grey level (no anti-aliasing mix).
   DeadLeavesOptions options;
@@ -85,6 +98,60 @@ TEST(DeadLeavesTest, SingleSamplePixelsHoldLeafGreys) {
   EXPECT_TRUE(summary.complete());
   EXPECT_GE(img.minCoeff(), 2.0);
   EXPECT_LT(img.maxCoeff(), 3.0);
+}
+
+// P(two points at distance d lie on the same visible leaf) for the stationary dead-leaves model with discs:
+// E[lens area] / E[union area] over the radius law (Matheron 1968; Bordenave, Gousseau & Roueff 2006), with
+// lens(r, d) = 2 r² acos(d / 2r) - (d / 2) sqrt(4 r² - d²) for d < 2r. Trapezoid rule in log r.
+double SameLeafProbability(double d, double alpha, double r_min, double r_max) {
+  const int steps = 200000;
+  double lens = 0.0, unions = 0.0;
+  for (int k = 0; k <= steps; ++k) {
+    const double t = std::log(r_min) + (std::log(r_max) - std::log(r_min)) * k / steps;
+    const double r = std::exp(t);
+    const double w =
+        (k == 0 || k == steps ? 0.5 : 1.0) * std::pow(r, 1.0 - alpha);  // p(r) dr = r^-alpha r dt
+    const double l =
+        d < 2 * r ? 2 * r * r * std::acos(d / (2 * r)) - 0.5 * d * std::sqrt(4 * r * r - d * d) : 0.0;
+    lens += w * l;
+    unions += w * (2 * M_PI * r * r - l);
+  }
+  return lens / unions;
+}
+
+TEST(DeadLeavesTest, SameLeafProbabilityMatchesTheModel) {
+  // Point sampling (supersample = 1): two pixels at distance d share a grey level iff they lie on the same
+  // leaf. The oracle checks the whole sampler (radius law, window-meeting proposals, occlusion order) on
+  // every scale. r_max = 64 on a 96-pixel field exercises leaves centred outside it. The tolerance is 4
+  // standard errors of the mean over seeds (per-seed values are independent), plus 0.002 for the model's
+  // quadrature.
+  DeadLeavesOptions options;
+  options.supersample = 1;
+  options.r_min_px = 1.0;
+  options.r_max_px = 64.0;
+  const Index n = 96;
+  const int seeds = 64;
+  for (int d : {1, 3, 8, 20}) {
+    double sum = 0.0, sum2 = 0.0;
+    for (int s = 0; s < seeds; ++s) {
+      const Image img = DeadLeaves({n, n}, options, 500 + s);
+      double same = 0.0, pairs = 0.0;
+      for (Index i = 0; i < n; ++i)
+        for (Index j = 0; j + d < n; ++j) {
+          same += img(i, j) == img(i, j + d) ? 1.0 : 0.0;
+          same += img(j, i) == img(j + d, i) ? 1.0 : 0.0;
+          pairs += 2.0;
+        }
+      sum += same / pairs;
+      sum2 += (same / pairs) * (same / pairs);
+    }
+    const double measured = sum / seeds;
+    const double se = std::sqrt((sum2 / seeds - measured * measured) / (seeds - 1));
+    const double expected =
+        SameLeafProbability(d, options.radius_exponent, options.r_min_px, options.r_max_px);
+    std::printf("d = %2d px: P(same leaf) measured %.4f +- %.4f, model %.4f\n", d, measured, se, expected);
+    EXPECT_NEAR(measured, expected, 4.0 * se + 0.002);
+  }
 }
 
 TEST(DeadLeavesTest, RadiallyAveragedPowerSpectrumFollowsANaturalImagePowerLaw) {

@@ -22,9 +22,14 @@
 // Drawing leaves *front to back* (the first drawn is on top) and letting each one paint only points that no
 // earlier leaf covers gives exactly the stationary picture, and stops as soon as the window is covered (the
 // "perfect simulation" of Kendall & Thönnes 1999). The window is the field [-1/2, rows - 1/2) x
-// [-1/2, cols - 1/2) (HR pixel coordinates, image.hpp); a leaf is visible in it only if its centre lies
-// within r of the window, so centres are drawn uniformly on the window dilated by r_max and leaves that miss
-// the window are discarded, which samples exactly the leaves of the stationary process that meet it.
+// [-1/2, cols - 1/2) (HR pixel coordinates, image.hpp), of height H and width W. A leaf of radius r meets it
+// iff its centre lies within distance r of the window. Among the Poisson leaves, those that meet the window
+// have radii with density ∝ p(r) A(r), A(r) = HW + 2(H + W) r + π r² the area of the window dilated by the
+// disc, and centres uniform on that dilated window. We propose r from p(r) (H + 2r)(W + 2r) (a mixture of
+// three truncated power laws, r^-alpha, r^(1-alpha), r^(2-alpha), sampled exactly) and the centre uniformly
+// on the window's bounding rectangle dilated by r, and reject proposals whose centre falls in a corner beyond
+// distance r (acceptance >= π/4): the accepted leaves are exactly the window-meeting leaves of the stationary
+// process, with no wasted draws even when r_max is much larger than the field.
 //
 // ## Pixels
 //
@@ -34,8 +39,8 @@
 // count let large late leaves skip covered regions, so the cost is about the number of leaves drawn (expected
 // ~ (window area / mean leaf area) · ln(samples)) plus the samples painted once each.
 //
-// Determinism: one stream, DeriveSeed(seed, 3) (ao/random.hpp); four uniform deviates per leaf drawn (centre
-// y, x, radius, grey).
+// Determinism: one stream, DeriveSeed(seed, 3) (ao/random.hpp); five uniform deviates per proposal (mixture
+// component, radius, centre y, centre x, grey).
 //
 // Errors: aosr::InvalidArgument naming the function and the argument or field.
 #pragma once

@@ -61,7 +61,7 @@ enum class ImageBackground {
   kMedian,        // median of all pixels: right for sparse objects on a sky (stars, galaxies)
   kBorderMedian,  // median of the border ring, max(1, min(h, w) / 20) pixels wide: a sky estimate that
                   // ignores a central object covering most of the frame
-  kMinimum,  // the minimum pixel: makes the darkest pixel 0 (for photographs)
+  kMinimum,       // the minimum pixel: makes the darkest pixel 0 (for photographs)
 };
 
 enum class FluxNormalisation {
