@@ -224,10 +224,14 @@ std::shared_ptr<const GeometricSlopeOperator> BuildGeometric(const Image& amplit
 }  // namespace
 
 ShackHartmann::ShackHartmann(const Image& amplitude, double diameter_m, const ShackHartmannOptions& options)
-    : WavefrontSensor(amplitude.rows(), BuildGeometric(amplitude, diameter_m, options)->rows()),
+    : ShackHartmann(BuildGeometric(amplitude, diameter_m, options), amplitude, diameter_m, options) {}
+
+ShackHartmann::ShackHartmann(std::shared_ptr<const GeometricSlopeOperator> geometric, const Image& amplitude,
+                             double diameter_m, const ShackHartmannOptions& options)
+    : WavefrontSensor(amplitude.rows(), geometric->rows()),
       options_(options),
       diameter_m_(diameter_m),
-      geometric_(BuildGeometric(amplitude, diameter_m, options)),
+      geometric_(std::move(geometric)),
       poisson_engine_(DeriveSeed(options.noise.seed, 0)),
       normal_(DeriveSeed(options.noise.seed, 1)) {
   const char* fn = "ShackHartmann";

@@ -232,6 +232,8 @@ class ShackHartmann final : public WavefrontSensor {
   Image LastSpot(Index v) const;
 
  private:
+  ShackHartmann(std::shared_ptr<const GeometricSlopeOperator> geometric, const Image& amplitude,
+                double diameter_m, const ShackHartmannOptions& options);
   void MeasureRaw(const Image& opd_m, bool noisy, Eigen::Ref<Vector> raw) override;
   void MeasureDiffractive(const Image& opd_m, bool noisy, Eigen::Ref<Vector> raw);
 
