@@ -37,7 +37,7 @@
 // Sub-exposures (RunSubExposures). One continuous run: for exposure i the sensor's reference offset is set
 // to ReferenceOffsetForOpd(w_dm,i) (wavefront_sensor.hpp), so the loop holds the turbulence correction plus
 // the DM offset w_dm,i, as a real-time computer does when its reference slopes change; the atmosphere keeps
-// evolving; the first settling_s of each exposure (the loop's response to the offset step: ~3 / (g f_loop)
+// evolving; the first settling_s of each exposure (the loop's response to the offset step: ~4 / (g f_loop)
 // for an integrator, e.g. 4 / (0.35 * 800 Hz) = 14 ms) are run but not averaged. On return the sensor keeps
 // the last exposure's offset.
 //
@@ -47,6 +47,13 @@
 // control 0.02 ms, science 0.32 ms; in total 0.54 ms (geometric) and 0.79 ms (diffractive), against an FFT
 // floor of 0.20 / 0.26 ms (one 256^2 FFT, plus the lenslets' FFTs). Per-frame complex exponentials use a
 // vectorised sin/cos (src/ao/fast_trig.hpp, 2e-16 absolute error).
+//
+// Measured on the paper's system (noiseless, integrator g = 0.35, k = 1; tests/ao/closed_loop_*_test.cpp):
+// long-exposure K-band Strehl 0.889 - 0.898 over three 1 s runs with the ideal sensor against 0.892 from
+// AnalyticAoPsfCalculator without aliasing; 0.847 with the geometric SH against 0.862 with aliasing; with
+// the diffractive SH 0.73 - 0.80 (Nyquist pixels, 16 x 16 px = 8 lambda/d, plain centroid), 0.83 with
+// 2x Nyquist pixels (32 px, same field), 0.82 with Nyquist pixels and a 10% threshold: the centroid of a
+// spot broadened by the residual at 640 nm (d / r0 = 2.8) loses more to the wrapped wings (shack_hartmann.hpp).
 //
 // Ownership: the loop keeps pointers to the atmosphere, sensor and controller, which must outlive it and are
 // advanced by it (they are stateful); the mirror is shared. Not thread-safe.
