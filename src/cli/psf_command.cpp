@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/ao_system.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/optics/aperture.hpp"
@@ -29,6 +30,11 @@ struct PsfArgs {
   int size = 128;
   std::string output;
   bool json = false;
+  // Closed loop only.
+  std::string sensor = "diffractive";
+  double exposure_s = 0.5;
+  double settling_s = 0.1;
+  std::uint64_t seed = 1;
 };
 
 struct ZernikeOffset {
@@ -63,8 +69,8 @@ void RunPsf(const PsfArgs& args) {
   if (mode.empty()) mode = preset.atmosphere && preset.ao ? "analytic" : "diffraction";
   if (mode == "analytic" && !(preset.atmosphere && preset.ao))
     throw InvalidArgument("aosr psf", "--mode", mode, "diffraction (preset " + preset.name + " has no atmosphere or AO)");
-  if (mode == "closed-loop")
-    throw InvalidArgument("aosr psf", "--mode", mode, "analytic or diffraction (the closed loop is not wired yet)");
+  if (mode == "closed-loop" && !preset.ao)
+    throw InvalidArgument("aosr psf", "--mode", mode, "analytic or diffraction (preset " + preset.name + " has no AO)");
   if (!args.output.empty()) CheckWritableFile(args.output);
 
   const Index n = preset.pupil_px;
@@ -89,7 +95,23 @@ void RunPsf(const PsfArgs& args) {
   const Image perfect = diffraction.Compute(amplitude, Image::Zero(n, n));
   Image psf;
   double residual_nm = 0;
-  if (mode == "analytic") {
+  std::string loop_report;
+  if (mode == "closed-loop") {
+    const SensorKind kind = args.sensor == "ideal"       ? SensorKind::kIdeal
+                            : args.sensor == "geometric" ? SensorKind::kGeometric
+                                                         : SensorKind::kDiffractive;
+    progress.Step("calibrating the AO system (interaction and control matrices)");
+    AoSystem system = BuildAoSystem(preset.ToAoSystemSpec(kind, args.seed));
+    ClosedLoopOptions loop_options;
+    loop_options.science = sampling;
+    std::unique_ptr<ClosedLoop> loop = system.MakeLoop(loop_options);
+    progress.Step("running the loop for " + ToString(args.settling_s) + " s settling + " + ToString(args.exposure_s) + " s");
+    // The DM offset is applied as the real-time computer would: through the WFS reference slopes.
+    const ClosedLoopResult r = loop->RunSubExposures({opd}, args.exposure_s, args.settling_s).front();
+    psf = r.psf;
+    residual_nm = r.RmsResidualM() * 1e9;
+    loop_report = r.BriefReport();
+  } else if (mode == "analytic") {
     const AnalyticAoPsfCalculator ao(preset.ToAnalyticAo(), n, sampling);
     const AnalyticAoPsf p = ao.Compute(amplitude, opd);
     psf = p.psf;
@@ -97,6 +119,7 @@ void RunPsf(const PsfArgs& args) {
   } else {
     psf = diffraction.Compute(amplitude, opd);
   }
+  if (psf.size() == 0 || !AllFinite(psf)) throw NumericalError("aosr psf: the " + mode + " PSF is empty or not finite");
   const PsfStats stats = MeasurePsf(psf);
   const double strehl = psf.maxCoeff() / perfect.maxCoeff();
   const double lod_px = preset.LambdaOverD() / sampling.pixel_scale_rad;
@@ -132,6 +155,7 @@ void RunPsf(const PsfArgs& args) {
                         {"residual_rms_nm", residual_nm},
                         {"seconds", seconds}};
     if (!args.output.empty()) j["output"] = args.output;
+    if (!loop_report.empty()) j["closed_loop"] = {{"sensor", args.sensor}, {"report", loop_report}};
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }
@@ -140,6 +164,7 @@ void RunPsf(const PsfArgs& args) {
   std::printf("  Strehl %.4f   FWHM %.3f lambda/D   residual %.1f nm RMS\n", strehl, stats.fwhm_px / lod_px, residual_nm);
   std::printf("  EE(1, 2, 5 lambda/D) = %.4f, %.4f, %.4f of the window (window holds %.4f of all light)\n", ee[0],
               ee[1], ee[2], stats.window_sum);
+  if (!loop_report.empty()) std::printf("  loop (%s sensor): %s\n", args.sensor.c_str(), loop_report.c_str());
   std::printf("  %.3f s\n", seconds);
 }
 
@@ -150,10 +175,12 @@ void RegisterPsf(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "psf",
       "Compute the science PSF of a telescope preset (a name from data/telescopes/ or a .json path): "
-      "diffraction-limited, or long-exposure through the analytic AO residual model, with optional DM "
-      "offsets given as Zernike coefficients. Prints Strehl, FWHM, encircled energy, residual and time.");
+      "diffraction-limited, long-exposure through the analytic AO residual model, or from a closed-loop "
+      "Monte-Carlo run (atmosphere, Shack-Hartmann, controller, DM), with optional DM offsets given as Zernike "
+      "coefficients (held by the loop through the WFS reference slopes). Prints Strehl, FWHM, encircled energy, residual and time.");
   cmd->add_option("preset", args->preset, "telescope preset name or .json path")->required();
-  cmd->add_option("--mode", args->mode, "analytic | diffraction (default: analytic when the preset has AO)")
+  cmd->add_option("--mode", args->mode,
+                  "analytic | closed-loop | diffraction (default: analytic when the preset has atmosphere and AO)")
       ->check(CLI::IsMember({"analytic", "diffraction", "closed-loop"}));
   cmd->add_option("--offset", args->offsets, "DM offset J=NM: Noll index J, wavefront OPD RMS in nm (repeatable)");
   cmd->add_option("-r,--factor", args->r, "HR factor: pixel = camera pixel / r")->capture_default_str()->check(CLI::Range(1, 16));
@@ -161,6 +188,13 @@ void RegisterPsf(CLI::App& app) {
   cmd->add_option("--size", args->size, "PSF side in pixels")->capture_default_str()->check(CLI::Range(8, 4096));
   cmd->add_option("-o,--output", args->output, "write the PSF as FITS (float64)");
   cmd->add_flag("--json", args->json, "print the results as JSON");
+  cmd->add_option("--sensor", args->sensor, "closed loop: ideal | geometric | diffractive Shack-Hartmann")
+      ->capture_default_str()->check(CLI::IsMember({"ideal", "geometric", "diffractive"}));
+  cmd->add_option("--exposure", args->exposure_s, "closed loop: recorded time [s]")->capture_default_str()
+      ->check(CLI::Range(1e-4, 3600.0));
+  cmd->add_option("--settling", args->settling_s, "closed loop: unrecorded time first [s]")->capture_default_str()
+      ->check(NonNegativeFinite());
+  cmd->add_option("--seed", args->seed, "closed loop: atmosphere and noise seed")->capture_default_str();
   cmd->callback([args] { RunPsf(*args); });
 }
 

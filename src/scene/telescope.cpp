@@ -47,6 +47,10 @@ AoPreset ParseAo(const ConfigNode& n, double diameter_m) {
   ao.wfs.wavelength_m = wfs.Positive("wavelength_m");
   ao.wfs.guide_star_magnitude = wfs.NumberOr("guide_star_magnitude", ao.wfs.guide_star_magnitude, -5.0, 25.0);
   ao.wfs.throughput = wfs.NumberOr("throughput", ao.wfs.throughput, 1e-6, 1.0);
+  ao.wfs.pixel_scale_lod = wfs.NumberOr("pixel_scale_lod", ao.wfs.pixel_scale_lod, 0.05, 5.0);
+  ao.wfs.field_of_view_px = int(wfs.IntegerOr("field_of_view_px", ao.wfs.field_of_view_px, 4, 256));
+  ao.wfs.photon_noise = wfs.BoolOr("photon_noise", ao.wfs.photon_noise);
+  ao.wfs.read_noise_e = wfs.NumberOr("read_noise_e", ao.wfs.read_noise_e, 0.0, 1000.0);
   wfs.CheckNoOtherFields();
   const ConfigNode loop = n.Child("loop");
   ao.loop.rate_hz = loop.Positive("rate_hz");
@@ -77,6 +81,37 @@ AnalyticAoOptions TelescopePreset::ToAnalyticAo() const {
   o.loop_delay_frames = ao->loop.delay_frames;
   o.science_wavelength_m = science_wavelength_m;
   return o;
+}
+
+AoSystemSpec TelescopePreset::ToAoSystemSpec(SensorKind sensor, std::uint64_t seed) const {
+  if (!ao) throw InvalidArgument(source + ": a closed loop needs an \"ao\" section");
+  AoSystemSpec s;
+  s.amplitude = Aperture(pupil_px, aperture);
+  s.diameter_m = aperture.pupil.diameter_m;
+  s.dm = ao->dm;
+  if (atmosphere) {
+    s.atmosphere = *atmosphere;
+    s.atmosphere->seed = seed;
+  }
+  s.sensor = sensor;
+  s.wfs.subapertures_across = ao->wfs.lenslets_across;
+  s.wfs.wavelength_m = ao->wfs.wavelength_m;
+  s.wfs.pixel_scale_lod = ao->wfs.pixel_scale_lod;
+  s.wfs.field_of_view_px = ao->wfs.field_of_view_px;
+  s.wfs.noise.photon_noise = ao->wfs.photon_noise;
+  s.wfs.noise.guide_star_magnitude = ao->wfs.guide_star_magnitude;
+  s.wfs.noise.throughput = ao->wfs.throughput;
+  s.wfs.noise.read_noise_e = ao->wfs.read_noise_e;
+  s.wfs.noise.seed = seed;
+  s.control.loop_rate_hz = ao->loop.rate_hz;
+  s.control.gain = ao->loop.gain;
+  const double whole = std::round(ao->loop.delay_frames);
+  if (std::abs(whole - ao->loop.delay_frames) > 1e-9)
+    throw InvalidArgument(source + ": ao.loop.delay_frames = " + ToString(ao->loop.delay_frames) +
+                          "; allowed: a whole number of frames for the closed loop (the analytic model takes fractions)");
+  s.control.delay_frames = int(whole);
+  s.control.law = ao->loop.control == "pol" ? ControlLaw::kPseudoOpenLoop : ControlLaw::kIntegrator;
+  return s;
 }
 
 std::string DataDirectory() {

@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/ao_system.hpp"
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/ao/closed_loop.hpp"
 #include "aosr/ao/control.hpp"
@@ -21,7 +22,6 @@ namespace aosr::test {
 constexpr double kPaperDiameter = 8.0;
 constexpr double kPi = 3.14159265358979323846;
 
-enum class SensorKind { kIdeal, kGeometric, kDiffractive };
 
 inline AtmosphereOptions PaperAtmosphere(std::uint64_t seed) {
   AtmosphereOptions o;
@@ -62,44 +62,22 @@ inline ShackHartmannOptions PaperSensor(ShackHartmannMode mode) {
   return o;
 }
 
-struct LoopSystem {
-  Image amplitude;
-  DeformableMirrorPtr dm;
-  std::unique_ptr<Atmosphere> atmosphere;  // null without turbulence
-  std::unique_ptr<WavefrontSensor> wfs;
-  Eigen::MatrixXd interaction_matrix;
-  ControlMatrix control_matrix;
-  std::unique_ptr<Controller> controller;
-};
+using LoopSystem = AoSystem;
+using aosr::SensorKind;
 
 // The paper's system on an n-pixel pupil (n divisible by 16), calibrated; turbulence when `turbulence`.
 inline LoopSystem MakePaperSystem(SensorKind kind, bool turbulence, std::uint64_t seed,
                                   const ControllerOptions& control, Index n = 128) {
-  LoopSystem s;
-  const PupilGeometry pupil{kPaperDiameter, 0.0};
-  s.amplitude = CircularPupil(n, pupil);
-  DeformableMirrorOptions dmo;
-  dmo.actuators_across = 17;
-  dmo.pitch_m = 0.5;
-  s.dm = std::make_shared<const DeformableMirror>(n, pupil, dmo);
-  if (turbulence) s.atmosphere = std::make_unique<Atmosphere>(PaperAtmosphere(seed), n, kPaperDiameter);
-  switch (kind) {
-    case SensorKind::kIdeal:
-      s.wfs = std::make_unique<IdealWavefrontSensor>(s.dm, s.amplitude);
-      break;
-    case SensorKind::kGeometric:
-      s.wfs = std::make_unique<ShackHartmann>(s.amplitude, kPaperDiameter,
-                                              PaperSensor(ShackHartmannMode::kGeometric));
-      break;
-    case SensorKind::kDiffractive:
-      s.wfs = std::make_unique<ShackHartmann>(s.amplitude, kPaperDiameter,
-                                              PaperSensor(ShackHartmannMode::kDiffractive));
-      break;
-  }
-  s.interaction_matrix = MeasureInteractionMatrix(*s.dm, s.wfs.get());
-  s.control_matrix = ComputeControlMatrix(s.interaction_matrix);
-  s.controller = std::make_unique<Controller>(s.control_matrix.matrix, s.interaction_matrix, control);
-  return s;
+  AoSystemSpec spec;
+  spec.amplitude = CircularPupil(n, PupilGeometry{kPaperDiameter, 0.0});
+  spec.diameter_m = kPaperDiameter;
+  spec.dm.actuators_across = 17;
+  spec.dm.pitch_m = 0.5;
+  if (turbulence) spec.atmosphere = PaperAtmosphere(seed);
+  spec.sensor = kind;
+  spec.wfs = PaperSensor(kind == SensorKind::kGeometric ? ShackHartmannMode::kGeometric : ShackHartmannMode::kDiffractive);
+  spec.control = control;
+  return BuildAoSystem(spec);
 }
 
 inline ClosedLoopOptions KBandScience(int psf_every = 1) {

@@ -27,6 +27,18 @@ TEST(PsfCliTest, AnalyticPaperSystemAndAFocusOffsetLowersStrehl) {
   EXPECT_NEAR(sb / ja["strehl"].get<double>(), std::exp(-std::pow(2 * M_PI * 100 / 2200, 2)), 0.01);
 }
 
+// A short closed-loop run with the ideal sensor: the loop corrects (Strehl far above the uncorrected ~0)
+// and lands near the analytic model's 0.89 without aliasing (the ao tests compare them precisely).
+TEST(PsfCliTest, ClosedLoopRunsFromThePreset) {
+  const CliRun r = RunCli("psf paper-8m --mode closed-loop --sensor ideal --size 32 --exposure 0.1 --settling 0.1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["mode"], "closed-loop");
+  EXPECT_GT(j["strehl"].get<double>(), 0.8);
+  EXPECT_LT(j["strehl"].get<double>(), 0.95);
+  EXPECT_GT(j["residual_rms_nm"].get<double>(), 50.0);
+}
+
 TEST(PsfCliTest, WritesFitsAndRejectsBadInput) {
   using ::testing::HasSubstr;
   const auto path = std::filesystem::temp_directory_path() / ("aosr_psf_" + std::to_string(getpid()) + ".fits");

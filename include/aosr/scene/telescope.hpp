@@ -11,6 +11,7 @@
 #include <string>
 
 #include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/ao_system.hpp"
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/optics/aperture.hpp"
 #include "aosr/optics/deformable_mirror.hpp"
@@ -22,6 +23,10 @@ struct WfsPreset {
   double wavelength_m = 640e-9;
   double guide_star_magnitude = 8.0;  // in the WFS band (Vega magnitudes)
   double throughput = 0.5;            // telescope + WFS optics + detector QE, in (0, 1]
+  double pixel_scale_lod = 0.5;       // spot-image pixel in λ_wfs / d_sub (0.5 = Nyquist)
+  int field_of_view_px = 16;          // spot-image side in pixels (16 px at Nyquist = 8 λ/d)
+  bool photon_noise = false;          // Poisson noise from the guide-star flux
+  double read_noise_e = 0.0;          // e- RMS per spot pixel
 };
 
 struct LoopPreset {
@@ -50,6 +55,9 @@ struct TelescopePreset {
   double LambdaOverD() const { return science_wavelength_m / aperture.pupil.diameter_m; }
   // The analytic long-exposure AO model of this system (requires atmosphere and ao).
   AnalyticAoOptions ToAnalyticAo() const;
+  // The closed-loop system of this preset (requires ao; the atmosphere is optional) with the given sensor
+  // model and atmosphere seed.
+  AoSystemSpec ToAoSystemSpec(SensorKind sensor, std::uint64_t seed) const;
 };
 
 // The data folder: $AOSR_DATA_DIR if set, else the source tree's data/ (compiled in).
