@@ -75,7 +75,7 @@ void RunPsf(const PsfArgs& args) {
 
   const Index n = preset.pupil_px;
   const double diameter = preset.aperture.pupil.diameter_m;
-  const Image amplitude = Aperture(n, preset.aperture);
+  const Image amplitude = preset.PupilAmplitude();
   Image opd = Image::Zero(n, n);
   for (const ZernikeOffset& o : offsets) opd += o.nm * 1e-9 * Zernike(o.j, n, preset.aperture.pupil.obstruction);
   PsfSampling sampling;

@@ -6,6 +6,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/io/config.hpp"
+#include "aosr/io/image_io.hpp"
 
 namespace aosr {
 namespace {
@@ -83,10 +84,15 @@ AnalyticAoOptions TelescopePreset::ToAnalyticAo() const {
   return o;
 }
 
+Image TelescopePreset::PupilAmplitude() const {
+  if (mask_file.empty()) return Aperture(pupil_px, aperture);
+  return ResampleMask(ReadImage(mask_file), pupil_px);
+}
+
 AoSystemSpec TelescopePreset::ToAoSystemSpec(SensorKind sensor, std::uint64_t seed) const {
   if (!ao) throw InvalidArgument(source + ": a closed loop needs an \"ao\" section");
   AoSystemSpec s;
-  s.amplitude = Aperture(pupil_px, aperture);
+  s.amplitude = PupilAmplitude();
   s.diameter_m = aperture.pupil.diameter_m;
   s.dm = ao->dm;
   if (atmosphere) {
@@ -135,6 +141,21 @@ TelescopePreset ParseTelescopePreset(const nlohmann::json& json, const std::stri
     p.aperture.spiders.width_m = s.Positive("width_m");
     p.aperture.spiders.angle_offset_rad = s.NumberOr("angle_deg", 0.0, -360.0, 360.0) * kDeg;
     s.CheckNoOtherFields();
+  }
+  if (tel.Has("segments")) {
+    const ConfigNode g = tel.Child("segments");
+    p.aperture.outline = ApertureOutline::kHexSegments;
+    p.aperture.segments.rings = int(g.Integer("rings", 1, 20));
+    p.aperture.segments.flat_to_flat_m = g.Positive("flat_to_flat_m");
+    p.aperture.segments.gap_m = g.NumberOr("gap_m", 0.0, 0.0, 1.0);
+    p.aperture.segments.central_segment = g.BoolOr("central_segment", true);
+    p.aperture.segments.rotation_rad = g.NumberOr("rotation_deg", 0.0, -360.0, 360.0) * kDeg;
+    g.CheckNoOtherFields();
+  }
+  if (tel.Has("mask_file")) {
+    const std::filesystem::path f(tel.String("mask_file"));
+    p.mask_file = (f.is_absolute() ? f : std::filesystem::path(source).parent_path() / f).string();
+    if (!std::filesystem::exists(p.mask_file)) tel.Fail("mask_file", "\"" + p.mask_file + "\"", "an existing image file");
   }
   tel.CheckNoOtherFields();
   std::string why;

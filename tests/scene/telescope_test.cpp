@@ -5,6 +5,8 @@
 
 #include <cmath>
 
+#include "aosr/io/image_io.hpp"
+
 namespace aosr {
 namespace {
 
@@ -39,6 +41,30 @@ TEST(TelescopePresetTest, BenchPixelScaleFromFocalLength) {
   EXPECT_FALSE(p.atmosphere.has_value());
   ASSERT_TRUE(p.ao.has_value());
   EXPECT_EQ(p.ao->wfs.lenslets_across, 25);
+}
+
+// A pupil mask from an image file replaces the geometric aperture, resampled with its area conserved.
+TEST(TelescopePresetTest, MaskFileAndSegments) {
+  const std::string dir = ::testing::TempDir();
+  Image mask = Image::Zero(64, 64);
+  mask.block(8, 8, 48, 48).setOnes();  // a square aperture
+  WriteViewImage(dir + "/aosr_mask.tif", mask, [] {
+    ViewOptions v;
+    v.bits = 32;
+    return v;
+  }());
+  const std::string text = R"({"name": "m", "telescope": {"diameter_m": 2, "pupil_px": 32, "mask_file": ")" + dir +
+                           R"(/aosr_mask.tif"}, "science": {"wavelength_m": 1e-6, "camera_pixel_mas": 50}})";
+  const TelescopePreset p = ParseTelescopePreset(nlohmann::json::parse(text), "m.json");
+  const Image a = p.PupilAmplitude();
+  EXPECT_EQ(a.rows(), 32);
+  EXPECT_NEAR(a.sum() / (32.0 * 32.0), mask.sum() / (64.0 * 64.0), 1e-6);
+  const std::string seg = R"({"name": "k", "telescope": {"diameter_m": 12.7, "segments": {"rings": 3,
+      "flat_to_flat_m": 1.8, "gap_m": 0.003}}, "science": {"wavelength_m": 2.2e-6, "camera_pixel_mas": 10}})";
+  const TelescopePreset k = ParseTelescopePreset(nlohmann::json::parse(seg), "k.json");
+  EXPECT_EQ(k.aperture.outline, ApertureOutline::kHexSegments);
+  EXPECT_GT(k.PupilAmplitude().sum(), 0);
+  std::remove((dir + "/aosr_mask.tif").c_str());
 }
 
 TEST(TelescopePresetTest, ErrorsNameTheFieldAndThePresets) {

@@ -46,12 +46,17 @@ struct TelescopePreset {
   std::string name;
   std::string source;           // the file it came from
   ApertureGeometry aperture;
+  // Optional transmission mask file (FITS/PNG/TIFF, values in [0, 1], spanning the diameter), relative paths
+  // resolved against the preset's folder. When set it replaces the geometric aperture.
+  std::string mask_file;
   Index pupil_px = 128;
   double science_wavelength_m = 2.2e-6;
   double camera_pixel_rad = 0;  // angular pitch of one camera pixel
   std::optional<AtmosphereOptions> atmosphere;  // none: no turbulence
   std::optional<AoPreset> ao;                   // none: no AO
 
+  // The pupil amplitude on the pupil_px grid: the mask file resampled (area-weighted), or the geometry.
+  Image PupilAmplitude() const;
   double LambdaOverD() const { return science_wavelength_m / aperture.pupil.diameter_m; }
   // The analytic long-exposure AO model of this system (requires atmosphere and ao).
   AnalyticAoOptions ToAnalyticAo() const;
