@@ -7,6 +7,7 @@
 
 #include "aosr/ao/shack_hartmann.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/optics/pupil.hpp"
 #include "aosr/core/fft.hpp"
 #include "fast_trig.hpp"
 
@@ -46,13 +47,7 @@ const ClosedLoopOptions& CheckedLoopOptions(const Image& amplitude, double diame
   const char* fn = "ClosedLoop";
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument(std::string(fn) + ": invalid options." + why);
-  CheckArgument(amplitude.rows() >= 2 && amplitude.rows() == amplitude.cols(), fn, "amplitude shape",
-                ToString(ShapeOf(amplitude)), "a square n x n pupil grid, n >= 2");
-  CheckArgument(amplitude.isFinite().all() && (amplitude >= 0.0).all(), fn, "amplitude",
-                "negative or non-finite values", "finite values >= 0");
-  CheckArgument(amplitude.sum() > 0.0, fn, "amplitude", "all zero", "some pixel > 0 (an open aperture)");
-  CheckArgument(std::isfinite(diameter_m) && diameter_m > 0.0, fn, "diameter_m", diameter_m,
-                "> 0 and finite [m]");
+  CheckPupilAmplitude(amplitude, diameter_m, fn);
   const Index n = amplitude.rows();
   const std::string grid = std::to_string(n) + " (the amplitude's grid)";
   CheckArgument(dm != nullptr, fn, "dm", "null", "a deformable mirror");

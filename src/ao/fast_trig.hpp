@@ -14,6 +14,25 @@
 namespace aosr {
 namespace internal {
 
+// The fdlibm minimax kernels on the reduced argument |r| <= pi/4: sin r and cos r to ~1 ulp.
+inline double SinKernel(double r, double r2) {
+  return r + r * r2 *
+                 (-1.66666666666666324348e-01 +
+                  r2 * (8.33333333332248946124e-03 +
+                        r2 * (-1.98412698298579493134e-04 +
+                              r2 * (2.75573137070700676789e-06 +
+                                    r2 * (-2.50507602534068634195e-08 + r2 * 1.58969099521155010221e-10)))));
+}
+inline double CosKernel(double r2) {
+  return 1.0 - 0.5 * r2 +
+         r2 * r2 *
+             (4.16666666666666019037e-02 +
+              r2 * (-1.38888888888741095749e-03 +
+                    r2 * (2.48015872894767294178e-05 +
+                          r2 * (-2.75573143513906633035e-07 +
+                                r2 * (2.08757232129817482790e-09 + r2 * -1.13596475577881948265e-11)))));
+}
+
 inline std::complex<double> UnitPhasor(double x) {
   if (!(std::abs(x) < 1e5)) return {std::cos(x), std::sin(x)};
   constexpr double kTwoOverPi = 0.63661977236758134308;
@@ -23,21 +42,8 @@ inline std::complex<double> UnitPhasor(double x) {
   const double q = std::floor(x * kTwoOverPi + 0.5);
   const double r = ((x - q * kP1) - q * kP2) - q * kP3;
   const double r2 = r * r;
-  const double s =
-      r + r * r2 *
-              (-1.66666666666666324348e-01 +
-               r2 * (8.33333333332248946124e-03 +
-                     r2 * (-1.98412698298579493134e-04 +
-                           r2 * (2.75573137070700676789e-06 +
-                                 r2 * (-2.50507602534068634195e-08 + r2 * 1.58969099521155010221e-10)))));
-  const double c =
-      1.0 - 0.5 * r2 +
-      r2 * r2 *
-          (4.16666666666666019037e-02 +
-           r2 * (-1.38888888888741095749e-03 +
-                 r2 * (2.48015872894767294178e-05 +
-                       r2 * (-2.75573143513906633035e-07 +
-                             r2 * (2.08757232129817482790e-09 + r2 * -1.13596475577881948265e-11)))));
+  const double s = SinKernel(r, r2);
+  const double c = CosKernel(r2);
   switch (static_cast<long long>(q) & 3) {
     case 0:
       return {c, s};
@@ -63,21 +69,8 @@ inline void SinCosBatch(const double* __restrict x, long count, double* __restri
     const double q = (x[i] * kTwoOverPi + kRound) - kRound;
     const double r = ((x[i] - q * kP1) - q * kP2) - q * kP3;
     const double r2 = r * r;
-    const double sr =
-        r + r * r2 *
-                (-1.66666666666666324348e-01 +
-                 r2 * (8.33333333332248946124e-03 +
-                       r2 * (-1.98412698298579493134e-04 +
-                             r2 * (2.75573137070700676789e-06 +
-                                   r2 * (-2.50507602534068634195e-08 + r2 * 1.58969099521155010221e-10)))));
-    const double cr =
-        1.0 - 0.5 * r2 +
-        r2 * r2 *
-            (4.16666666666666019037e-02 +
-             r2 * (-1.38888888888741095749e-03 +
-                   r2 * (2.48015872894767294178e-05 +
-                         r2 * (-2.75573143513906633035e-07 +
-                               r2 * (2.08757232129817482790e-09 + r2 * -1.13596475577881948265e-11)))));
+    const double sr = SinKernel(r, r2);
+    const double cr = CosKernel(r2);
     // q mod 4 in {0, 1, 2, 3}: floor(q / 4) by rounding q / 4 - 3/8 (q / 4 is a multiple of 1/4).
     const double quarter = ((q * 0.25 - 0.375) + kRound) - kRound;
     const double qm = q - 4.0 * quarter;

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "aosr/core/error.hpp"
+#include "aosr/optics/pupil.hpp"
 #include "aosr/core/fft.hpp"
 #include "fast_trig.hpp"
 #include "poisson.hpp"
@@ -26,13 +27,7 @@ Index CheckGeometry(const Image& amplitude, double diameter_m, const ShackHartma
                     const char* fn) {
   std::string why;
   if (!o.IsValid(&why)) throw InvalidArgument(std::string(fn) + ": invalid options." + why);
-  CheckArgument(amplitude.rows() >= 2 && amplitude.rows() == amplitude.cols(), fn, "amplitude shape",
-                ToString(ShapeOf(amplitude)), "a square n x n pupil grid, n >= 2");
-  CheckArgument(amplitude.isFinite().all() && (amplitude >= 0.0).all(), fn, "amplitude",
-                "negative or non-finite values", "finite values >= 0");
-  CheckArgument(amplitude.sum() > 0.0, fn, "amplitude", "all zero", "some pixel > 0 (an open aperture)");
-  CheckArgument(std::isfinite(diameter_m) && diameter_m > 0.0, fn, "diameter_m", diameter_m,
-                "> 0 and finite [m]");
+  CheckPupilAmplitude(amplitude, diameter_m, fn);
   const Index n = amplitude.rows();
   const int m = o.subapertures_across;
   CheckArgument(

@@ -79,4 +79,14 @@ Image CircularPupil(Index n, const PupilGeometry& geometry, int supersample) {
   return a;
 }
 
+void CheckPupilAmplitude(const Image& amplitude, double diameter_m, const std::string& function) {
+  CheckArgument(amplitude.rows() >= 2 && amplitude.rows() == amplitude.cols(), function, "amplitude shape",
+                ToString(ShapeOf(amplitude)), "a square n x n pupil grid, n >= 2");
+  CheckArgument(amplitude.isFinite().all() && (amplitude >= 0.0).all(), function, "amplitude",
+                "negative or non-finite values", "finite values >= 0");
+  CheckArgument(amplitude.sum() > 0.0, function, "amplitude", "all zero", "some pixel > 0 (an open aperture)");
+  CheckArgument(std::isfinite(diameter_m) && diameter_m > 0.0, function, "diameter_m", diameter_m,
+                "> 0 and finite [m]");
+}
+
 }  // namespace aosr

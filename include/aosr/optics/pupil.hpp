@@ -61,4 +61,8 @@ PolarCoordinates PupilCoordinates(Index n);
 // 1 <= supersample <= 64. Throws InvalidArgument otherwise.
 Image CircularPupil(Index n, const PupilGeometry& geometry, int supersample = 1);
 
+// Validates a pupil amplitude grid and its diameter for `function`'s messages: square n x n with n >= 2,
+// finite values >= 0, an open aperture (some value > 0), and a finite diameter > 0. Throws InvalidArgument.
+void CheckPupilAmplitude(const Image& amplitude, double diameter_m, const std::string& function);
+
 }  // namespace aosr
