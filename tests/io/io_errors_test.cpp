@@ -10,48 +10,37 @@
 #include "aosr/io/fits.hpp"
 #include "aosr/io/image_io.hpp"
 #include "temp_dir.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
+
+using aosr::test::ErrorOf;
 
 using ::testing::HasSubstr;
 using testing_io::ReadBytes;
 using testing_io::TempDir;
 using testing_io::WriteBytes;
 
-// Runs f, expects exception E, returns its message.
-template <typename E, typename F>
-std::string MessageOf(F&& f) {
-  try {
-    f();
-  } catch (const E& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "wrong exception type: " << e.what();
-    return "";
-  }
-  ADD_FAILURE() << "no exception";
-  return "";
-}
 
 Image Small() { return Image::Constant(3, 4, 1.5); }
 
 TEST(FitsErrorsTest, MissingFileNamesThePath) {
   TempDir dir;
   const std::string path = dir.File("nowhere.fits");
-  EXPECT_THAT(MessageOf<IoError>([&] { ReadFits(path); }), HasSubstr(path));
-  EXPECT_THAT(MessageOf<IoError>([&] { ReadFitsImage(path); }), HasSubstr("no such file"));
-  EXPECT_THAT(MessageOf<IoError>([&] { ReadImage(dir.File("nowhere.png")); }), HasSubstr("nowhere.png"));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadFits(path); }), HasSubstr(path));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadFitsImage(path); }), HasSubstr("no such file"));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadImage(dir.File("nowhere.png")); }), HasSubstr("nowhere.png"));
 }
 
 TEST(FitsErrorsTest, TextFileNamedFitsIsAnIoErrorWithPath) {
   TempDir dir;
   const std::string path = dir.File("bad.fits");
   WriteBytes(path, "this is not a FITS file\n");
-  const std::string m = MessageOf<IoError>([&] { ReadFits(path); });
+  const std::string m = ErrorOf<IoError>([&] { ReadFits(path); });
   EXPECT_THAT(m, HasSubstr(path));
   EXPECT_THAT(m, HasSubstr("cfitsio"));
-  EXPECT_THAT(MessageOf<IoError>([&] { ReadImage(path); }), HasSubstr(path));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadImage(path); }), HasSubstr(path));
 }
 
 TEST(FitsErrorsTest, MessagesHoldNoStaleCfitsioText) {
@@ -61,7 +50,7 @@ TEST(FitsErrorsTest, MessagesHoldNoStaleCfitsioText) {
   h.Set("A_VERY_LONG_KEYWORD", 1);
   WriteFits(dir.File("h.fits"), Small(), h);
   WriteBytes(dir.File("bad.fits"), "not FITS");
-  const std::string m = MessageOf<IoError>([&] { ReadFits(dir.File("bad.fits")); });
+  const std::string m = ErrorOf<IoError>([&] { ReadFits(dir.File("bad.fits")); });
   EXPECT_THAT(m, HasSubstr("bad.fits"));
   EXPECT_THAT(m, ::testing::Not(HasSubstr("A_VERY_LONG_KEYWORD")));
 }
@@ -76,7 +65,7 @@ TEST(FitsErrorsTest, TruncatedFitsIsAnIoErrorWithPath) {
   for (size_t keep : {size_t{1000}, size_t{2880 + 100}}) {
     const std::string path = dir.File("cut" + std::to_string(keep) + ".fits");
     WriteBytes(path, bytes.substr(0, keep));
-    EXPECT_THAT(MessageOf<IoError>([&] { ReadFits(path); }), HasSubstr(path)) << keep;
+    EXPECT_THAT(ErrorOf<IoError>([&] { ReadFits(path); }), HasSubstr(path)) << keep;
   }
 }
 
@@ -84,7 +73,7 @@ TEST(FitsErrorsTest, ReadFitsImageOnACubeMentionsPlanes) {
   TempDir dir;
   const std::string path = dir.File("cube.fits");
   WriteFitsCube(path, {Small(), Small(), Small()});
-  const std::string m = MessageOf<IoError>([&] { ReadFitsImage(path); });
+  const std::string m = ErrorOf<IoError>([&] { ReadFitsImage(path); });
   EXPECT_THAT(m, HasSubstr(path));
   EXPECT_THAT(m, HasSubstr("3 planes of 3x4"));
 }
@@ -101,25 +90,25 @@ TEST(FitsErrorsTest, NoImageDataOrOneDimensionalData) {
   std::string empty = card("SIMPLE", "T") + card("BITPIX", "8") + card("NAXIS", "0") + "END";
   empty.resize(2880, ' ');
   WriteBytes(dir.File("empty.fits"), empty);
-  EXPECT_THAT(MessageOf<IoError>([&] { ReadFits(dir.File("empty.fits")); }), HasSubstr("no image data"));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadFits(dir.File("empty.fits")); }), HasSubstr("no image data"));
 
   std::string line =
       card("SIMPLE", "T") + card("BITPIX", "-32") + card("NAXIS", "1") + card("NAXIS1", "4") + "END";
   line.resize(2880, ' ');
   line += std::string(2880, '\0');
   WriteBytes(dir.File("line.fits"), line);
-  EXPECT_THAT(MessageOf<IoError>([&] { ReadFits(dir.File("line.fits")); }), HasSubstr("NAXIS = 1"));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadFits(dir.File("line.fits")); }), HasSubstr("NAXIS = 1"));
 }
 
 TEST(FitsErrorsTest, WriteFitsCubeRejectsMismatchedOrEmptyPlanes) {
   TempDir dir;
   const std::string path = dir.File("cube.fits");
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] {
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] {
                 WriteFitsCube(path, {Small(), Image::Zero(4, 3)});
               }),
               HasSubstr("plane 1 shape = 4x3"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { WriteFitsCube(path, {}); }), HasSubstr("planes"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { WriteFits(path, Image()); }), HasSubstr("0x0"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsCube(path, {}); }), HasSubstr("planes"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFits(path, Image()); }), HasSubstr("0x0"));
   EXPECT_FALSE(std::filesystem::exists(path));
 }
 
@@ -127,7 +116,7 @@ TEST(FitsErrorsTest, Float32OverflowIsRefusedNotTurnedIntoInf) {
   TempDir dir;
   Image img = Small();
   img(1, 1) = 1e39;
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { WriteFits(dir.File("big.fits"), img); }),
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFits(dir.File("big.fits"), img); }),
               HasSubstr("kFloat64"));
   WriteFits(dir.File("big.fits"), img, {}, FitsType::kFloat64);  // fine in float64
 }
@@ -136,31 +125,31 @@ TEST(FitsErrorsTest, HeaderAccessNamesKeywordAndType) {
   FitsHeader h;
   h.Set("EXPTIME", 1.5);
   h.Set("OBJECT", "M31");
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.GetDouble("GAIN"); }), HasSubstr("GAIN"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.GetInt("EXPTIME"); }), HasSubstr("a real"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.GetDouble("OBJECT"); }), HasSubstr("a string"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.GetBool("OBJECT"); }), HasSubstr("OBJECT"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.GetString("EXPTIME"); }), HasSubstr("EXPTIME"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.Set("NAXIS3", 2); }), HasSubstr("NAXIS3"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.Set("A=B", 2); }), HasSubstr("A=B"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.Set("X", std::numeric_limits<double>::quiet_NaN()); }),
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.GetDouble("GAIN"); }), HasSubstr("GAIN"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.GetInt("EXPTIME"); }), HasSubstr("a real"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.GetDouble("OBJECT"); }), HasSubstr("a string"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.GetBool("OBJECT"); }), HasSubstr("OBJECT"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.GetString("EXPTIME"); }), HasSubstr("EXPTIME"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.Set("NAXIS3", 2); }), HasSubstr("NAXIS3"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.Set("A=B", 2); }), HasSubstr("A=B"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.Set("X", std::numeric_limits<double>::quiet_NaN()); }),
               HasSubstr("NaN"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { h.Set("X", "tab\there"); }), HasSubstr("printable ASCII"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { h.Set("X", "tab\there"); }), HasSubstr("printable ASCII"));
 }
 
 TEST(ImageIoErrorsTest, UnknownExtensionIsNamed) {
   TempDir dir;
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { WriteViewImage(dir.File("out.jpg"), Small()); }),
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteViewImage(dir.File("out.jpg"), Small()); }),
               HasSubstr("'.jpg'"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { WriteViewImage(dir.File("noext"), Small()); }),
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteViewImage(dir.File("noext"), Small()); }),
               HasSubstr("file extension"));
   ViewOptions o;
   o.bits = 32;
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { WriteViewImage(dir.File("out.png"), Small(), o); }),
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteViewImage(dir.File("out.png"), Small(), o); }),
               HasSubstr("TIFF only"));
   o.bits = 8;
   o.high_percentile = 120;
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] { ApplyStretch(Small(), o); }), HasSubstr("high_percentile"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { ApplyStretch(Small(), o); }), HasSubstr("high_percentile"));
   EXPECT_TRUE(dir.List().empty());
 }
 
@@ -168,16 +157,16 @@ TEST(ImageIoErrorsTest, CorruptImageFileNamesThePath) {
   TempDir dir;
   const std::string path = dir.File("bad.png");
   WriteBytes(path, "not a png");
-  EXPECT_THAT(MessageOf<IoError>([&] { ReadImage(path); }), HasSubstr(path));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadImage(path); }), HasSubstr(path));
 }
 
 TEST(ImageIoErrorsTest, MontageArguments) {
-  EXPECT_THAT(MessageOf<InvalidArgument>([] { Montage({}, 2, 0, 0.0); }), HasSubstr("tiles"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([] { Montage({Image::Zero(2, 2)}, 0, 0, 0.0); }),
+  EXPECT_THAT(ErrorOf<InvalidArgument>([] { Montage({}, 2, 0, 0.0); }), HasSubstr("tiles"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([] { Montage({Image::Zero(2, 2)}, 0, 0, 0.0); }),
               HasSubstr("columns"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([] { Montage({Image::Zero(2, 2)}, 1, -1, 0.0); }),
+  EXPECT_THAT(ErrorOf<InvalidArgument>([] { Montage({Image::Zero(2, 2)}, 1, -1, 0.0); }),
               HasSubstr("gap_px"));
-  EXPECT_THAT(MessageOf<InvalidArgument>([] {
+  EXPECT_THAT(ErrorOf<InvalidArgument>([] {
                 Montage({Image::Zero(2, 2), Image()}, 1, 0, 0.0);
               }),
               HasSubstr("tile 1"));
@@ -186,8 +175,8 @@ TEST(ImageIoErrorsTest, MontageArguments) {
 TEST(AtomicFileErrorsTest, WriteIntoMissingDirectoryNamesThePath) {
   TempDir dir;
   const std::string path = dir.File("missing/sub/out.fits");
-  EXPECT_THAT(MessageOf<IoError>([&] { WriteFits(path, Small()); }), HasSubstr(path));
-  EXPECT_THAT(MessageOf<IoError>([&] { WriteViewImage(dir.File("missing/out.png"), Small()); }),
+  EXPECT_THAT(ErrorOf<IoError>([&] { WriteFits(path, Small()); }), HasSubstr(path));
+  EXPECT_THAT(ErrorOf<IoError>([&] { WriteViewImage(dir.File("missing/out.png"), Small()); }),
               HasSubstr("does not exist"));
   EXPECT_TRUE(dir.List().empty());
 }
@@ -197,7 +186,7 @@ TEST(AtomicFileErrorsTest, FailingWriterLeavesDestinationUntouchedAndNoTemporary
   const std::string path = dir.File("result.txt");
   WriteBytes(path, "original");
   std::string seen_tmp;
-  EXPECT_THAT(MessageOf<std::runtime_error>([&] {
+  EXPECT_THAT(ErrorOf<std::runtime_error>([&] {
                 AtomicWrite(path, [&](const std::string& tmp) {
                   seen_tmp = tmp;
                   WriteBytes(tmp, "half-written");
@@ -210,7 +199,7 @@ TEST(AtomicFileErrorsTest, FailingWriterLeavesDestinationUntouchedAndNoTemporary
   EXPECT_EQ(dir.List(), std::vector<std::string>{"result.txt"});
 
   // A writer that creates nothing is an error too, and the destination survives.
-  EXPECT_THAT(MessageOf<IoError>([&] { AtomicWrite(path, [](const std::string&) {}); }),
+  EXPECT_THAT(ErrorOf<IoError>([&] { AtomicWrite(path, [](const std::string&) {}); }),
               HasSubstr("did not create"));
   EXPECT_EQ(ReadBytes(path), "original");
 }
@@ -221,7 +210,7 @@ TEST(AtomicFileErrorsTest, CheckNotSameFileSeesThroughRelativePaths) {
   const std::string input = dir.File("in.fits");
   WriteBytes(input, "x");
   const std::string other_spelling = (dir.path() / "sub" / ".." / "." / "in.fits").string();
-  EXPECT_THAT(MessageOf<InvalidArgument>([&] {
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] {
                 CheckNotSameFile(other_spelling, {dir.File("a.fits"), input});
               }),
               HasSubstr("never overwrites an input"));

@@ -4,26 +4,20 @@
 #include "aosr/core/error.hpp"
 #include "aosr/scene/detector.hpp"
 #include "aosr/scene/photometry.hpp"
+#include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
+using aosr::test::ErrorOf;
+
 using ::testing::HasSubstr;
 
-template <typename F>
-std::string ErrorOf(F f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "no error";
-}
 
 std::string DetectorError(const DetectorOptions& o) {
   std::string why;
   EXPECT_FALSE(o.IsValid(&why));
-  const std::string thrown = ErrorOf([&] { Detector d(o); });
+  const std::string thrown = ErrorOf<Error>([&] { Detector d(o); });
   EXPECT_THAT(thrown, HasSubstr(why));
   return thrown;
 }
@@ -74,67 +68,67 @@ TEST(DetectorErrorsTest, RecordRejectsBadFrames) {
   o.enable_bad_pixels = true;
   o.bad_pixel_mask = Image::Ones(4, 4);
   const Detector d(o);
-  EXPECT_THAT(ErrorOf([&] { d.Record(Image::Ones(4, 5), 1); }),
+  EXPECT_THAT(ErrorOf<Error>([&] { d.Record(Image::Ones(4, 5), 1); }),
               HasSubstr("Detector::Record: invalid bad_pixel_mask = 4x4; allowed: the frame's shape 4x5"));
-  EXPECT_THAT(ErrorOf([&] { d.Record(Image::Constant(4, 4, -3.0), 1); }), HasSubstr("expected_e"));
+  EXPECT_THAT(ErrorOf<Error>([&] { d.Record(Image::Constant(4, 4, -3.0), 1); }), HasSubstr("expected_e"));
   Image nan = Image::Ones(4, 4);
   nan(1, 1) = NAN;
-  EXPECT_THAT(ErrorOf([&] { d.Record(nan, 1); }), HasSubstr("non-finite"));
-  EXPECT_THAT(ErrorOf([&] { d.Record(Image(), 1); }), HasSubstr("expected_e"));
-  EXPECT_THAT(ErrorOf([&] { d.RecordSequence({}, 1); }), HasSubstr("at least one frame"));
-  EXPECT_THAT(ErrorOf([&] {
+  EXPECT_THAT(ErrorOf<Error>([&] { d.Record(nan, 1); }), HasSubstr("non-finite"));
+  EXPECT_THAT(ErrorOf<Error>([&] { d.Record(Image(), 1); }), HasSubstr("expected_e"));
+  EXPECT_THAT(ErrorOf<Error>([&] { d.RecordSequence({}, 1); }), HasSubstr("at least one frame"));
+  EXPECT_THAT(ErrorOf<Error>([&] {
                 d.RecordSequence({Image::Ones(4, 4), Image::Ones(3, 3)}, 1);
               }),
               HasSubstr("every frame of shape 4x4"));
-  EXPECT_THAT(ErrorOf([&] { d.InverseVarianceFromData(Image::Ones(4, 4), Image::Ones(2, 2)); }),
+  EXPECT_THAT(ErrorOf<Error>([&] { d.InverseVarianceFromData(Image::Ones(4, 4), Image::Ones(2, 2)); }),
               HasSubstr("valid"));
 }
 
 TEST(DetectorErrorsTest, FreeFunctionsRejectBadArguments) {
-  EXPECT_THAT(ErrorOf([] { PixelResponse({8, 8}, 2, 0.0); }), HasSubstr("fill_factor"));
-  EXPECT_THAT(ErrorOf([] { PixelResponse({8, 8}, 3, 0.5); }), HasSubstr("hr"));
-  EXPECT_THAT(ErrorOf([] { PixelResponse({8, 8}, 3, 1.0); }), HasSubstr("Decimate"));
-  EXPECT_THAT(ErrorOf([] { FillFactorWeights(0, 0.5); }), HasSubstr("r"));
-  EXPECT_THAT(ErrorOf([] { PeakFractionSigma({}, 0.1); }), HasSubstr("frames"));
-  EXPECT_THAT(ErrorOf([] { PeakFractionSigma({Image::Ones(2, 2)}, -1); }), HasSubstr("fraction"));
+  EXPECT_THAT(ErrorOf<Error>([] { PixelResponse({8, 8}, 2, 0.0); }), HasSubstr("fill_factor"));
+  EXPECT_THAT(ErrorOf<Error>([] { PixelResponse({8, 8}, 3, 0.5); }), HasSubstr("hr"));
+  EXPECT_THAT(ErrorOf<Error>([] { PixelResponse({8, 8}, 3, 1.0); }), HasSubstr("Decimate"));
+  EXPECT_THAT(ErrorOf<Error>([] { FillFactorWeights(0, 0.5); }), HasSubstr("r"));
+  EXPECT_THAT(ErrorOf<Error>([] { PeakFractionSigma({}, 0.1); }), HasSubstr("frames"));
+  EXPECT_THAT(ErrorOf<Error>([] { PeakFractionSigma({Image::Ones(2, 2)}, -1); }), HasSubstr("fraction"));
   Image img = Image::Ones(2, 2);
   NormalGenerator g(1);
-  EXPECT_THAT(ErrorOf([&] { AddNormalNoise(&img, -1, &g); }), HasSubstr("sigma"));
-  EXPECT_THAT(ErrorOf([] { RandomBadPixelMask({4, 4}, 1.5, 1); }), HasSubstr("fraction"));
+  EXPECT_THAT(ErrorOf<Error>([&] { AddNormalNoise(&img, -1, &g); }), HasSubstr("sigma"));
+  EXPECT_THAT(ErrorOf<Error>([] { RandomBadPixelMask({4, 4}, 1.5, 1); }), HasSubstr("fraction"));
 }
 
 TEST(DetectorErrorsTest, PhotometryNamesTheBadArgument) {
-  EXPECT_THAT(ErrorOf([] { VegaBand("Q"); }),
+  EXPECT_THAT(ErrorOf<Error>([] { VegaBand("Q"); }),
               HasSubstr("VegaBand: invalid band = \"Q\"; allowed: one of U, B, V, R, I, J, H, K, Ks"));
   LightCollectorOptions c;
-  EXPECT_THAT(ErrorOf([&] { ElectronsPerFrame(SourceFlux::Magnitude(10, "k"), c, {}); }), HasSubstr("band"));
-  EXPECT_THAT(ErrorOf([&] { ElectronsPerFrame(SourceFlux::Magnitude(NAN, "K"), c, {}); }),
+  EXPECT_THAT(ErrorOf<Error>([&] { ElectronsPerFrame(SourceFlux::Magnitude(10, "k"), c, {}); }), HasSubstr("band"));
+  EXPECT_THAT(ErrorOf<Error>([&] { ElectronsPerFrame(SourceFlux::Magnitude(NAN, "K"), c, {}); }),
               HasSubstr("magnitude"));
-  EXPECT_THAT(ErrorOf([&] {
+  EXPECT_THAT(ErrorOf<Error>([&] {
                 ElectronsPerFrame(SourceFlux::Magnitude(10, "K"), c, {10.0, 0});
               }),
               HasSubstr("plan.frames"));
-  EXPECT_THAT(ErrorOf([&] {
+  EXPECT_THAT(ErrorOf<Error>([&] {
                 ElectronsPerFrame(SourceFlux::Magnitude(10, "K"), c, {-1.0, 2});
               }),
               HasSubstr("plan.total_time_s"));
-  EXPECT_THAT(ErrorOf([&] { DetectedElectronRate(SourceFlux::Irradiance(-1), c); }),
+  EXPECT_THAT(ErrorOf<Error>([&] { DetectedElectronRate(SourceFlux::Irradiance(-1), c); }),
               HasSubstr("source.value"));
   c.throughput = 1.5;
-  EXPECT_THAT(ErrorOf([&] { DetectedElectronRate(SourceFlux::Irradiance(1), c); }),
+  EXPECT_THAT(ErrorOf<Error>([&] { DetectedElectronRate(SourceFlux::Irradiance(1), c); }),
               HasSubstr("collector.throughput"));
   c = {};
   c.obstruction = 1.0;
-  EXPECT_THAT(ErrorOf([&] { DetectedElectronRate(SourceFlux::Irradiance(1), c); }),
+  EXPECT_THAT(ErrorOf<Error>([&] { DetectedElectronRate(SourceFlux::Irradiance(1), c); }),
               HasSubstr("collector.obstruction"));
   c = {};
   c.diameter_m = 0;
-  EXPECT_THAT(ErrorOf([&] { DetectedElectronRate(SourceFlux::Irradiance(1), c); }),
+  EXPECT_THAT(ErrorOf<Error>([&] { DetectedElectronRate(SourceFlux::Irradiance(1), c); }),
               HasSubstr("collector.diameter_m"));
   c = {};
-  EXPECT_THAT(ErrorOf([&] { SkyBackgroundRate(13, VegaBand("K"), c, 0.0); }), HasSubstr("pixel_scale_rad"));
-  EXPECT_THAT(ErrorOf([&] { SkyBackgroundRate(13, VegaBand("K"), c, 1e-7, 2.0); }), HasSubstr("fill_factor"));
-  EXPECT_THAT(ErrorOf([&] { MagnitudeFromIrradiance(0, VegaBand("K")); }), HasSubstr("photons_per_s_m2"));
+  EXPECT_THAT(ErrorOf<Error>([&] { SkyBackgroundRate(13, VegaBand("K"), c, 0.0); }), HasSubstr("pixel_scale_rad"));
+  EXPECT_THAT(ErrorOf<Error>([&] { SkyBackgroundRate(13, VegaBand("K"), c, 1e-7, 2.0); }), HasSubstr("fill_factor"));
+  EXPECT_THAT(ErrorOf<Error>([&] { MagnitudeFromIrradiance(0, VegaBand("K")); }), HasSubstr("photons_per_s_m2"));
 }
 
 }  // namespace
