@@ -218,7 +218,9 @@ TEST(DemoObjectTest, ContainsTheFivePointSources) {
   // They sit on the background: every pixel with source flux has target value 0.05.
   const Image target = UsafTarget(shape, opts);
   for (Index i = 0; i < diff.size(); ++i) {
-    if (diff.data()[i] > 0.0) EXPECT_EQ(target.data()[i], 0.05) << "pixel " << i;
+    if (diff.data()[i] > 0.0) {
+      EXPECT_EQ(target.data()[i], 0.05) << "pixel " << i;
+    }
   }
 }
 
