@@ -1,5 +1,6 @@
 #include "aosr/ao/phase_screen.hpp"
 
+#include <atomic>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -176,7 +177,14 @@ PhaseScreenGenerator::PhaseScreenGenerator(const PhaseScreenOptions& options) : 
   }
 }
 
+namespace {
+std::atomic<std::uint64_t> g_screens_generated{0};
+}  // namespace
+
+std::uint64_t PhaseScreensGenerated() { return g_screens_generated.load(std::memory_order_relaxed); }
+
 ComplexImage PhaseScreenGenerator::GenerateComplex(std::uint64_t seed) const {
+  g_screens_generated.fetch_add(1, std::memory_order_relaxed);
   const Index n = options_.size;
   const double dx = options_.pixel_scale_m;
   NormalGenerator rng(seed);

@@ -2,6 +2,7 @@
 
 #include <fftw3.h>
 
+#include <atomic>
 #include <map>
 #include <mutex>
 #include <tuple>
@@ -127,10 +128,18 @@ FftSettings GetFftSettings() { return PlanCache::Get().Settings(); }
 
 std::size_t FftPlanCount() { return PlanCache::Get().Count(); }
 
+namespace {
+std::atomic<std::uint64_t> g_executions{0};
+void CountExecution() { g_executions.fetch_add(1, std::memory_order_relaxed); }
+}  // namespace
+
+std::uint64_t FftExecutionCount() { return g_executions.load(std::memory_order_relaxed); }
+
 ComplexImage FftR2C(const Image& x) {
   CheckNonEmpty("FftR2C", x.rows(), x.cols());
   ComplexImage X(x.rows(), x.cols() / 2 + 1);
   fftw_plan p = PlanCache::Get().Plan(Kind::kR2C, x.rows(), x.cols(), Aligned(x.data(), X.data()));
+  CountExecution();
   fftw_execute_dft_r2c(p, const_cast<double*>(x.data()), C(X.data()));
   return X;
 }
@@ -142,6 +151,7 @@ Image FftC2R(const ComplexImage& X, Index cols) {
   ComplexImage scratch = X;  // c2r destroys its input
   Image x(X.rows(), cols);
   fftw_plan p = PlanCache::Get().Plan(Kind::kC2R, X.rows(), cols, Aligned(scratch.data(), x.data()));
+  CountExecution();
   fftw_execute_dft_c2r(p, C(scratch.data()), x.data());
   x /= static_cast<double>(X.rows() * cols);
   return x;
@@ -151,6 +161,7 @@ ComplexImage FftForward(const ComplexImage& x) {
   CheckNonEmpty("FftForward", x.rows(), x.cols());
   ComplexImage X(x.rows(), x.cols());
   fftw_plan p = PlanCache::Get().Plan(Kind::kForward, x.rows(), x.cols(), Aligned(x.data(), X.data()));
+  CountExecution();
   fftw_execute_dft(p, C(const_cast<Complex*>(x.data())), C(X.data()));
   return X;
 }
@@ -159,6 +170,7 @@ ComplexImage FftInverse(const ComplexImage& X) {
   CheckNonEmpty("FftInverse", X.rows(), X.cols());
   ComplexImage x(X.rows(), X.cols());
   fftw_plan p = PlanCache::Get().Plan(Kind::kInverse, X.rows(), X.cols(), Aligned(X.data(), x.data()));
+  CountExecution();
   fftw_execute_dft(p, C(const_cast<Complex*>(X.data())), C(x.data()));
   x /= static_cast<double>(X.rows() * X.cols());
   return x;

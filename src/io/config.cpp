@@ -55,6 +55,25 @@ double ConfigNode::Number(const std::string& key, double lo, double hi) const {
   return v;
 }
 
+std::vector<double> ConfigNode::Numbers(const std::string& key, double lo, double hi, std::size_t min_size,
+                                        std::size_t max_size) const {
+  const nlohmann::json& f = Field(key);
+  const std::string size = min_size == max_size ? std::to_string(min_size)
+                                                : std::to_string(min_size) + " to " + std::to_string(max_size);
+  const std::string allowed = "an array of " + size + " numbers, each in [" + ToString(lo) + ", " + ToString(hi) + "]";
+  if (!f.is_array() || f.size() < min_size || f.size() > max_size) Fail(key, f.dump(), allowed);
+  std::vector<double> out;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const std::string item = key + "[" + std::to_string(i) + "]";
+    if (!f[i].is_number()) Fail(item, f[i].dump(), "a number in [" + ToString(lo) + ", " + ToString(hi) + "]");
+    const double v = f[i].get<double>();
+    if (!(std::isfinite(v) && v >= lo && v <= hi))
+      Fail(item, f[i].dump(), "a number in [" + ToString(lo) + ", " + ToString(hi) + "]");
+    out.push_back(v);
+  }
+  return out;
+}
+
 double ConfigNode::NumberOr(const std::string& key, double fallback, double lo, double hi) const {
   read_.insert(key);
   return Has(key) ? Number(key, lo, hi) : fallback;

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 
 #include "aosr/core/image.hpp"
 
@@ -44,6 +45,10 @@ ComplexImage FftInverse(const ComplexImage& X);
 
 // Number of distinct plans made so far (for tests and benchmarks of the cache).
 std::size_t FftPlanCount();
+// Number of transforms executed through this file since the program started (all threads; a relaxed
+// atomic counter). Tests use it to prove a disabled stage does no FFT work; benchmarks to count the FFT
+// floor of an algorithm. Transforms that other layers plan on their own (the closed loop's) are not counted.
+std::uint64_t FftExecutionCount();
 
 // Expands a half spectrum (R x (C/2+1)) of a real signal to the full R x C spectrum using
 // Hermitian symmetry X(-u, -v) = conj X(u, v).

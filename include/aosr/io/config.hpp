@@ -35,6 +35,9 @@ class ConfigNode {
   long long Integer(const std::string& key, long long lo, long long hi) const;
   long long IntegerOr(const std::string& key, long long fallback, long long lo, long long hi) const;
   bool BoolOr(const std::string& key, bool fallback) const;
+  // A required array of numbers, each in [lo, hi], with between min_size and max_size elements.
+  std::vector<double> Numbers(const std::string& key, double lo, double hi, std::size_t min_size,
+                              std::size_t max_size) const;
   std::string String(const std::string& key) const;
   std::string StringOr(const std::string& key, const std::string& fallback) const;
   // A string that must be one of `allowed`.

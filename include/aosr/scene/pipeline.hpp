@@ -1,0 +1,162 @@
+// The simulator: a scene (scene_spec.hpp) compiled into the ordered stages of DESIGN.md §1,
+//
+//     y_i = D_r( h_i ⊛ x ) + n_i ,
+//
+// building only the stages the scene enables and computing what is identical across exposures once.
+//
+// ## Stages (in order; a stage the scene does not enable is absent from the plan and never runs)
+//
+//   object             each component rendered on the HR frame (r·rows × r·cols) in electrons per frame;
+//                      stars stay a catalogue (no image is gridded for the frames)
+//   static-aberrations w_static = Σ a_j Z_j on the pupil (only if the scene lists any)
+//   dm-offsets         w_dm,i per exposure: tip/tilt for the shift, Zernike terms, actuator commands
+//                      (only if some exposure has a non-zero offset)
+//   ao-loop            closed-loop Monte-Carlo (atmosphere phase screens, WFS, controller, DM) producing
+//                      each exposure's long-exposure PSF (only for ao.mode = closed-loop)
+//   psf                h_i at HR sampling, psf_size² window, normalised to unit sum: diffraction, or the
+//                      analytic AO residual model, or the loop's average; computed once per *distinct*
+//                      pupil OPD (a static PSF is computed once and shared by all exposures)
+//   convolution        extended components: one r2c FFT of the padded object, then per distinct PSF one
+//                      product and one c2r FFT (only if the scene has an extended component)
+//   point-sources      stars: the exact sub-pixel-shifted PSF of each star, summed in the Fourier domain
+//                      (point_sources.hpp); a stars-only scene does no r2c FFT of an object image
+//   pixel-integration  crop of the padded grid to the frame, then D_r with the fill factor
+//   detector           photon/read/peak-fraction noise, background, dark current, ADU conversion,
+//                      saturation, bad pixels, quantisation (Detector::Plan lists the enabled ones)
+//
+// ## Boundaries
+//
+// The object lives on the HR frame and is dark outside it. Convolution runs on that frame padded by at least
+// half the PSF window on every side (rounded up to a size FFTW likes), so the frames carry no periodic
+// wrap-around: a noiseless frame is exactly D_r(Crop(h_i * x)) with * the linear (zero-padded) convolution of
+// the windowed PSF. Light of objects within half a PSF window of the frame edge spills out of the frame and
+// is lost, as on a real detector; a reconstructor that assumes periodic boundaries is wrong there.
+// SceneGeometry::trustworthy_border_px states that band (camera pixels, ceil(psf_size / 2 / r)).
+//
+// ## Flux
+//
+// Unit-sum PSF kernels conserve flux through the convolution; the crop loses only the light that leaves the
+// frame; D_r and the detector's conversion conserve it (tests/scene/pipeline_physics_test.cpp: 1e-10). The
+// PSF's light beyond its window is folded into the window by the unit-sum normalisation; Simulation reports
+// how much that was (psf_window_fraction).
+//
+// ## Cost
+//
+// Compiling (the ScenePipeline constructor) loads files and builds nothing expensive: no PSF, FFT plan or
+// phase screen. PipelineStage::estimated_s is a model (flop counts at nominal rates, stated in pipeline.cpp),
+// compared with measured times in bench/simulate_bench.cpp.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "aosr/core/image.hpp"
+#include "aosr/optics/deformable_mirror.hpp"
+#include "aosr/scene/detector.hpp"
+#include "aosr/scene/objects.hpp"
+#include "aosr/scene/scene_spec.hpp"
+
+namespace aosr {
+
+struct SceneGeometry {
+  int r = 1;
+  Shape frame;        // camera pixels
+  Shape hr_frame;     // r·frame
+  Shape padded;       // the convolution grid (HR), >= hr_frame + psf_size on each axis
+  Index pad_top = 0;  // where hr_frame starts inside padded
+  Index pad_left = 0;
+  Index psf_size = 0;  // PSF window side, HR pixels (even)
+  double camera_pixel_rad = 0.0;
+  double hr_pixel_rad = 0.0;
+  double hr_pixel_lambda_over_d = 0.0;
+  double wavelength_m = 0.0;
+  // Camera pixels from each frame edge within which a periodic model of the frame alone is not exact
+  // (light from inside leaves the frame; see the top of the file).
+  Index trustworthy_border_px = 0;
+};
+
+// One compiled stage.
+struct PipelineStage {
+  std::string name;          // one of the names at the top of the file
+  std::string detail;        // what it does at this scene's sizes
+  int count = 1;             // how many times it runs (e.g. distinct PSFs)
+  double estimated_s = 0.0;  // cost model, seconds on one core
+};
+
+struct StageTiming {
+  std::string name;
+  double seconds = 0.0;
+};
+
+// What a run actually computed: tests use these to prove that disabled effects cost nothing.
+struct SimulationCounters {
+  int object_components = 0;     // components rendered
+  int psfs_computed = 0;         // distinct PSFs (or loop sub-exposures) computed
+  int object_transforms = 0;     // r2c FFTs of an object image (0 for stars-only scenes)
+  int frame_transforms = 0;      // c2r FFTs producing convolved HR images (one per distinct PSF)
+  int loop_steps = 0;            // closed-loop frames run (0 unless ao.mode = closed-loop)
+  std::uint64_t fft_executions = 0;   // core/fft.hpp transforms during Run (FftExecutionCount delta)
+  std::uint64_t phase_screens = 0;    // phase screens generated during Run (PhaseScreensGenerated delta)
+  std::int64_t noise_draws = 0;       // random numbers drawn by the detector
+};
+
+struct Simulation {
+  SceneGeometry geometry;
+  Image truth;                     // the object on the HR frame, electrons per frame per HR pixel
+  std::vector<PointSource> stars;  // stars in HR-frame pixel coordinates, electrons per frame (also in truth)
+  ImageStack psfs;                 // h_i, psf_size², centred (image.hpp), unit sum; one per exposure
+  std::vector<int> distinct_psf;   // exposure i used distinct PSF distinct_psf[i]
+  std::vector<double> psf_window_fraction;  // light of h_i inside its window before normalisation
+  std::vector<double> strehl;      // on-axis Strehl of h_i's optics (AO residual, offsets, aberrations)
+  ImageStack expected_e;           // noiseless frames, electrons
+  std::vector<DetectorFrame> frames;
+  std::vector<StageTiming> timings;
+  SimulationCounters counters;
+  double seconds = 0.0;
+};
+
+class ScenePipeline {
+ public:
+  // Compiles `scene` (already validated by the parser). Throws InvalidArgument for what only the built
+  // optics can check (e.g. a design's actuator count against the DM).
+  explicit ScenePipeline(SceneSpec scene);
+
+  const SceneSpec& scene() const { return scene_; }
+  const SceneGeometry& geometry() const { return geometry_; }
+  // The enabled stages in order.
+  const std::vector<PipelineStage>& stages() const { return stages_; }
+  // One line per stage: name, count, estimated time, detail; then the total.
+  std::string PlanReport() const;
+
+  // Runs every stage. Deterministic for a given scene (seeds in the scene).
+  Simulation Run() const;
+
+  // The stages before the detector, for callers that need only part of the chain (real data needs the
+  // PSFs; tests need the noiseless frames).
+  // The object on the HR frame (stars included as PointSourceImage) and the star catalogue.
+  Image RenderTruth(std::vector<PointSource>* stars) const;
+  // h_i of every exposure (unit sum), with the distinct-PSF map, window fractions and Strehl ratios.
+  ImageStack ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
+                         std::vector<double>* strehl, SimulationCounters* counters = nullptr) const;
+
+ private:
+  struct Component;
+  void Compile();
+
+  SceneSpec scene_;
+  SceneGeometry geometry_;
+  std::vector<PipelineStage> stages_;
+  std::vector<int> distinct_;  // exposure -> distinct OPD group (all 0..N-1 for the closed loop)
+  int distinct_count_ = 0;
+  bool has_extended_ = false;
+  bool has_stars_ = false;
+};
+
+// The pupil OPD [m] of one exposure: tip/tilt for the offset's shift (zernike.hpp, a = shift·D/4), its
+// Zernike terms, the DM commands through `dm` (may be null when the offset has none), plus w_static
+// (empty for none). On the telescope's pupil_px grid.
+Image ExposureOpd(const SceneSpec& scene, const DmOffset& offset, const Image& static_opd_m,
+                  const DeformableMirror* dm);
+
+}  // namespace aosr

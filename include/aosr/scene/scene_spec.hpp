@@ -1,0 +1,177 @@
+// A scene: what the sky, the telescope, the AO system, the DM offsets and the camera are, and which physical
+// effects matter. Read from a JSON file (data/scenes/README.md documents every field with an example) by
+// LoadScene; pipeline.hpp turns it into frames.
+//
+// ## Rules written once
+//
+//  * The sky is defined in *camera* pixels (positions, sizes, separations: `…_px` fields of objects are
+//    camera pixels, fractional allowed) or as fractions of the frame, never in HR pixels: changing the
+//    super-resolution factor r changes how finely the same sky is sampled, not the sky.
+//  * Every object is rendered on the detector's field (the HR grid of the frame, r·rows × r·cols); the
+//    simulator pads it with dark sky by the PSF's half-width before convolving (pipeline.hpp).
+//  * Objects carry electrons per frame: a component's `flux` normalises it (total, peak or magnitude);
+//    without one its generator's native values are taken as electrons per frame per HR pixel.
+//  * Parsing validates everything, including the files a scene names and the geometry (r against the PSF
+//    sampling, the PSF window against the pupil grid), before any computation. Errors are InvalidArgument
+//    "<file>: <field path> = <value>; allowed: <range>" (io/config.hpp); unknown fields are errors.
+//  * SI inside: nm, mas and camera pixels are converted here.
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "aosr/ao/ao_system.hpp"
+#include "aosr/core/image.hpp"
+#include "aosr/scene/dead_leaves.hpp"
+#include "aosr/scene/detector.hpp"
+#include "aosr/scene/galaxy.hpp"
+#include "aosr/scene/image_object.hpp"
+#include "aosr/scene/objects.hpp"
+#include "aosr/scene/photometry.hpp"
+#include "aosr/scene/star_field.hpp"
+#include "aosr/scene/telescope.hpp"
+
+namespace aosr {
+
+// How a component's brightness is set. kNative keeps the generator's values as electrons per frame per HR
+// pixel; the others rescale the component so that, over the detector's field, its
+//   kTotalElectrons  sum is `value` electrons per frame,
+//   kPeakElectrons   largest HR pixel is `value` electrons per frame,
+//   kMagnitude       sum is the electrons per frame of a source of magnitude `value` (photometry section).
+struct FluxSpec {
+  enum class Kind { kNative, kTotalElectrons, kPeakElectrons, kMagnitude };
+  Kind kind = Kind::kNative;
+  double value = 0.0;
+};
+
+// One object component. Only the fields of its kind are used.
+struct ObjectSpec {
+  enum class Kind { kUsaf, kDemo, kStars, kGalaxies, kDeadLeaves, kImage };
+  Kind kind = Kind::kDemo;
+  std::string type;  // the JSON name: "usaf", "demo", "stars", "galaxies", "dead-leaves", "image"
+  FluxSpec flux;
+  std::uint64_t seed = 0;  // random components: the component's seed (derived from the scene's if not given)
+
+  // usaf: the target's bounding box fills this fraction of the smaller frame side, (0, 1].
+  double usaf_fill = 0.9;
+  UsafOptions usaf;  // pixels_per_mm is derived from usaf_fill at render time
+
+  // stars: either a random field (`stars` with sizes in camera pixels, converted at render time) or an
+  // explicit catalogue (`catalogue`, positions in camera pixels of the frame, flux in electrons per frame
+  // unless `flux` rescales). `star_magnitudes` says the luminosity function's range was given as
+  // magnitudes and already converted to electrons per frame (then `flux` must be native).
+  StarFieldOptions stars;
+  std::vector<PointSource> catalogue;
+  bool star_magnitudes = false;
+
+  // galaxies: sizes and margin in camera pixels (converted at render time).
+  GalaxyFieldOptions galaxies;
+
+  // dead-leaves: radii in camera pixels (converted at render time).
+  DeadLeavesOptions dead_leaves;
+
+  // image: the file (resolved against the scene's folder) and how it is resampled onto the field.
+  std::string image_path;
+  ImageObjectOptions image;
+
+  bool IsPointSources() const { return kind == Kind::kStars; }
+};
+
+// One exposure's DM offset w_dm,i: an image shift made with tip/tilt, plus Zernike terms, plus optional
+// per-actuator commands. All zero: the exposure has no offset.
+struct DmOffset {
+  double shift_y_px = 0.0;  // image shift in camera pixels (+x: toward larger column)
+  double shift_x_px = 0.0;
+  struct Term {
+    int noll = 2;         // Noll index >= 2
+    double rms_m = 0.0;   // wavefront OPD RMS on the pupil [m]
+  };
+  std::vector<Term> zernike;
+  std::vector<double> actuators_m;  // DM commands [m] (one per active actuator), empty for none
+  bool IsZero() const;
+  bool operator==(const DmOffset& o) const;
+};
+
+struct OffsetsSpec {
+  enum class Kind { kNone, kRaster, kDesign };
+  Kind kind = Kind::kNone;
+  std::string source;             // "inline", or the design file's path
+  std::vector<DmOffset> frames;   // one per exposure (N entries) after parsing, whatever the kind
+};
+
+struct AoSpec {
+  enum class Mode { kNone, kAnalytic, kClosedLoop };
+  Mode mode = Mode::kNone;
+  // Closed loop only: the sensor model, and the telescope time simulated per exposure and before the first.
+  // The Monte-Carlo costs ~1 ms per loop step, so a scene simulates a representative stretch of each
+  // exposure (default 0.1 s, 80 steps at 800 Hz) rather than its whole integration time.
+  SensorKind sensor = SensorKind::kDiffractive;
+  double time_per_frame_s = 0.1;
+  double settling_s = 0.1;
+  int psf_every_steps = 1;
+  std::uint64_t seed = 0;  // atmosphere and WFS noise
+};
+
+struct PhotometrySpec {
+  std::string band;          // Vega band name (photometry.hpp); empty if no magnitudes are used
+  double throughput = 0.3;   // pupil photons -> detected electrons, (0, 1]
+  // Instrumental zero point: the magnitude that gives 1 e-/s. When set it replaces band, area and
+  // throughput for magnitudes (the sky background still needs the band unless given in e-/s).
+  std::optional<double> zero_point_mag;
+};
+
+struct SceneSpec {
+  std::string name;
+  std::string source;  // the scene file ("<string>" when parsed from memory)
+
+  TelescopePreset telescope;
+  int frames = 4;       // N sub-exposures
+  int r = 2;            // super-resolution factor: HR pixel = camera pixel / r
+  Shape frame;          // camera frame, rows x cols (camera pixels)
+  std::uint64_t seed = 1;
+
+  std::vector<ObjectSpec> objects;  // at least one; summed
+  AoSpec ao;
+  std::vector<DmOffset::Term> static_aberrations;  // w_static (science path only)
+  OffsetsSpec offsets;
+  PhotometrySpec photometry;
+
+  DetectorOptions detector;        // exposure_time_s = total exposure / N (the frame time)
+  double total_exposure_s = 1.0;   // the whole sequence; each frame gets total / N
+  std::uint64_t noise_seed = 0;
+  std::uint64_t bad_pixel_seed = 0;
+  double bad_pixel_fraction = 0.0;  // > 0: a random map; the file, when given, is in detector.bad_pixel_mask
+  std::string bad_pixel_file;
+
+  Index psf_size_px = 0;  // PSF kernel side at HR sampling (even)
+
+  // Derived geometry.
+  Shape HrFrame() const { return {frame.rows * r, frame.cols * r}; }
+  double CameraPixelRad() const { return telescope.camera_pixel_rad; }
+  double HrPixelRad() const { return telescope.camera_pixel_rad / r; }
+  // HR pixel in lambda/D at the science wavelength.
+  double HrPixelLambdaOverD() const { return HrPixelRad() / telescope.LambdaOverD(); }
+  // The light collector of the photometry (telescope area, throughput).
+  LightCollectorOptions Collector() const;
+  // Electrons per frame of a source of `magnitude` (zero point or band/area/throughput; frame time).
+  double ElectronsPerFrameForMagnitude(double magnitude) const;
+};
+
+// Reads and validates a scene file. Relative paths inside (telescope preset files, design files, images,
+// bad-pixel maps) are resolved against the scene's folder; a bare telescope name is a preset of
+// data/telescopes/.
+SceneSpec LoadScene(const std::string& path);
+// The same from an already-read JSON object; `source` names it in messages and its folder resolves paths.
+SceneSpec ParseScene(const nlohmann::json& json, const std::string& source);
+
+// The DM offsets of a design file (the phase-design output, or hand-written): {"frames": [ {...}, ... ]}
+// with each frame as in a scene's inline design (data/scenes/README.md). `frames` entries are required.
+std::vector<DmOffset> LoadDesignFile(const std::string& path);
+
+// JSON forms used by manifests (round-trip with the parser's inline design format).
+nlohmann::json DmOffsetToJson(const DmOffset& offset);
+
+}  // namespace aosr

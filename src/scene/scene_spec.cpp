@@ -1,0 +1,508 @@
+#include "aosr/scene/scene_spec.hpp"
+
+#include <cmath>
+#include <filesystem>
+
+#include "aosr/ao/random.hpp"
+#include "aosr/core/error.hpp"
+#include "aosr/io/config.hpp"
+#include "aosr/io/image_io.hpp"
+#include "aosr/scene/raster.hpp"
+
+namespace aosr {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr long long kMaxSeed = (1LL << 62);
+constexpr double kNm = 1e-9;
+// Default PSF window: 32 λ/D across (16 λ/D radius) holds the diffraction core, the AO-corrected region
+// (control radius D/(2d) = 8 λ/D for the paper's 17×17 DM) and the start of the fitting halo.
+constexpr double kDefaultPsfWindowLod = 32.0;
+
+// Seed streams derived from the scene's seed (ao/random.hpp): each effect has its own, so enabling one
+// never changes another's random numbers.
+enum SeedStream : std::uint64_t { kNoiseStream = 1, kAtmosphereStream = 2, kBadPixelStream = 3, kObjectStream = 100 };
+
+std::string ResolvePath(const std::string& source, const std::string& file) {
+  const fs::path f(file);
+  if (f.is_absolute()) return f.string();
+  return (fs::path(source).parent_path() / f).string();
+}
+
+std::uint64_t SeedOr(const ConfigNode& n, std::uint64_t fallback) {
+  return static_cast<std::uint64_t>(n.IntegerOr("seed", static_cast<long long>(fallback & (kMaxSeed - 1)), 0, kMaxSeed));
+}
+
+// A [lo, hi] pair with 0 < lo <= hi (or lo < hi when strict).
+std::pair<double, double> Range(const ConfigNode& n, const std::string& key, double lo, double hi, bool strict) {
+  const std::vector<double> v = n.Numbers(key, lo, hi, 2, 2);
+  if (strict ? !(v[0] < v[1]) : !(v[0] <= v[1]))
+    n.Fail(key, "[" + ToString(v[0]) + ", " + ToString(v[1]) + "]",
+           strict ? "[low, high] with low < high" : "[low, high] with low <= high");
+  return {v[0], v[1]};
+}
+
+FluxSpec ParseFlux(const ConfigNode& object) {
+  FluxSpec f;
+  if (!object.Has("flux")) {
+    object.NumberOr("flux", 0, 0, 0);  // marks the key read when it is explicitly null
+    return f;
+  }
+  const ConfigNode n = object.Child("flux");
+  const int given = int(n.Has("total_e")) + int(n.Has("peak_e")) + int(n.Has("magnitude"));
+  if (given != 1) n.Fail("", std::to_string(given) + " of total_e, peak_e, magnitude", "exactly one of them");
+  if (n.Has("total_e")) {
+    f.kind = FluxSpec::Kind::kTotalElectrons;
+    f.value = n.Positive("total_e");
+  } else if (n.Has("peak_e")) {
+    f.kind = FluxSpec::Kind::kPeakElectrons;
+    f.value = n.Positive("peak_e");
+  } else {
+    f.kind = FluxSpec::Kind::kMagnitude;
+    f.value = n.Number("magnitude", -30.0, 50.0);
+  }
+  n.CheckNoOtherFields();
+  return f;
+}
+
+template <typename Options>
+void CheckOptions(const ConfigNode& n, const Options& o) {
+  std::string why;
+  if (!o.IsValid(&why)) n.Fail("", "(inconsistent)", why);
+}
+
+ObjectSpec ParseObject(const ConfigNode& n, const SceneSpec& scene, std::size_t index, bool* needs_magnitudes) {
+  ObjectSpec o;
+  o.type = n.Choice("type", {"usaf", "demo", "stars", "galaxies", "dead-leaves", "image"});
+  o.flux = ParseFlux(n);
+  o.seed = SeedOr(n, DeriveSeed(scene.seed, kObjectStream + index));
+  if (o.flux.kind == FluxSpec::Kind::kMagnitude) *needs_magnitudes = true;
+  if (o.type == "usaf") {
+    o.kind = ObjectSpec::Kind::kUsaf;
+    o.usaf_fill = n.NumberOr("fill", o.usaf_fill, 1e-3, 1.0);
+    o.usaf.first_group = int(n.IntegerOr("first_group", o.usaf.first_group, -10, 12));
+    o.usaf.last_group = int(n.IntegerOr("last_group", o.usaf.last_group, -10, 12));
+    o.usaf.background = n.NumberOr("background", o.usaf.background, -1e30, 1e30);
+    o.usaf.bar_value = n.NumberOr("bar", o.usaf.bar_value, -1e30, 1e30);
+    o.usaf.supersample = int(n.IntegerOr("supersample", o.usaf.supersample, 0, 64));
+    CheckOptions(n, o.usaf);
+  } else if (o.type == "demo") {
+    o.kind = ObjectSpec::Kind::kDemo;
+  } else if (o.type == "stars") {
+    o.kind = ObjectSpec::Kind::kStars;
+    if (n.Has("catalogue")) {
+      for (const ConfigNode& s : n.Array("catalogue")) {
+        PointSource p;
+        p.y = s.Number("y_px", -0.5, double(scene.frame.rows) - 0.5);
+        p.x = s.Number("x_px", -0.5, double(scene.frame.cols) - 0.5);
+        const int given = int(s.Has("flux_e")) + int(s.Has("magnitude"));
+        if (given != 1) s.Fail("", std::to_string(given) + " of flux_e, magnitude", "exactly one of them");
+        if (s.Has("flux_e")) {
+          p.flux = s.Number("flux_e", 0.0, 1e30);
+        } else {
+          p.flux = scene.ElectronsPerFrameForMagnitude(s.Number("magnitude", -30.0, 50.0));
+          o.star_magnitudes = true;
+        }
+        s.CheckNoOtherFields();
+        o.catalogue.push_back(p);
+      }
+      if (o.catalogue.empty()) n.Fail("catalogue", "[]", "at least one source");
+    } else {
+      o.stars.count = int(n.Integer("count", 1, 10000000));
+      o.stars.luminosity.alpha = n.NumberOr("alpha", o.stars.luminosity.alpha, 0.0, 5.0);
+      const int given = int(n.Has("flux_range_e")) + int(n.Has("magnitude_range"));
+      if (given > 1) n.Fail("flux_range_e", "(both given)", "one of flux_range_e and magnitude_range");
+      if (n.Has("magnitude_range")) {
+        const auto [bright, faint] = Range(n, "magnitude_range", -30.0, 50.0, true);
+        o.stars.luminosity.flux_min = scene.ElectronsPerFrameForMagnitude(faint);
+        o.stars.luminosity.flux_max = scene.ElectronsPerFrameForMagnitude(bright);
+        o.star_magnitudes = true;
+      } else if (n.Has("flux_range_e")) {
+        const auto [lo, hi] = Range(n, "flux_range_e", 1e-30, 1e30, true);
+        o.stars.luminosity.flux_min = lo;
+        o.stars.luminosity.flux_max = hi;
+      }
+      // Camera pixels here; the pipeline multiplies by r.
+      o.stars.min_separation_px = n.NumberOr("min_separation_px", 0.0, 0.0, 1e4);
+      o.stars.margin_px = n.NumberOr("margin_px", 0.0, 0.0, 1e4);
+      if (2 * o.stars.margin_px >= double(std::min(scene.frame.rows, scene.frame.cols)))
+        n.Fail("margin_px", ToString(o.stars.margin_px), "less than half the smaller frame side");
+      CheckOptions(n, o.stars);
+    }
+    if (o.star_magnitudes) {
+      *needs_magnitudes = true;
+      if (o.flux.kind != FluxSpec::Kind::kNative)
+        n.Fail("flux", "(given)", "no flux normalisation when the stars' brightness is given in magnitudes");
+    }
+  } else if (o.type == "galaxies") {
+    o.kind = ObjectSpec::Kind::kGalaxies;
+    GalaxyFieldOptions& g = o.galaxies;
+    g.count = int(n.Integer("count", 1, 100000));
+    if (n.Has("sersic_n_range")) std::tie(g.n_min, g.n_max) = Range(n, "sersic_n_range", 0.2 + 1e-9, 20.0, false);
+    if (n.Has("half_light_radius_px")) std::tie(g.re_min_px, g.re_max_px) = Range(n, "half_light_radius_px", 1e-3, 1e4, false);
+    else g.re_min_px = 0.5, g.re_max_px = 4.0;  // camera pixels: barely resolved to clearly extended
+    if (n.Has("axis_ratio_range")) std::tie(g.q_min, g.q_max) = Range(n, "axis_ratio_range", 1e-3, 1.0, false);
+    g.flux.alpha = n.NumberOr("alpha", g.flux.alpha, 0.0, 5.0);
+    if (n.Has("flux_range_e")) std::tie(g.flux.flux_min, g.flux.flux_max) = Range(n, "flux_range_e", 1e-30, 1e30, true);
+    g.margin_px = n.NumberOr("margin_px", 0.0, 0.0, 1e4);
+    if (2 * g.margin_px >= double(std::min(scene.frame.rows, scene.frame.cols)))
+      n.Fail("margin_px", ToString(g.margin_px), "less than half the smaller frame side");
+    CheckOptions(n, g);
+  } else if (o.type == "dead-leaves") {
+    o.kind = ObjectSpec::Kind::kDeadLeaves;
+    DeadLeavesOptions& d = o.dead_leaves;
+    if (n.Has("radius_range_px")) std::tie(d.r_min_px, d.r_max_px) = Range(n, "radius_range_px", 1e-3, 1e4, true);
+    else d.r_min_px = 0.5, d.r_max_px = 32.0;  // camera pixels: edges finer than a camera pixel
+    d.radius_exponent = n.NumberOr("radius_exponent", d.radius_exponent, 1.0, 6.0);
+    if (n.Has("grey_range")) std::tie(d.grey_min, d.grey_max) = Range(n, "grey_range", -1e30, 1e30, true);
+    d.supersample = int(n.IntegerOr("supersample", d.supersample, 1, 16));
+    CheckOptions(n, d);
+  } else {
+    o.kind = ObjectSpec::Kind::kImage;
+    o.image_path = ResolvePath(scene.source, n.String("path"));
+    if (!fs::is_regular_file(o.image_path)) n.Fail("path", "\"" + o.image_path + "\"", "an existing FITS/PNG/TIFF file");
+    o.image.fit = n.ChoiceOr("fit", "crop", {"crop", "stretch"}) == "crop" ? ImageFit::kCrop : ImageFit::kStretch;
+    o.image.values = n.ChoiceOr("values", "surface-brightness", {"surface-brightness", "flux-per-pixel"}) ==
+                             "surface-brightness"
+                         ? PixelValues::kSurfaceBrightness
+                         : PixelValues::kFluxPerPixel;
+    const std::string bg = n.ChoiceOr("background", "none", {"none", "median", "border-median", "minimum"});
+    o.image.background = bg == "none"     ? ImageBackground::kNone
+                         : bg == "median" ? ImageBackground::kMedian
+                         : bg == "border-median" ? ImageBackground::kBorderMedian
+                                                 : ImageBackground::kMinimum;
+    o.image.clip_negative = n.BoolOr("clip_negative", true);
+  }
+  n.CheckNoOtherFields();
+  return o;
+}
+
+std::vector<DmOffset::Term> ParseTerms(const ConfigNode& n, const std::string& key) {
+  std::vector<DmOffset::Term> terms;
+  for (const ConfigNode& t : n.Array(key)) {
+    DmOffset::Term term;
+    term.noll = int(t.Integer("noll", 1, 1000));
+    term.rms_m = t.Number("rms_nm", -1e7, 1e7) * kNm;
+    t.CheckNoOtherFields();
+    terms.push_back(term);
+  }
+  return terms;
+}
+
+DmOffset ParseDesignFrame(const ConfigNode& n) {
+  DmOffset o;
+  if (n.Has("shift_px")) {
+    const std::vector<double> s = n.Numbers("shift_px", -1e3, 1e3, 2, 2);
+    o.shift_y_px = s[0];
+    o.shift_x_px = s[1];
+  }
+  if (n.Has("zernike")) o.zernike = ParseTerms(n, "zernike");
+  if (n.Has("actuators_nm")) {
+    o.actuators_m = n.Numbers("actuators_nm", -1e7, 1e7, 1, 100000);
+    for (double& a : o.actuators_m) a *= kNm;
+  }
+  n.CheckNoOtherFields();
+  return o;
+}
+
+std::vector<DmOffset> ParseDesignFrames(const ConfigNode& n) {
+  std::vector<DmOffset> frames;
+  for (const ConfigNode& f : n.Array("frames")) frames.push_back(ParseDesignFrame(f));
+  if (frames.empty()) n.Fail("frames", "[]", "one entry per exposure");
+  return frames;
+}
+
+OffsetsSpec ParseOffsets(const ConfigNode& n, const SceneSpec& scene) {
+  OffsetsSpec o;
+  const std::string type = n.Choice("type", {"none", "raster", "design"});
+  if (type == "none") {
+    o.kind = OffsetsSpec::Kind::kNone;
+    o.frames.assign(scene.frames, DmOffset{});
+  } else if (type == "raster") {
+    o.kind = OffsetsSpec::Kind::kRaster;
+    o.source = "ClassicRaster(N, r)";
+    for (const FrameOffset& f : ClassicRaster(scene.frames, scene.r)) {
+      DmOffset d;
+      d.shift_y_px = f.dy / scene.r;  // HR pixels -> camera pixels
+      d.shift_x_px = f.dx / scene.r;
+      o.frames.push_back(d);
+    }
+  } else {
+    o.kind = OffsetsSpec::Kind::kDesign;
+    const int given = int(n.Has("frames")) + int(n.Has("file"));
+    if (given != 1) n.Fail("", std::to_string(given) + " of frames, file", "exactly one of them");
+    if (n.Has("file")) {
+      o.source = ResolvePath(scene.source, n.String("file"));
+      if (!fs::is_regular_file(o.source)) n.Fail("file", "\"" + o.source + "\"", "an existing design .json file");
+      o.frames = LoadDesignFile(o.source);
+    } else {
+      o.source = "inline";
+      o.frames = ParseDesignFrames(n);
+    }
+    if (int(o.frames.size()) != scene.frames)
+      n.Fail(n.Has("file") ? "file" : "frames", std::to_string(o.frames.size()) + " frames",
+             "exactly the scene's frames = " + std::to_string(scene.frames));
+  }
+  n.CheckNoOtherFields();
+  return o;
+}
+
+AoSpec ParseAo(const ConfigNode& n, const SceneSpec& scene) {
+  AoSpec a;
+  const std::string mode = n.Choice("mode", {"none", "analytic", "closed-loop"});
+  a.mode = mode == "none" ? AoSpec::Mode::kNone : mode == "analytic" ? AoSpec::Mode::kAnalytic : AoSpec::Mode::kClosedLoop;
+  a.seed = SeedOr(n, DeriveSeed(scene.seed, kAtmosphereStream));
+  if (a.mode == AoSpec::Mode::kAnalytic && !(scene.telescope.atmosphere && scene.telescope.ao))
+    n.Fail("mode", "\"analytic\"", "\"none\" or \"closed-loop\": telescope " + scene.telescope.name +
+                                       " lacks an \"atmosphere\" or \"ao\" section");
+  if (a.mode == AoSpec::Mode::kClosedLoop) {
+    if (!scene.telescope.ao)
+      n.Fail("mode", "\"closed-loop\"", "\"none\": telescope " + scene.telescope.name + " has no \"ao\" section");
+    const std::string sensor = n.ChoiceOr("sensor", "diffractive", {"ideal", "geometric", "diffractive"});
+    a.sensor = sensor == "ideal" ? SensorKind::kIdeal : sensor == "geometric" ? SensorKind::kGeometric : SensorKind::kDiffractive;
+    a.time_per_frame_s = n.NumberOr("time_per_frame_s", a.time_per_frame_s, 1e-4, 3600.0);
+    a.settling_s = n.NumberOr("settling_s", a.settling_s, 0.0, 3600.0);
+    a.psf_every_steps = int(n.IntegerOr("psf_every_steps", a.psf_every_steps, 1, 100000));
+    const double steps = a.time_per_frame_s * scene.telescope.ao->loop.rate_hz;
+    if (steps < a.psf_every_steps)
+      n.Fail("time_per_frame_s", ToString(a.time_per_frame_s),
+             "at least psf_every_steps loop frames (" + ToString(a.psf_every_steps / scene.telescope.ao->loop.rate_hz) + " s)");
+  }
+  n.CheckNoOtherFields();
+  return a;
+}
+
+void ParseDetector(const ConfigNode& n, SceneSpec* s) {
+  const nlohmann::json& size = n.json().contains("frame_px") ? n.json().at("frame_px") : nlohmann::json();
+  if (size.is_array()) {
+    const std::vector<double> v = n.Numbers("frame_px", 8, 4096, 2, 2);
+    if (v[0] != std::floor(v[0]) || v[1] != std::floor(v[1])) n.Fail("frame_px", size.dump(), "whole numbers of pixels");
+    s->frame = {Index(v[0]), Index(v[1])};
+  } else {
+    const Index side = n.Integer("frame_px", 8, 4096);
+    s->frame = {side, side};
+  }
+  DetectorOptions& d = s->detector;
+  s->total_exposure_s = n.PositiveOr("total_exposure_s", s->total_exposure_s);
+  d.exposure_time_s = s->total_exposure_s / s->frames;
+  d.gain_e_per_adu = n.PositiveOr("gain_e_per_adu", d.gain_e_per_adu);
+  d.bias_adu = n.NumberOr("bias_adu", d.bias_adu, -1e9, 1e9);
+  const std::string noise = n.ChoiceOr("noise", "physical", {"physical", "peak-fraction", "none"});
+  d.noise_model = noise == "peak-fraction" ? NoiseModel::kPeakFraction : NoiseModel::kPhysical;
+  d.enable_photon_noise = noise == "physical" && n.BoolOr("photon_noise", true);
+  d.read_noise_e = n.NumberOr("read_noise_e", d.read_noise_e, 0.0, 1e6);
+  d.enable_read_noise = noise == "physical" && d.read_noise_e > 0;
+  d.peak_noise_fraction = n.NumberOr("peak_noise_fraction", d.peak_noise_fraction, 0.0, 10.0);
+  if (noise == "none") d.peak_noise_fraction = 0.0;
+  if (noise != "physical" && (n.Has("photon_noise") || n.Has("read_noise_e")))
+    n.Fail(n.Has("photon_noise") ? "photon_noise" : "read_noise_e", "(given)",
+           "photon_noise and read_noise_e only with noise = \"physical\"");
+  if (noise != "peak-fraction" && n.Has("peak_noise_fraction"))
+    n.Fail("peak_noise_fraction", "(given)", "only with noise = \"peak-fraction\"");
+  if (n.Has("background_e_per_s") && n.Has("sky_mag_per_arcsec2"))
+    n.Fail("background_e_per_s", "(both given)", "one of background_e_per_s and sky_mag_per_arcsec2");
+  d.background_e_per_s = n.NumberOr("background_e_per_s", 0.0, 0.0, 1e12);
+  if (n.Has("sky_mag_per_arcsec2")) {
+    const double mu = n.Number("sky_mag_per_arcsec2", -10.0, 40.0);
+    d.fill_factor = n.NumberOr("fill_factor", d.fill_factor, 1e-3, 1.0);
+    const double arcsec = M_PI / 180.0 / 3600.0;
+    const double pixel_arcsec2 = std::pow(s->CameraPixelRad() / arcsec, 2) * d.fill_factor * d.fill_factor;
+    if (s->photometry.zero_point_mag) {
+      d.background_e_per_s = std::pow(10.0, -0.4 * (mu - *s->photometry.zero_point_mag)) * pixel_arcsec2;
+    } else {
+      if (s->photometry.band.empty())
+        n.Fail("sky_mag_per_arcsec2", ToString(mu), "a sky magnitude only with photometry.band or photometry.zero_point_mag");
+      d.background_e_per_s = SkyBackgroundRate(mu, VegaBand(s->photometry.band), s->Collector(),
+                                               s->CameraPixelRad(), d.fill_factor);
+    }
+  }
+  d.enable_background = d.background_e_per_s > 0;
+  d.dark_current_e_per_s = n.NumberOr("dark_current_e_per_s", 0.0, 0.0, 1e12);
+  d.enable_dark_current = d.dark_current_e_per_s > 0;
+  d.enable_saturation = n.BoolOr("saturation", true);
+  d.saturation_adu = n.NumberOr("saturation_adu", d.saturation_adu, -1e15, 1e15);
+  d.enable_quantization = n.BoolOr("quantize", false);
+  d.fill_factor = n.NumberOr("fill_factor", d.fill_factor, 1e-3, 1.0);
+  s->noise_seed = static_cast<std::uint64_t>(n.IntegerOr("noise_seed", static_cast<long long>(DeriveSeed(s->seed, kNoiseStream) & (kMaxSeed - 1)), 0, kMaxSeed));
+  if (n.Has("bad_pixels")) {
+    const ConfigNode b = n.Child("bad_pixels");
+    const int given = int(b.Has("fraction")) + int(b.Has("file"));
+    if (given != 1) b.Fail("", std::to_string(given) + " of fraction, file", "exactly one of them");
+    d.enable_bad_pixels = true;
+    if (b.Has("fraction")) {
+      s->bad_pixel_fraction = b.Number("fraction", 0.0, 1.0);
+      s->bad_pixel_seed = SeedOr(b, DeriveSeed(s->seed, kBadPixelStream));
+      d.bad_pixel_mask = RandomBadPixelMask(s->frame, s->bad_pixel_fraction, s->bad_pixel_seed);
+    } else {
+      s->bad_pixel_file = ResolvePath(s->source, b.String("file"));
+      if (!fs::is_regular_file(s->bad_pixel_file))
+        b.Fail("file", "\"" + s->bad_pixel_file + "\"", "an existing FITS/PNG/TIFF mask (1 good, 0 bad)");
+      d.bad_pixel_mask = ReadImage(s->bad_pixel_file);
+      if (ShapeOf(d.bad_pixel_mask) != s->frame)
+        b.Fail("file", ToString(ShapeOf(d.bad_pixel_mask)), "a mask of the frame's shape " + ToString(s->frame));
+      if (!((d.bad_pixel_mask.array() == 0) || (d.bad_pixel_mask.array() == 1)).all())
+        b.Fail("file", "\"" + s->bad_pixel_file + "\"", "a mask holding only 0 (bad) and 1 (good)");
+    }
+    b.CheckNoOtherFields();
+  }
+  n.CheckNoOtherFields();
+  std::string why;
+  if (!d.IsValid(&why)) n.Fail("", "(inconsistent)", why);
+}
+
+}  // namespace
+
+bool DmOffset::IsZero() const {
+  if (shift_y_px != 0.0 || shift_x_px != 0.0) return false;
+  for (const Term& t : zernike)
+    if (t.rms_m != 0.0) return false;
+  for (double a : actuators_m)
+    if (a != 0.0) return false;
+  return true;
+}
+
+bool DmOffset::operator==(const DmOffset& o) const {
+  if (shift_y_px != o.shift_y_px || shift_x_px != o.shift_x_px || actuators_m != o.actuators_m ||
+      zernike.size() != o.zernike.size())
+    return false;
+  for (std::size_t i = 0; i < zernike.size(); ++i)
+    if (zernike[i].noll != o.zernike[i].noll || zernike[i].rms_m != o.zernike[i].rms_m) return false;
+  return true;
+}
+
+LightCollectorOptions SceneSpec::Collector() const {
+  LightCollectorOptions c;
+  c.diameter_m = telescope.aperture.pupil.diameter_m;
+  c.obstruction = telescope.aperture.pupil.obstruction;
+  c.throughput = photometry.throughput;
+  return c;
+}
+
+double SceneSpec::ElectronsPerFrameForMagnitude(double magnitude) const {
+  const double frame_s = total_exposure_s / frames;
+  if (photometry.zero_point_mag) return std::pow(10.0, -0.4 * (magnitude - *photometry.zero_point_mag)) * frame_s;
+  if (photometry.band.empty())
+    throw InvalidArgument(source + ": magnitudes need photometry.band (a Vega band) or photometry.zero_point_mag");
+  ExposurePlan plan;
+  plan.total_time_s = total_exposure_s;
+  plan.frames = frames;
+  return ElectronsPerFrame(SourceFlux::Magnitude(magnitude, photometry.band), Collector(), plan);
+}
+
+SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
+  const ConfigNode root(json, source);
+  SceneSpec s;
+  s.source = source;
+  s.name = root.String("name");
+  s.seed = static_cast<std::uint64_t>(root.IntegerOr("seed", 1, 0, kMaxSeed));
+  s.frames = int(root.Integer("frames", 1, 1024));
+  s.r = int(root.Integer("r", 1, 16));
+
+  // Telescope: a preset name, a path to a preset file, or the preset inline.
+  const nlohmann::json& tel = json.contains("telescope") ? json.at("telescope") : nlohmann::json();
+  if (tel.is_string()) {
+    const std::string name = root.String("telescope");
+    const bool is_path = name.find('/') != std::string::npos || fs::path(name).extension() == ".json";
+    const std::string path = is_path ? ResolvePath(source, name) : name;
+    if (is_path && !fs::is_regular_file(path)) root.Fail("telescope", "\"" + path + "\"", "a preset name or an existing .json file");
+    s.telescope = LoadTelescopePreset(path);
+  } else {
+    s.telescope = ParseTelescopePreset(root.Child("telescope").json(), source + " (telescope)");
+  }
+
+  // Photometry comes before the objects and the detector, which convert magnitudes with it.
+  if (root.Has("photometry")) {
+    const ConfigNode p = root.Child("photometry");
+    if (p.Has("band")) {
+      const std::vector<std::string> names = VegaBandNames();
+      s.photometry.band = p.Choice("band", names);
+    }
+    s.photometry.throughput = p.NumberOr("throughput", s.photometry.throughput, 1e-6, 1.0);
+    if (p.Has("zero_point_mag")) s.photometry.zero_point_mag = p.Number("zero_point_mag", -10.0, 50.0);
+    p.CheckNoOtherFields();
+  }
+
+  ParseDetector(root.Child("detector"), &s);
+
+  // Geometry checks that need the telescope, r and the frame.
+  const double hr_lod = s.HrPixelLambdaOverD();
+  if (hr_lod > 1.0 + 1e-12)
+    root.Fail("r", std::to_string(s.r),
+              "r >= " + std::to_string(int(std::ceil(s.CameraPixelRad() / s.telescope.LambdaOverD() - 1e-12))) +
+                  ": the HR pixel (camera pixel / r = " + ToString(hr_lod) +
+                  " lambda/D) must be at most lambda/D for the PSF to be sampled without losing light");
+  if (s.HrFrame().rows > 16384 || s.HrFrame().cols > 16384)
+    root.Fail("r", std::to_string(s.r), "r * frame_px <= 16384 (HR grid " + ToString(s.HrFrame()) + ")");
+
+  double window_lod = kDefaultPsfWindowLod;
+  if (root.Has("psf")) {
+    const ConfigNode p = root.Child("psf");
+    if (p.Has("size_px") && p.Has("window_lambda_over_d"))
+      p.Fail("size_px", "(both given)", "one of size_px and window_lambda_over_d");
+    if (p.Has("size_px")) {
+      s.psf_size_px = p.Integer("size_px", 4, 8192);
+      if (s.psf_size_px % 2) p.Fail("size_px", std::to_string(s.psf_size_px), "an even number of HR pixels");
+      window_lod = s.psf_size_px * hr_lod;
+    } else {
+      window_lod = p.NumberOr("window_lambda_over_d", window_lod, 1.0, 4096.0);
+    }
+    p.CheckNoOtherFields();
+  }
+  if (s.psf_size_px == 0) s.psf_size_px = 2 * Index(std::ceil(window_lod / hr_lod / 2.0 - 1e-9));
+  // The PSF of a pupil sampled with n pixels repeats every n λ/D: a wider window would hold aliased copies.
+  const double period_lod = double(s.telescope.pupil_px);
+  if (s.psf_size_px * hr_lod > period_lod + 1e-9)
+    root.Fail("psf", ToString(s.psf_size_px * hr_lod) + " lambda/D (" + std::to_string(s.psf_size_px) + " HR px)",
+              "a window of at most the pupil grid's period, " + ToString(period_lod) + " lambda/D (telescope pupil_px)");
+
+  if (root.Has("ao")) s.ao = ParseAo(root.Child("ao"), s);
+  if (root.Has("static_aberrations")) {
+    s.static_aberrations = ParseTerms(root, "static_aberrations");
+    for (std::size_t i = 0; i < s.static_aberrations.size(); ++i)
+      if (s.static_aberrations[i].noll < 2)
+        root.Fail("static_aberrations[" + std::to_string(i) + "].noll", "1", "a Noll index >= 2 (piston changes nothing)");
+  }
+  if (root.Has("offsets")) s.offsets = ParseOffsets(root.Child("offsets"), s);
+  else s.offsets.frames.assign(s.frames, DmOffset{});
+  for (std::size_t i = 0; i < s.offsets.frames.size(); ++i)
+    for (const DmOffset::Term& t : s.offsets.frames[i].zernike)
+      if (t.noll < 2) root.Fail("offsets.frames[" + std::to_string(i) + "].zernike", "noll 1", "Noll indices >= 2");
+
+  bool needs_magnitudes = false;
+  const std::vector<ConfigNode> objects = root.Array("objects");
+  if (objects.empty()) root.Fail("objects", "[]", "at least one object");
+  for (std::size_t i = 0; i < objects.size(); ++i) s.objects.push_back(ParseObject(objects[i], s, i, &needs_magnitudes));
+  if (needs_magnitudes && s.photometry.band.empty() && !s.photometry.zero_point_mag)
+    root.Fail("photometry", "(no band or zero point)", "photometry.band or photometry.zero_point_mag when magnitudes are used");
+  root.CheckNoOtherFields();
+  return s;
+}
+
+SceneSpec LoadScene(const std::string& path) { return ParseScene(ReadJsonFile(path), path); }
+
+std::vector<DmOffset> LoadDesignFile(const std::string& path) {
+  const nlohmann::json json = ReadJsonFile(path);
+  const ConfigNode root(json, path);
+  root.StringOr("name", "");
+  if (root.Has("design")) root.Child("design");  // free-form provenance written by the designer
+  std::vector<DmOffset> frames = ParseDesignFrames(root);
+  root.CheckNoOtherFields();
+  return frames;
+}
+
+nlohmann::json DmOffsetToJson(const DmOffset& offset) {
+  nlohmann::json j = nlohmann::json::object();
+  j["shift_px"] = {offset.shift_y_px, offset.shift_x_px};
+  nlohmann::json terms = nlohmann::json::array();
+  for (const DmOffset::Term& t : offset.zernike) terms.push_back({{"noll", t.noll}, {"rms_nm", t.rms_m / kNm}});
+  j["zernike"] = terms;
+  if (!offset.actuators_m.empty()) {
+    nlohmann::json a = nlohmann::json::array();
+    for (double v : offset.actuators_m) a.push_back(v / kNm);
+    j["actuators_nm"] = a;
+  }
+  return j;
+}
+
+}  // namespace aosr
