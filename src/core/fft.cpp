@@ -176,6 +176,16 @@ ComplexImage FftInverse(const ComplexImage& X) {
   return x;
 }
 
+Index NextFastFftSize(Index n) {
+  CheckArgument(n >= 1, "NextFastFftSize", "n", n, ">= 1");
+  for (Index m = n + (n % 2);; m += 2) {
+    Index k = m;
+    for (Index p : {2, 3, 5, 7})
+      while (k % p == 0) k /= p;
+    if (k == 1) return m;
+  }
+}
+
 ComplexImage ExpandHalfSpectrum(const ComplexImage& half, Index cols) {
   CheckArgument(cols / 2 + 1 == half.cols(), "ExpandHalfSpectrum", "cols", cols,
                 "consistent with half.cols() = " + std::to_string(half.cols()));

@@ -141,8 +141,9 @@ class ScenePipeline {
                          std::vector<double>* strehl, SimulationCounters* counters = nullptr) const;
 
  private:
-  struct Component;
   void Compile();
+  // The extended components summed on the HR frame, and the stars (HR-frame coordinates), flux-scaled.
+  Image RenderObject(std::vector<PointSource>* stars) const;
 
   SceneSpec scene_;
   SceneGeometry geometry_;

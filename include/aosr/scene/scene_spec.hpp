@@ -9,8 +9,11 @@
 //    super-resolution factor r changes how finely the same sky is sampled, not the sky.
 //  * Every object is rendered on the detector's field (the HR grid of the frame, r·rows × r·cols); the
 //    simulator pads it with dark sky by the PSF's half-width before convolving (pipeline.hpp).
-//  * Objects carry electrons per frame: a component's `flux` normalises it (total, peak or magnitude);
-//    without one its generator's native values are taken as electrons per frame per HR pixel.
+//  * Objects carry electrons per frame: a component's `flux` normalises it (total or peak over the frame,
+//    or a magnitude). Without one, native values are used, again independent of r: surface-brightness
+//    generators (usaf, demo, dead-leaves, and image with values "surface-brightness") give electrons per
+//    frame per *camera-pixel area* (an HR pixel holds 1/r² of it); stars, galaxies and "flux-per-pixel"
+//    images give total electrons per frame.
 //  * Parsing validates everything, including the files a scene names and the geometry (r against the PSF
 //    sampling, the PSF window against the pupil grid), before any computation. Errors are InvalidArgument
 //    "<file>: <field path> = <value>; allowed: <range>" (io/config.hpp); unknown fields are errors.

@@ -1,0 +1,509 @@
+#include "aosr/scene/pipeline.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+
+#include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/ao_system.hpp"
+#include "aosr/ao/phase_screen.hpp"
+#include "aosr/core/error.hpp"
+#include "aosr/core/fft.hpp"
+#include "aosr/core/operators.hpp"
+#include "aosr/optics/psf.hpp"
+#include "aosr/optics/zernike.hpp"
+#include "aosr/scene/dead_leaves.hpp"
+#include "aosr/scene/galaxy.hpp"
+#include "aosr/scene/image_object.hpp"
+#include "aosr/scene/point_sources.hpp"
+#include "aosr/scene/star_field.hpp"
+
+namespace aosr {
+namespace {
+
+// ---- Cost model (PipelineStage::estimated_s) --------------------------------------------------------------
+// Nominal single-core rates of the development machine (a shared 2-core VM), rounded; the benchmark
+// (bench/simulate_bench.cpp) prints the model beside the measured time of every stage.
+constexpr double kFftFlopsPerS = 1.5e9;    // FFTW r2c/c2r, counting 2.5 N log2 N flops
+constexpr double kGemmFlopsPerS = 8e9;     // Eigen complex matrix products (MFT, point-source spectra)
+constexpr double kRenderSPerPixel = 40e-9;  // exact-area USAF / demo rendering per HR pixel
+constexpr double kLoopStepS128 = 0.9e-3;    // one closed-loop frame for a 128-px pupil, science PSF excluded
+constexpr double kDetectorNoiseSPerPixel = 60e-9;  // Poisson + read noise per pixel
+constexpr double kDetectorPlainSPerPixel = 5e-9;   // conversion, masks, weights only
+
+double FftSeconds(Shape s) {
+  const double n = double(s.rows) * double(s.cols);
+  return 2.5 * n * std::log2(std::max(2.0, n)) / kFftFlopsPerS;
+}
+// Diffraction PSF by the MFT: two complex products (K x n)(n x n) and (K x n)(n x K), 8 flops per complex
+// multiply-add.
+double MftSeconds(Index pupil, Index k) {
+  return 8.0 * (double(k) * pupil * pupil + double(k) * k * pupil) / kGemmFlopsPerS;
+}
+
+double Seconds(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::string Fmt(const char* format, double a) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, format, a);
+  return buf;
+}
+
+const char* ModeName(AoSpec::Mode m) {
+  return m == AoSpec::Mode::kNone ? "diffraction" : m == AoSpec::Mode::kAnalytic ? "analytic AO" : "closed-loop AO";
+}
+
+bool NeedsDm(const SceneSpec& s) {
+  for (const DmOffset& o : s.offsets.frames)
+    if (!o.actuators_m.empty()) return true;
+  return false;
+}
+
+// Surface-brightness generators give electrons per frame per *camera* pixel area (scene_spec.hpp); the HR
+// pixel holds 1/r² of that.
+bool IsSurfaceBrightness(const ObjectSpec& o) {
+  switch (o.kind) {
+    case ObjectSpec::Kind::kUsaf:
+    case ObjectSpec::Kind::kDemo:
+    case ObjectSpec::Kind::kDeadLeaves:
+      return true;
+    case ObjectSpec::Kind::kImage:
+      return o.image.values == PixelValues::kSurfaceBrightness;
+    default:
+      return false;
+  }
+}
+
+// The normalisation factor of a component whose values over the frame sum to `sum` with maximum `peak`.
+double FluxScale(const SceneSpec& scene, const ObjectSpec& o, std::size_t index, double sum, double peak) {
+  const std::string where = scene.source + ": objects[" + std::to_string(index) + "] (" + o.type + ")";
+  switch (o.flux.kind) {
+    case FluxSpec::Kind::kNative:
+      return 1.0;
+    case FluxSpec::Kind::kPeakElectrons:
+      if (!(peak > 0)) throw InvalidArgument(where + ": flux.peak_e needs a component with a positive maximum");
+      return o.flux.value / peak;
+    case FluxSpec::Kind::kTotalElectrons:
+    case FluxSpec::Kind::kMagnitude: {
+      if (!(sum > 0)) throw InvalidArgument(where + ": a total flux needs a component whose sum over the frame is > 0");
+      const double target = o.flux.kind == FluxSpec::Kind::kTotalElectrons ? o.flux.value
+                                                                          : scene.ElectronsPerFrameForMagnitude(o.flux.value);
+      return target / sum;
+    }
+  }
+  return 1.0;
+}
+
+// Renders one extended component on the HR frame, in electrons per frame per HR pixel before FluxScale.
+Image RenderExtended(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
+  const double r = scene.r;
+  Image img;
+  switch (o.kind) {
+    case ObjectSpec::Kind::kUsaf: {
+      UsafOptions u = o.usaf;
+      u.pixels_per_mm = 1.0;
+      const UsafSize size = UsafTargetSize(u);
+      u.pixels_per_mm = o.usaf_fill * double(std::min(hr.rows, hr.cols)) / std::max(size.height_mm, size.width_mm);
+      img = UsafTarget(hr, u);
+      break;
+    }
+    case ObjectSpec::Kind::kDemo:
+      img = DemoObject(hr);
+      break;
+    case ObjectSpec::Kind::kGalaxies: {
+      GalaxyFieldOptions g = o.galaxies;  // sizes in camera pixels -> HR pixels
+      g.re_min_px *= r;
+      g.re_max_px *= r;
+      g.margin_px *= r;
+      img = RenderGalaxies(hr, GalaxyField(hr, g, o.seed));
+      break;
+    }
+    case ObjectSpec::Kind::kDeadLeaves: {
+      DeadLeavesOptions d = o.dead_leaves;
+      d.r_min_px *= r;
+      d.r_max_px *= r;
+      img = DeadLeaves(hr, d, o.seed);
+      break;
+    }
+    case ObjectSpec::Kind::kImage:
+      img = LoadImageObject(o.image_path, hr, o.image);
+      break;
+    case ObjectSpec::Kind::kStars:
+      throw InvalidArgument("RenderExtended: stars are point sources");
+  }
+  if (IsSurfaceBrightness(o)) img /= r * r;
+  return img;
+}
+
+// The stars of one component in HR-frame coordinates, electrons per frame before FluxScale.
+std::vector<PointSource> StarsOf(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
+  const double r = scene.r;
+  if (!o.catalogue.empty()) {
+    std::vector<PointSource> out = o.catalogue;
+    for (PointSource& p : out) {  // camera pixel centre c covers HR pixels c r .. c r + r - 1
+      p.y = (p.y + 0.5) * r - 0.5;
+      p.x = (p.x + 0.5) * r - 0.5;
+    }
+    return out;
+  }
+  StarFieldOptions s = o.stars;
+  s.min_separation_px *= r;
+  s.margin_px *= r;
+  return StarField(hr, s, o.seed);
+}
+
+}  // namespace
+
+Image ExposureOpd(const SceneSpec& scene, const DmOffset& offset, const Image& static_opd_m, const DeformableMirror* dm) {
+  const Index n = scene.telescope.pupil_px;
+  const double obstruction = scene.telescope.aperture.pupil.obstruction;
+  const double diameter = scene.telescope.aperture.pupil.diameter_m;
+  Image opd = static_opd_m.size() ? static_opd_m : Image(Image::Zero(n, n));
+  // +x shift needs a positive x-slope (Z2), +y a positive y-slope (Z3): zernike.hpp, a = shift·D/4.
+  if (offset.shift_x_px != 0.0)
+    opd += TiltCoefficientForShift(offset.shift_x_px * scene.CameraPixelRad(), diameter) * Zernike(2, n, obstruction);
+  if (offset.shift_y_px != 0.0)
+    opd += TiltCoefficientForShift(offset.shift_y_px * scene.CameraPixelRad(), diameter) * Zernike(3, n, obstruction);
+  for (const DmOffset::Term& t : offset.zernike)
+    if (t.rms_m != 0.0) opd += t.rms_m * Zernike(t.noll, n, obstruction);
+  if (!offset.actuators_m.empty()) {
+    if (!dm) throw InvalidArgument("ExposureOpd: actuator commands need the deformable mirror");
+    opd += dm->Opd(Eigen::Map<const Vector>(offset.actuators_m.data(), Index(offset.actuators_m.size())));
+  }
+  return opd;
+}
+
+ScenePipeline::ScenePipeline(SceneSpec scene) : scene_(std::move(scene)) { Compile(); }
+
+void ScenePipeline::Compile() {
+  const SceneSpec& s = scene_;
+  SceneGeometry& g = geometry_;
+  g.r = s.r;
+  g.frame = s.frame;
+  g.hr_frame = s.HrFrame();
+  g.psf_size = s.psf_size_px;
+  g.camera_pixel_rad = s.CameraPixelRad();
+  g.hr_pixel_rad = s.HrPixelRad();
+  g.hr_pixel_lambda_over_d = s.HrPixelLambdaOverD();
+  g.wavelength_m = s.telescope.science_wavelength_m;
+  // Half a window of dark sky on each side at least: the linear convolution of the frame with the window
+  // then never wraps around (pipeline.hpp, Boundaries).
+  g.padded = {NextFastFftSize(g.hr_frame.rows + g.psf_size), NextFastFftSize(g.hr_frame.cols + g.psf_size)};
+  g.pad_top = g.psf_size / 2;
+  g.pad_left = g.psf_size / 2;
+  g.trustworthy_border_px = (g.psf_size / 2 + s.r - 1) / s.r;
+
+  // Only what is needed to validate: the DM (for the actuator count), not the PSFs.
+  if (NeedsDm(s)) {
+    if (!s.telescope.ao)
+      throw InvalidArgument(s.source + ": offsets.frames[].actuators_nm need a telescope with an \"ao.dm\" section");
+    const DeformableMirror dm(s.telescope.pupil_px, s.telescope.aperture.pupil, s.telescope.ao->dm);
+    for (std::size_t i = 0; i < s.offsets.frames.size(); ++i) {
+      const std::size_t a = s.offsets.frames[i].actuators_m.size();
+      if (a != 0 && Index(a) != dm.n_active())
+        throw InvalidArgument(s.source + ": offsets.frames[" + std::to_string(i) + "].actuators_nm has " + std::to_string(a) +
+                              " values; allowed: one per active actuator (" + std::to_string(dm.n_active()) + ")");
+    }
+  }
+
+  for (const ObjectSpec& o : s.objects) (o.IsPointSources() ? has_stars_ : has_extended_) = true;
+
+  // Distinct pupil OPDs: exposures with the same offset share one PSF, except in the closed loop, where
+  // every exposure is its own stretch of turbulence.
+  distinct_.assign(s.frames, 0);
+  distinct_count_ = 0;
+  if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
+    for (int i = 0; i < s.frames; ++i) distinct_[i] = distinct_count_++;
+  } else {
+    std::vector<int> first;  // exposure index of each distinct group
+    for (int i = 0; i < s.frames; ++i) {
+      int found = -1;
+      for (int d = 0; d < int(first.size()); ++d)
+        if (s.offsets.frames[i] == s.offsets.frames[first[d]]) found = d;
+      if (found < 0) {
+        found = int(first.size());
+        first.push_back(i);
+      }
+      distinct_[i] = found;
+    }
+    distinct_count_ = int(first.size());
+  }
+
+  // ---- The plan -------------------------------------------------------------------------------------------
+  const Index n = s.telescope.pupil_px;
+  const Index k = g.psf_size;
+  const double hr_pixels = double(g.hr_frame.rows) * g.hr_frame.cols;
+  auto add = [this](std::string name, std::string detail, int count, double est) {
+    stages_.push_back({std::move(name), std::move(detail), count, est});
+  };
+  {
+    std::string detail;
+    double est = 0;
+    int stars = 0;
+    for (const ObjectSpec& o : s.objects) {
+      detail += (detail.empty() ? "" : " + ") + o.type;
+      if (o.IsPointSources()) {
+        stars += o.catalogue.empty() ? o.stars.count : int(o.catalogue.size());
+      } else {
+        const int ss = o.kind == ObjectSpec::Kind::kDeadLeaves ? o.dead_leaves.supersample : 1;
+        est += kRenderSPerPixel * hr_pixels * ss * ss * (o.kind == ObjectSpec::Kind::kGalaxies ? o.galaxies.count : 1);
+      }
+    }
+    if (stars) detail += " (" + std::to_string(stars) + " stars kept as a catalogue)";
+    add("object", detail + " on the " + ToString(g.hr_frame) + " HR frame", int(s.objects.size()), est);
+  }
+  if (!s.static_aberrations.empty())
+    add("static-aberrations", std::to_string(s.static_aberrations.size()) + " Zernike terms on the " + std::to_string(n) + "^2 pupil", 1,
+        1e-7 * n * n * s.static_aberrations.size());
+  bool any_offset = false;
+  for (const DmOffset& o : s.offsets.frames) any_offset = any_offset || !o.IsZero();
+  if (any_offset)
+    add("dm-offsets", std::string(s.offsets.kind == OffsetsSpec::Kind::kRaster ? "tip/tilt raster" : "designed offsets") +
+                          ", " + std::to_string(distinct_count_) + " distinct pupil OPDs",
+        s.frames, 1e-7 * n * n * s.frames);
+  const double psf_each = s.ao.mode == AoSpec::Mode::kAnalytic ? 2 * FftSeconds({2 * n, 2 * n}) + MftSeconds(2 * n, k)
+                                                               : MftSeconds(n, k);
+  if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
+    const double rate = s.telescope.ao->loop.rate_hz;
+    const int steps = int(std::ceil((s.ao.time_per_frame_s + s.ao.settling_s) * rate - 1e-9));
+    const int psf_steps = int(std::ceil(s.ao.time_per_frame_s * rate / s.ao.psf_every_steps - 1e-9));
+    const char* sensor = s.ao.sensor == SensorKind::kIdeal ? "ideal" : s.ao.sensor == SensorKind::kGeometric ? "geometric SH" : "diffractive SH";
+    const std::string atmosphere = s.telescope.atmosphere ? std::to_string(s.telescope.atmosphere->layers.size()) + "-layer atmosphere"
+                                                          : "no atmosphere";
+    add("ao-loop", atmosphere + ", " + sensor + " WFS, " + std::to_string(steps) + " steps per exposure (" +
+                       std::to_string(psf_steps) + " PSF frames) at " + Fmt("%g", rate) + " Hz",
+        s.frames, s.frames * (steps * kLoopStepS128 * (n * n) / (128.0 * 128.0) + psf_steps * psf_each));
+  }
+  add("psf", std::string(ModeName(s.ao.mode)) + " PSF, " + std::to_string(k) + "^2 at " + Fmt("%.3g", g.hr_pixel_lambda_over_d) +
+                 " lambda/D from a " + std::to_string(n) + "^2 pupil; " + std::to_string(distinct_count_) + " distinct of " +
+                 std::to_string(s.frames) + " exposures",
+      distinct_count_, s.ao.mode == AoSpec::Mode::kClosedLoop ? 0.0 : distinct_count_ * psf_each);
+  const double fft = FftSeconds(g.padded);
+  if (has_extended_)
+    add("convolution", "FFT on the padded " + ToString(g.padded) + " grid: 1 object r2c + " + std::to_string(distinct_count_) +
+                           " x (PSF r2c + c2r)",
+        distinct_count_, fft * (1 + 2 * distinct_count_));
+  if (has_stars_) {
+    int stars = 0;
+    for (const ObjectSpec& o : s.objects)
+      if (o.IsPointSources()) stars += o.catalogue.empty() ? o.stars.count : int(o.catalogue.size());
+    add("point-sources", std::to_string(stars) + " exact sub-pixel PSFs in the Fourier domain of the padded " + ToString(g.padded) +
+                             " grid" + (has_extended_ ? " (added to the object's spectrum)" : "; no object FFT") +
+                             ", " + std::to_string(distinct_count_) + " x (PSF r2c + c2r)",
+        distinct_count_,
+        8.0 * stars * double(g.padded.rows) * (g.padded.cols / 2 + 1) / kGemmFlopsPerS + (has_extended_ ? 0.0 : fft * 2 * distinct_count_));
+  }
+  add("pixel-integration", "crop to " + ToString(g.hr_frame) + ", D_" + std::to_string(s.r) + " to " + ToString(g.frame) +
+                               (s.detector.fill_factor < 1 ? ", fill factor " + Fmt("%g", s.detector.fill_factor) : std::string()),
+      s.frames, 3e-9 * hr_pixels * distinct_count_);
+  {
+    const Detector detector(s.detector);
+    std::string detail;
+    for (const std::string& line : detector.Plan()) detail += (detail.empty() ? "" : "; ") + line;
+    const bool noisy = s.detector.noise_model == NoiseModel::kPeakFraction ? s.detector.peak_noise_fraction > 0
+                                                                            : s.detector.enable_photon_noise || s.detector.enable_read_noise;
+    add("detector", detail, s.frames,
+        s.frames * double(g.frame.rows) * g.frame.cols * (noisy ? kDetectorNoiseSPerPixel : kDetectorPlainSPerPixel));
+  }
+}
+
+std::string ScenePipeline::PlanReport() const {
+  std::string out = "scene " + scene_.name + ": N = " + std::to_string(scene_.frames) + ", r = " + std::to_string(scene_.r) +
+                    ", frames " + ToString(geometry_.frame) + " -> HR " + ToString(geometry_.hr_frame) + ", PSF " +
+                    std::to_string(geometry_.psf_size) + "^2, border " + std::to_string(geometry_.trustworthy_border_px) + " px\n";
+  double total = 0;
+  for (const PipelineStage& st : stages_) {
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "  %-19s x%-3d ~%9.4f s  ", st.name.c_str(), st.count, st.estimated_s);
+    out += buf + st.detail + "\n";
+    total += st.estimated_s;
+  }
+  out += "  total estimate ~" + Fmt("%.3f", total) + " s (cost model of src/scene/pipeline.cpp, one core)\n";
+  return out;
+}
+
+Image ScenePipeline::RenderTruth(std::vector<PointSource>* stars) const {
+  std::vector<PointSource> all;
+  Image truth = RenderObject(&all);
+  if (!all.empty()) truth += PointSourceImage(geometry_.hr_frame, all);
+  if (stars) *stars = std::move(all);
+  return truth;
+}
+
+Image ScenePipeline::RenderObject(std::vector<PointSource>* stars) const {
+  const Shape hr = geometry_.hr_frame;
+  Image extended = Image::Zero(hr.rows, hr.cols);
+  std::vector<PointSource> all;
+  for (std::size_t i = 0; i < scene_.objects.size(); ++i) {
+    const ObjectSpec& o = scene_.objects[i];
+    if (o.IsPointSources()) {
+      std::vector<PointSource> s = StarsOf(scene_, o, hr);
+      double sum = 0, peak = 0;
+      for (const PointSource& p : s) sum += p.flux, peak = std::max(peak, p.flux);
+      const double scale = FluxScale(scene_, o, i, sum, peak);
+      for (PointSource& p : s) p.flux *= scale;
+      all.insert(all.end(), s.begin(), s.end());
+    } else {
+      Image c = RenderExtended(scene_, o, hr);
+      if (!AllFinite(c)) throw NumericalError("ScenePipeline: objects[" + std::to_string(i) + "] rendered non-finite values");
+      c *= FluxScale(scene_, o, i, c.sum(), c.maxCoeff());
+      extended += c;
+    }
+  }
+  *stars = std::move(all);
+  return extended;
+}
+
+ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
+                                      std::vector<double>* strehl, SimulationCounters* counters) const {
+  const SceneSpec& s = scene_;
+  const Index n = s.telescope.pupil_px;
+  const Image amplitude = s.telescope.PupilAmplitude();
+  Image static_opd;
+  if (!s.static_aberrations.empty()) {
+    static_opd = Image::Zero(n, n);
+    for (const DmOffset::Term& t : s.static_aberrations)
+      static_opd += t.rms_m * Zernike(t.noll, n, s.telescope.aperture.pupil.obstruction);
+  }
+  std::unique_ptr<DeformableMirror> dm;
+  if (NeedsDm(s)) dm = std::make_unique<DeformableMirror>(n, s.telescope.aperture.pupil, s.telescope.ao->dm);
+
+  PsfSampling sampling;
+  sampling.wavelength_m = s.telescope.science_wavelength_m;
+  sampling.pixel_scale_rad = geometry_.hr_pixel_rad;
+  sampling.rows = sampling.cols = geometry_.psf_size;
+
+  std::vector<Image> raw(distinct_count_);
+  std::vector<double> raw_strehl(distinct_count_);
+  if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
+    // Static aberrations are non-common-path (science camera only); the DM offsets go through the WFS
+    // reference, as a real-time computer applies them.
+    AoSystem system = BuildAoSystem(s.telescope.ToAoSystemSpec(s.ao.sensor, s.ao.seed));
+    ClosedLoopOptions lo;
+    lo.science = sampling;
+    lo.psf_every_steps = s.ao.psf_every_steps;
+    lo.science_static_opd_m = static_opd;
+    std::unique_ptr<ClosedLoop> loop = system.MakeLoop(lo);
+    std::vector<Image> offsets;
+    for (const DmOffset& o : s.offsets.frames) offsets.push_back(ExposureOpd(s, o, Image(), dm.get()));
+    const std::vector<ClosedLoopResult> results = loop->RunSubExposures(offsets, s.ao.time_per_frame_s, s.ao.settling_s);
+    for (int i = 0; i < s.frames; ++i) {
+      raw[i] = results[i].psf;
+      raw_strehl[i] = results[i].psf_strehl;
+      if (counters) counters->loop_steps += results[i].steps + results[i].settling_steps;
+    }
+  } else {
+    std::unique_ptr<PsfCalculator> diffraction;
+    std::unique_ptr<AnalyticAoPsfCalculator> analytic;
+    if (s.ao.mode == AoSpec::Mode::kAnalytic) analytic = std::make_unique<AnalyticAoPsfCalculator>(s.telescope.ToAnalyticAo(), n, sampling);
+    else diffraction = std::make_unique<PsfCalculator>(n, s.telescope.aperture.pupil.diameter_m, sampling);
+    for (int d = 0; d < distinct_count_; ++d) {
+      const int i = int(std::find(distinct_.begin(), distinct_.end(), d) - distinct_.begin());
+      const Image opd = ExposureOpd(s, s.offsets.frames[i], static_opd, dm.get());
+      if (analytic) {
+        AnalyticAoPsf p = analytic->Compute(amplitude, opd);
+        raw[d] = std::move(p.psf);
+        raw_strehl[d] = p.strehl;
+      } else {
+        raw[d] = diffraction->Compute(amplitude, opd);
+        raw_strehl[d] = StrehlFromPupil(amplitude, opd, sampling.wavelength_m);
+      }
+    }
+  }
+  if (counters) counters->psfs_computed += distinct_count_;
+  ImageStack psfs;
+  if (window_fraction) window_fraction->clear();
+  if (strehl) strehl->clear();
+  for (int i = 0; i < s.frames; ++i) {
+    const Image& p = raw[distinct_[i]];
+    if (p.size() == 0 || !AllFinite(p) || !(p.sum() > 0))
+      throw NumericalError("ScenePipeline: the PSF of exposure " + std::to_string(i) + " is empty, not finite or has no light");
+    // An intensity is >= 0; the analytic model's PSF (an MFT of a truncated OTF) has wings that dip below 0
+    // by ~1e-7 of the peak. Left in, they make frames slightly negative and the detector would clip them,
+    // breaking flux conservation at that level.
+    psfs.push_back(NormaliseToUnitSum(p.cwiseMax(0.0)));
+    if (window_fraction) window_fraction->push_back(p.sum());
+    if (strehl) strehl->push_back(raw_strehl[distinct_[i]]);
+  }
+  if (distinct) *distinct = distinct_;
+  return psfs;
+}
+
+Simulation ScenePipeline::Run() const {
+  using Clock = std::chrono::steady_clock;
+  const auto t_run = Clock::now();
+  const std::uint64_t fft0 = FftExecutionCount();
+  const std::uint64_t screens0 = PhaseScreensGenerated();
+  const SceneGeometry& g = geometry_;
+  Simulation sim;
+  sim.geometry = g;
+  SimulationCounters& c = sim.counters;
+  auto timed = [&sim](const std::string& name, Clock::time_point start) { sim.timings.push_back({name, Seconds(start)}); };
+
+  auto t = Clock::now();
+  const Image extended = RenderObject(&sim.stars);
+  // The truth written for evaluation holds the stars as band-limited points (point_sources.hpp); the frames
+  // below use the catalogue itself.
+  sim.truth = sim.stars.empty() ? extended : Image(extended + PointSourceImage(g.hr_frame, sim.stars));
+  c.object_components = int(scene_.objects.size());
+  timed("object", t);
+
+  // PSFs (static aberrations, offsets and the loop are inside; their time is the PSF stage's).
+  t = Clock::now();
+  const int steps0 = c.loop_steps;
+  sim.psfs = ComputePsfs(&sim.distinct_psf, &sim.psf_window_fraction, &sim.strehl, &c);
+  timed(c.loop_steps > steps0 ? "ao-loop+psf" : "psf", t);
+
+  // Convolution on the padded grid: the object's spectrum (extended part by FFT, stars exactly), times each
+  // distinct transfer function, back to the image domain.
+  t = Clock::now();
+  const Shape P = g.padded;
+  ComplexImage spectrum;
+  if (has_extended_) {
+    Image padded = Image::Zero(P.rows, P.cols);
+    padded.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols) = extended;
+    spectrum = FftR2C(padded);
+    ++c.object_transforms;
+  }
+  if (!sim.stars.empty()) {
+    std::vector<PointSource> shifted = sim.stars;
+    for (PointSource& p : shifted) p.y += double(g.pad_top), p.x += double(g.pad_left);
+    const ComplexImage stars = PointSourceSpectrum(P, shifted);
+    spectrum = spectrum.size() ? ComplexImage(spectrum + stars) : stars;
+  }
+  if (spectrum.size() == 0) spectrum = ComplexImage::Zero(P.rows, P.cols / 2 + 1);
+  std::vector<Image> convolved(distinct_count_);
+  for (int d = 0; d < distinct_count_; ++d) {
+    const int i = int(std::find(sim.distinct_psf.begin(), sim.distinct_psf.end(), d) - sim.distinct_psf.begin());
+    const ComplexImage H = HermitianProjection(TransferFunction(P, sim.psfs[i]), P.cols);
+    const Image full = FftC2R(ComplexImage(spectrum * H), P.cols);
+    ++c.frame_transforms;
+    convolved[d] = full.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols);
+  }
+  timed(has_extended_ ? "convolution" : "point-sources", t);
+
+  t = Clock::now();
+  const OperatorPtr pixels = PixelResponse(g.hr_frame, g.r, scene_.detector.fill_factor);
+  std::vector<Image> lr(distinct_count_);
+  for (int d = 0; d < distinct_count_; ++d) lr[d] = ToImage(pixels->Apply(AsVector(convolved[d])), g.frame);
+  for (int i = 0; i < scene_.frames; ++i) sim.expected_e.push_back(lr[sim.distinct_psf[i]]);
+  timed("pixel-integration", t);
+
+  t = Clock::now();
+  const Detector detector(scene_.detector);
+  sim.frames = detector.RecordSequence(sim.expected_e, scene_.noise_seed);
+  for (const DetectorFrame& f : sim.frames) c.noise_draws += f.uniform_draws + f.normal_draws;
+  timed("detector", t);
+
+  c.fft_executions = FftExecutionCount() - fft0;
+  c.phase_screens = PhaseScreensGenerated() - screens0;
+  sim.seconds = Seconds(t_run);
+  return sim;
+}
+
+}  // namespace aosr
