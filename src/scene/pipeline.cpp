@@ -29,7 +29,7 @@ namespace {
 // (bench/simulate_bench.cpp) prints the model beside the measured time of every stage.
 constexpr double kFftFlopsPerS = 1.5e9;    // FFTW r2c/c2r, counting 2.5 N log2 N flops
 constexpr double kGemmFlopsPerS = 8e9;     // Eigen complex matrix products (MFT, point-source spectra)
-constexpr double kRenderSPerPixel = 40e-9;  // exact-area USAF / demo rendering per HR pixel
+constexpr double kRenderSPerPixel = 5e-9;   // exact-area USAF / demo rendering per HR pixel
 constexpr double kLoopStepS128 = 0.9e-3;    // one closed-loop frame for a 128-px pupil, science PSF excluded
 constexpr double kDetectorNoiseSPerPixel = 60e-9;  // Poisson + read noise per pixel
 constexpr double kDetectorPlainSPerPixel = 5e-9;   // conversion, masks, weights only

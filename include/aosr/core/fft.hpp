@@ -47,7 +47,7 @@ ComplexImage FftInverse(const ComplexImage& X);
 std::size_t FftPlanCount();
 // Number of transforms executed through this file since the program started (all threads; a relaxed
 // atomic counter). Tests use it to prove a disabled stage does no FFT work; benchmarks to count the FFT
-// floor of an algorithm. Transforms that other layers plan on their own (the closed loop's) are not counted.
+// floor of an algorithm. Every FFT in aosr goes through this file, so the count is complete.
 std::uint64_t FftExecutionCount();
 
 // The smallest even n' >= n (n >= 1) whose prime factors are all in {2, 3, 5, 7}: sizes FFTW transforms
