@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   aosr::cli::RegisterDemo(app);
   aosr::cli::RegisterPsf(app);
+  aosr::cli::RegisterSimulate(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,149 @@
+// Datasets on disk: what a simulation writes (WriteSimulation) and what every reconstructor reads
+// (LoadDataset), for simulated and measured frames alike. A dataset is a folder of FITS files described by
+// one JSON manifest; the manifest, not the file names, says what is where.
+//
+// ## The manifest (format "aosr-manifest", version 1)
+//
+// Read strictly (io/config.hpp): unknown fields are errors, keys starting with "comment" are ignored, and
+// every error names the manifest and the field. File names are relative to the manifest's folder (absolute
+// paths are kept). Cubes are N × rows × cols FITS cubes (fits.hpp: NAXIS3 = N); a 2-D image is N = 1.
+//
+//   field                  required?            meaning
+//   format, version        yes                  "aosr-manifest", 1
+//   frames                 yes                  recorded frames, ADU (N × rows × cols). Non-finite pixels (the FITS
+//                                               convention for bad ones) become invalid and read bias_adu.
+//   psfs | scene           exactly one          psfs: h_i at HR sampling (θ_pix / r), K × K with K even, one plane
+//                                               per frame or one plane shared by all; each is renormalised to
+//                                               unit sum (error if a sum is <= 0 or not finite).
+//                                               scene: an instrument scene file (scene_spec.hpp; its objects are
+//                                               ignored): the PSFs are ScenePipeline::ComputePsfs of it, and r,
+//                                               the offsets, the pixel scale, the wavelength, the trustworthy
+//                                               border and the frame shape (checked against `frames`) are the
+//                                               scene's.
+//   r                      with psfs            super-resolution factor, 1..16; with scene optional, must match
+//   gain_e_per_adu         with psfs            e⁻ per ADU (> 0); with scene the scene's detector value by default
+//   bias_adu               with psfs            pedestal, ADU (finite); with scene likewise
+//   valid                  no                   N-cube of 1 (usable) / 0 (bad, saturated); default all 1
+//   weights                no                   N-cube of inverse variances, ADU⁻², finite and >= 0; forced to 0
+//                                               where a pixel is invalid (it carries no likelihood)
+//   offsets                no (not with scene)  N DM offsets in the scene files' inline-design form
+//                                               ({"shift_px": [dy, dx], "zernike": [{"noll", "rms_nm"}],
+//                                               "actuators_nm": [...]}); default none. Informational for
+//                                               solvers that take the PSFs as given.
+//   truth                  no                   the object on the HR grid (r·rows × r·cols), e⁻ per frame per HR px
+//   expected               no                   noiseless frames, e⁻ (simulations); must exist, not loaded
+//   stars                  no                   [{"y_hr_px", "x_hr_px", "flux_e"}] (HR-frame coordinates, e⁻ per
+//                                               frame), optionally with the camera-pixel "y_px", "x_px" (checked
+//                                               against them); either pair may be given alone
+//                                               (camera c <-> HR (c + ½)·r − ½)
+//   trustworthy_border_px  no                   camera pixels of each edge a periodic model cannot reproduce
+//                                               (pipeline.hpp); default ceil(K / 2 / r)
+//   frame_shape, hr_shape  no                   [rows, cols], and the PSF side K: checked against the files
+//   psf_size_px                                 when given
+//   pixel_scale            no                   {"camera_rad", "hr_rad", "camera_mas", "hr_mas",
+//                                               "camera_lambda_over_d", "hr_lambda_over_d"}: camera_rad is
+//                                               required in the section, hr_rad and the mas values are checked
+//                                               against it and r, the λ/D values are informational
+//   wavelength_m           no                   science wavelength, m
+//   software, noise,       no                   provenance written by WriteSimulation (the software version; the
+//   simulation                                  detector model; the scene as read, seeds, the compiled plan,
+//                                               per-exposure Strehl and PSF window fraction, stage timings); not
+//                                               interpreted
+//
+// A measured dataset needs only a few lines, e.g.
+//     {"format": "aosr-manifest", "version": 1, "frames": "night1.fits", "scene": "instrument.json",
+//      "valid": "night1_mask.fits"}
+// or, with PSFs measured on a star at HR sampling,
+//     {"format": "aosr-manifest", "version": 1, "frames": "night1.fits", "psfs": "psf_hr.fits", "r": 2,
+//      "gain_e_per_adu": 2.1, "bias_adu": 1000}
+//
+// ## Files written by WriteSimulation
+//
+//   frames.fits    N × rows × cols, ADU, float64           valid.fits    N × rows × cols, 1 / 0
+//   weights.fits   N × rows × cols, ADU⁻², float64         truth.fits    HR frame, e⁻ per frame per HR pixel
+//   psfs.fits      N × K × K, unit sum, HR sampling        expected.fits N × rows × cols, noiseless e⁻
+//   manifest.json  the above, all of it referenced by name
+// Each FITS header carries ORIGIN, the scene name, r, gain, bias, BUNIT, the frame time and the pixel scale
+// of its own sampling (camera or HR), in mas.
+//
+// Every file is written atomically (io/atomic_file.hpp). An existing manifest.json in the folder is removed
+// before anything else is written and the new one is written last, so a folder whose writing was interrupted
+// has no manifest rather than one naming a mix of two runs' files. Nothing is written over an input of the
+// scene (the scene file, design file, object images, bad-pixel map): InvalidArgument before any write.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "aosr/core/image.hpp"
+#include "aosr/scene/objects.hpp"
+#include "aosr/scene/pipeline.hpp"
+#include "aosr/scene/scene_spec.hpp"
+
+namespace aosr {
+
+// The manifest's format name and the version this code writes and reads.
+inline constexpr const char* kManifestFormat = "aosr-manifest";
+inline constexpr int kManifestVersion = 1;
+inline constexpr const char* kManifestFileName = "manifest.json";
+
+// Writes `sim` (the result of pipeline.Run() for `scene`) into `dir`, creating it if needed: the files and
+// manifest of the top of the file. `scene_json`, when given, is the scene file's JSON exactly as read (kept
+// in the manifest for provenance); otherwise the scene's source file is read again if it exists.
+// Errors: IoError naming the path (dir not a folder or not writable, a write failure); InvalidArgument if an
+// output would overwrite one of the scene's input files, or if `sim` does not match `scene` (frame count or
+// shapes).
+void WriteSimulation(const std::string& dir, const SceneSpec& scene, const ScenePipeline& pipeline,
+                     const Simulation& sim, const nlohmann::json* scene_json = nullptr);
+
+// What WriteSimulation checks before writing, for callers that want to fail before a long simulation: no
+// output file in `dir` is an input of `scene` (InvalidArgument), and `dir` is (or can be created as) a
+// writable folder (IoError naming it). Creates `dir` if needed.
+void PrepareSimulationOutput(const std::string& dir, const SceneSpec& scene);
+
+// Every file a scene reads (the scene itself, a telescope preset file, a design file, object images, a
+// bad-pixel map): what WriteSimulation refuses to overwrite. Absolute or relative as the scene resolved them.
+std::vector<std::string> SceneInputFiles(const SceneSpec& scene);
+
+// A dataset as the reconstructors use it. Images are in the manifest's units (top of the file).
+struct Dataset {
+  std::string manifest_path;  // the manifest that was read
+  nlohmann::json manifest;    // its JSON, as read
+
+  int r = 1;
+  Shape frame;     // camera frame, rows × cols
+  Shape hr_frame;  // r · frame
+
+  ImageStack frames;                 // N recorded frames, ADU
+  ImageStack valid;                  // N masks, 1 usable / 0 not
+  std::optional<ImageStack> weights;  // N inverse-variance maps, ADU⁻² (0 where invalid), when given
+  double gain_e_per_adu = 1.0;
+  double bias_adu = 0.0;
+
+  ImageStack psfs;                // N PSFs at HR sampling, K × K (K even), each of unit sum
+  std::vector<DmOffset> offsets;  // N DM offsets (all zero when unknown)
+  std::optional<Image> truth;     // the HR object, e⁻ per frame per HR pixel, when given
+  std::string expected_file;      // resolved path of the noiseless frames, empty when absent
+  std::vector<PointSource> stars;  // HR-frame coordinates, e⁻ per frame
+  Index trustworthy_border_px = 0;
+
+  // 0 when the manifest (or its scene) does not say.
+  double camera_pixel_rad = 0.0;
+  double wavelength_m = 0.0;
+
+  int size() const { return int(frames.size()); }
+  Index psf_size() const { return psfs.empty() ? 0 : psfs.front().rows(); }
+  // The frames in electrons: (ADU − bias) · gain.
+  ImageStack FramesElectrons() const;
+};
+
+// Reads a dataset from a manifest path, or from a folder holding manifest.json. Validates the manifest and
+// every file's shape (see the top of the file) before returning. Errors: IoError naming the path for a
+// missing manifest or an unreadable / non-FITS file; InvalidArgument "<manifest>: <field> = <value>; allowed:
+// <rule>" for everything else, including a file the manifest names that does not exist (the value shows the
+// resolved path). With "scene", the scene's own errors name the scene file.
+Dataset LoadDataset(const std::string& manifest_or_dir);
+
+}  // namespace aosr

@@ -1,0 +1,526 @@
+#include "aosr/scene/dataset.hpp"
+
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+
+#include "aosr/core/error.hpp"
+#include "aosr/io/atomic_file.hpp"
+#include "aosr/io/config.hpp"
+#include "aosr/io/fits.hpp"
+
+namespace aosr {
+namespace {
+
+namespace fs = std::filesystem;
+using OrderedJson = nlohmann::ordered_json;
+
+constexpr double kNm = 1e-9;
+constexpr double kRadPerMas = M_PI / 180.0 / 3600.0 / 1000.0;
+// Relative tolerance of the consistency checks between a manifest's redundant numbers (pixel scales written
+// in rad and mas): they are written with 17 significant digits, so anything beyond rounding is a mistake.
+constexpr double kConsistency = 1e-9;
+
+constexpr const char* kFramesFile = "frames.fits";
+constexpr const char* kValidFile = "valid.fits";
+constexpr const char* kWeightsFile = "weights.fits";
+constexpr const char* kTruthFile = "truth.fits";
+constexpr const char* kPsfsFile = "psfs.fits";
+constexpr const char* kExpectedFile = "expected.fits";
+
+std::string Join(const std::string& dir, const std::string& name) { return (fs::path(dir) / name).string(); }
+
+bool IsRegularFile(const std::string& path) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec);
+}
+
+bool Close(double a, double b) { return std::abs(a - b) <= kConsistency * std::max(std::abs(a), std::abs(b)); }
+
+// FITS header strings are printable ASCII; a scene name is free text.
+std::string Printable(const std::string& s) {
+  std::string out;
+  for (char c : s) out += (c >= 32 && c < 127) ? c : '?';
+  return out;
+}
+
+// ---- Writing ----------------------------------------------------------------------------------------------
+
+const char* NoiseModelName(const DetectorOptions& d) {
+  if (d.noise_model == NoiseModel::kPeakFraction) return d.peak_noise_fraction > 0 ? "peak-fraction" : "none";
+  return d.enable_photon_noise || d.enable_read_noise ? "physical" : "none";
+}
+
+// The keywords every file of a simulation carries; `hr` selects the HR pixel scale (truth, PSFs).
+FitsHeader SimulationHeader(const SceneSpec& scene, const SceneGeometry& g, const std::string& what,
+                            const std::string& bunit, bool hr) {
+  FitsHeader h;
+  h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
+  h.Set("AOSRDATA", what, "content of this HDU (see manifest.json)");
+  h.Set("SCENE", Printable(scene.name), "scene name");
+  if (!bunit.empty()) h.Set("BUNIT", bunit, "unit of the data values");
+  h.Set("SRFACTOR", static_cast<long long>(g.r), "super-resolution factor r");
+  h.Set("NFRAMES", static_cast<long long>(scene.frames), "number of sub-exposures N");
+  h.Set("GAIN", scene.detector.gain_e_per_adu, "[e-/ADU] detector gain");
+  h.Set("BIAS", scene.detector.bias_adu, "[ADU] detector bias");
+  h.Set("EXPTIME", scene.detector.exposure_time_s, "[s] integration time of one frame");
+  h.Set("PIXSCALE", (hr ? g.hr_pixel_rad : g.camera_pixel_rad) / kRadPerMas,
+        hr ? "[mas] HR pixel pitch (camera pixel / r)" : "[mas] camera pixel pitch");
+  h.Set("WAVELEN", g.wavelength_m, "[m] science wavelength");
+  return h;
+}
+
+OrderedJson Ordered(const nlohmann::json& j) { return OrderedJson::parse(j.dump()); }
+
+OrderedJson ShapeJson(Shape s) { return OrderedJson::array({s.rows, s.cols}); }
+
+// The scene's own JSON: the caller's copy, else the source file read again, else null (parsed from memory).
+OrderedJson SceneJson(const SceneSpec& scene, const nlohmann::json* scene_json) {
+  if (scene_json) return Ordered(*scene_json);
+  if (IsRegularFile(scene.source)) {
+    try {
+      return Ordered(ReadJsonFile(scene.source));
+    } catch (const Error&) {
+      // The scene was parsed from this file a moment ago; if it is gone or changed, provenance says so.
+    }
+  }
+  return OrderedJson();
+}
+
+OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline, const Simulation& sim,
+                          const nlohmann::json* scene_json) {
+  const SceneGeometry& g = sim.geometry;
+  const DetectorOptions& d = scene.detector;
+  OrderedJson m;
+  m["format"] = kManifestFormat;
+  m["version"] = kManifestVersion;
+  m["software"] = std::string("aosr ") + AOSR_VERSION;
+  m["r"] = g.r;
+  m["frame_shape"] = ShapeJson(g.frame);
+  m["hr_shape"] = ShapeJson(g.hr_frame);
+  m["psf_size_px"] = g.psf_size;
+  m["frames"] = kFramesFile;
+  m["valid"] = kValidFile;
+  m["weights"] = kWeightsFile;
+  m["psfs"] = kPsfsFile;
+  m["truth"] = kTruthFile;
+  m["expected"] = kExpectedFile;
+  m["gain_e_per_adu"] = d.gain_e_per_adu;
+  m["bias_adu"] = d.bias_adu;
+  m["trustworthy_border_px"] = g.trustworthy_border_px;
+  m["pixel_scale"] = {{"camera_rad", g.camera_pixel_rad},
+                      {"camera_mas", g.camera_pixel_rad / kRadPerMas},
+                      {"camera_lambda_over_d", g.hr_pixel_lambda_over_d * g.r},
+                      {"hr_rad", g.hr_pixel_rad},
+                      {"hr_mas", g.hr_pixel_rad / kRadPerMas},
+                      {"hr_lambda_over_d", g.hr_pixel_lambda_over_d}};
+  m["wavelength_m"] = g.wavelength_m;
+  OrderedJson offsets = OrderedJson::array();
+  for (const DmOffset& o : scene.offsets.frames) offsets.push_back(Ordered(DmOffsetToJson(o)));
+  m["offsets"] = offsets;
+  if (!sim.stars.empty()) {
+    // HR-frame coordinates; camera pixel c spans HR pixels c·r .. c·r + r − 1, so c = (y + ½)/r − ½.
+    OrderedJson stars = OrderedJson::array();
+    for (const PointSource& p : sim.stars)
+      stars.push_back({{"y_hr_px", p.y},
+                       {"x_hr_px", p.x},
+                       {"y_px", (p.y + 0.5) / g.r - 0.5},
+                       {"x_px", (p.x + 0.5) / g.r - 0.5},
+                       {"flux_e", p.flux}});
+    m["stars"] = stars;
+  }
+
+  OrderedJson noise;
+  noise["model"] = NoiseModelName(d);
+  noise["photon_noise"] = d.noise_model == NoiseModel::kPhysical && d.enable_photon_noise;
+  noise["read_noise_e"] = d.noise_model == NoiseModel::kPhysical && d.enable_read_noise ? d.read_noise_e : 0.0;
+  noise["peak_noise_fraction"] = d.noise_model == NoiseModel::kPeakFraction ? d.peak_noise_fraction : 0.0;
+  // kPeakFraction: the σ actually drawn (p · the sequence's largest expected λ), electrons.
+  noise["sigma_e"] = sim.frames.empty() ? 0.0 : sim.frames.front().noise_sigma_e;
+  noise["background_e_per_s"] = d.enable_background ? d.background_e_per_s : 0.0;
+  noise["dark_current_e_per_s"] = d.enable_dark_current ? d.dark_current_e_per_s : 0.0;
+  noise["saturation"] = d.enable_saturation;
+  noise["saturation_adu"] = d.saturation_adu;
+  noise["quantize"] = d.enable_quantization;
+  noise["fill_factor"] = d.fill_factor;
+  noise["frame_time_s"] = d.exposure_time_s;
+  noise["total_exposure_s"] = scene.total_exposure_s;
+  if (d.enable_bad_pixels) {
+    OrderedJson b;
+    if (!scene.bad_pixel_file.empty()) b["file"] = scene.bad_pixel_file;
+    else b["fraction"] = scene.bad_pixel_fraction;
+    b["count"] = Index((d.bad_pixel_mask == 0).count());
+    noise["bad_pixels"] = b;
+  }
+  m["noise"] = noise;
+
+  OrderedJson s;
+  s["scene"] = {{"name", scene.name}, {"source", scene.source}, {"json", SceneJson(scene, scene_json)}};
+  OrderedJson objects = OrderedJson::array();
+  for (const ObjectSpec& o : scene.objects) objects.push_back(o.seed);
+  s["seeds"] = {{"scene", scene.seed},
+                {"noise", scene.noise_seed},
+                {"atmosphere", scene.ao.seed},
+                {"bad_pixels", scene.bad_pixel_seed},
+                {"objects", objects}};
+  OrderedJson exposures = OrderedJson::array();
+  for (std::size_t i = 0; i < sim.psfs.size(); ++i) {
+    OrderedJson e;
+    e["strehl"] = i < sim.strehl.size() ? sim.strehl[i] : 0.0;
+    e["psf_window_fraction"] = i < sim.psf_window_fraction.size() ? sim.psf_window_fraction[i] : 0.0;
+    e["distinct_psf"] = i < sim.distinct_psf.size() ? sim.distinct_psf[i] : int(i);
+    exposures.push_back(e);
+  }
+  s["exposures"] = exposures;
+  OrderedJson plan = OrderedJson::array();
+  for (const PipelineStage& st : pipeline.stages())
+    plan.push_back({{"stage", st.name}, {"count", st.count}, {"estimated_s", st.estimated_s}, {"detail", st.detail}});
+  s["plan"] = plan;
+  OrderedJson timings = OrderedJson::array();
+  for (const StageTiming& t : sim.timings) timings.push_back({{"stage", t.name}, {"seconds", t.seconds}});
+  s["timings_s"] = timings;
+  s["total_s"] = sim.seconds;
+  const SimulationCounters& c = sim.counters;
+  s["counters"] = {{"object_components", c.object_components}, {"psfs_computed", c.psfs_computed},
+                   {"object_transforms", c.object_transforms}, {"frame_transforms", c.frame_transforms},
+                   {"loop_steps", c.loop_steps},               {"fft_executions", c.fft_executions},
+                   {"phase_screens", c.phase_screens},         {"noise_draws", c.noise_draws}};
+  m["simulation"] = s;
+  return m;
+}
+
+void WriteJsonAtomically(const std::string& path, const OrderedJson& j) {
+  AtomicWrite(path, [&j](const std::string& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    out << j.dump(2) << "\n";
+    out.close();
+    if (!out) throw IoError(tmp, "cannot write the manifest");
+  });
+}
+
+void CheckSimulation(const SceneSpec& scene, const Simulation& sim) {
+  const auto fail = [](const std::string& what, const std::string& value, const std::string& allowed) {
+    throw InvalidArgument("WriteSimulation", what, value, allowed);
+  };
+  const std::size_t n = std::size_t(scene.frames);
+  if (sim.geometry.frame != scene.frame || sim.geometry.r != scene.r)
+    fail("sim.geometry", ToString(sim.geometry.frame) + ", r " + std::to_string(sim.geometry.r),
+         "the scene's frame " + ToString(scene.frame) + " and r " + std::to_string(scene.r));
+  if (sim.frames.size() != n || sim.psfs.size() != n || sim.expected_e.size() != n)
+    fail("sim", std::to_string(sim.frames.size()) + " frames, " + std::to_string(sim.psfs.size()) + " PSFs, " +
+                    std::to_string(sim.expected_e.size()) + " expected frames",
+         "the scene's N = " + std::to_string(n) + " of each (the result of ScenePipeline::Run)");
+  if (ShapeOf(sim.truth) != sim.geometry.hr_frame)
+    fail("sim.truth", ToString(ShapeOf(sim.truth)), "the HR frame " + ToString(sim.geometry.hr_frame));
+  for (std::size_t i = 0; i < n; ++i) {
+    const DetectorFrame& f = sim.frames[i];
+    if (ShapeOf(f.adu) != scene.frame || ShapeOf(f.valid) != scene.frame ||
+        ShapeOf(f.inverse_variance) != scene.frame || ShapeOf(sim.expected_e[i]) != scene.frame)
+      fail("sim.frames[" + std::to_string(i) + "]", ToString(ShapeOf(f.adu)), "the frame " + ToString(scene.frame));
+  }
+}
+
+// ---- Reading ----------------------------------------------------------------------------------------------
+
+// A manifest's file field: resolved against the manifest's folder, required to exist.
+std::string FileField(const ConfigNode& root, const std::string& key) {
+  const std::string name = root.String(key);
+  if (name.empty()) root.Fail(key, "\"\"", "a file name relative to the manifest's folder");
+  const fs::path p(name);
+  const std::string path = p.is_absolute() ? name : (fs::path(root.source()).parent_path() / p).string();
+  if (!IsRegularFile(path)) root.Fail(key, "\"" + name + "\" (" + path + ": no such file)", "an existing file, relative to the manifest's folder");
+  return path;
+}
+
+Shape ShapeField(const ConfigNode& n, const std::string& key) {
+  const std::vector<double> v = n.Numbers(key, 1, 1e7, 2, 2);
+  if (v[0] != std::floor(v[0]) || v[1] != std::floor(v[1])) n.Fail(key, n.json().at(key).dump(), "[rows, cols] in whole pixels");
+  return {Index(v[0]), Index(v[1])};
+}
+
+// The inline-design form of scene files (scene_spec.cpp), which DmOffsetToJson writes.
+DmOffset ParseOffset(const ConfigNode& n) {
+  DmOffset o;
+  if (n.Has("shift_px")) {
+    const std::vector<double> s = n.Numbers("shift_px", -1e3, 1e3, 2, 2);
+    o.shift_y_px = s[0];
+    o.shift_x_px = s[1];
+  }
+  if (n.Has("zernike")) {
+    for (const ConfigNode& t : n.Array("zernike")) {
+      DmOffset::Term term;
+      term.noll = int(t.Integer("noll", 2, 1000));
+      term.rms_m = t.Number("rms_nm", -1e7, 1e7) * kNm;
+      t.CheckNoOtherFields();
+      o.zernike.push_back(term);
+    }
+  }
+  if (n.Has("actuators_nm")) {
+    o.actuators_m = n.Numbers("actuators_nm", -1e7, 1e7, 1, 100000);
+    for (double& a : o.actuators_m) a *= kNm;
+  }
+  n.CheckNoOtherFields();
+  return o;
+}
+
+PointSource ParseStar(const ConfigNode& n, int r) {
+  PointSource p;
+  const bool hr = n.Has("y_hr_px") || n.Has("x_hr_px");
+  const bool camera = n.Has("y_px") || n.Has("x_px");
+  if (!hr && !camera) n.Fail("", "(no position)", "y_hr_px and x_hr_px, or y_px and x_px (camera pixels)");
+  if (hr) {
+    p.y = n.Number("y_hr_px", -1e7, 1e7);
+    p.x = n.Number("x_hr_px", -1e7, 1e7);
+  }
+  if (camera) {
+    const double y = (n.Number("y_px", -1e7, 1e7) + 0.5) * r - 0.5;
+    const double x = (n.Number("x_px", -1e7, 1e7) + 0.5) * r - 0.5;
+    if (hr && !(std::abs(y - p.y) <= 1e-6 * std::max(1.0, std::abs(y)) && std::abs(x - p.x) <= 1e-6 * std::max(1.0, std::abs(x))))
+      n.Fail("y_px", ToString(n.json().at("y_px").get<double>()) + ", x_px " + ToString(n.json().at("x_px").get<double>()),
+             "the camera position of y_hr_px, x_hr_px: (y_hr + 0.5) / r - 0.5 = " + ToString((p.y + 0.5) / r - 0.5) + ", " +
+                 ToString((p.x + 0.5) / r - 0.5));
+    if (!hr) p.y = y, p.x = x;
+  }
+  p.flux = n.Number("flux_e", -1e30, 1e30);
+  n.CheckNoOtherFields();
+  return p;
+}
+
+// Reads a cube file of a manifest and checks its shape: `planes` of `shape` (planes 0: any count).
+ImageStack ReadCube(const ConfigNode& root, const std::string& key, const std::string& path, std::size_t planes,
+                    Shape shape, const std::string& what) {
+  ImageStack cube = ReadFits(path).planes;
+  if ((planes && cube.size() != planes) || ShapeOf(cube.front()) != shape)
+    root.Fail(key, "a " + std::to_string(cube.size()) + " x " + ToString(ShapeOf(cube.front())) + " cube (" + path + ")",
+              what + ": " + std::to_string(planes) + " x " + ToString(shape));
+  for (std::size_t i = 0; i < cube.size(); ++i)
+    if (!AllFinite(cube[i]))
+      root.Fail(key, "non-finite values in plane " + std::to_string(i) + " (" + path + ")", what + " with finite values");
+  return cube;
+}
+
+}  // namespace
+
+std::vector<std::string> SceneInputFiles(const SceneSpec& scene) {
+  std::vector<std::string> files;
+  auto add = [&files](const std::string& f) {
+    if (!f.empty() && IsRegularFile(f)) files.push_back(f);
+  };
+  add(scene.source);
+  add(scene.telescope.source);
+  add(scene.telescope.mask_file);
+  if (scene.offsets.kind == OffsetsSpec::Kind::kDesign && scene.offsets.source != "inline") add(scene.offsets.source);
+  for (const ObjectSpec& o : scene.objects)
+    if (o.kind == ObjectSpec::Kind::kImage) add(o.image_path);
+  add(scene.bad_pixel_file);
+  return files;
+}
+
+void PrepareSimulationOutput(const std::string& dir, const SceneSpec& scene) {
+  CheckArgument(!dir.empty(), "PrepareSimulationOutput", "dir", "\"\"", "a folder name");
+  const std::vector<std::string> outputs = {kFramesFile, kValidFile,    kWeightsFile,     kTruthFile,
+                                            kPsfsFile,   kExpectedFile, kManifestFileName};
+  // Before touching the disk: no output may be an input of the scene.
+  const std::vector<std::string> inputs = SceneInputFiles(scene);
+  for (const std::string& o : outputs) CheckNotSameFile(Join(dir, o), inputs);
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) throw IoError(dir, "exists and is not a folder");
+  if (!fs::exists(dir, ec) && (!fs::create_directories(dir, ec) || ec))
+    throw IoError(dir, "cannot create the folder: " + (ec ? ec.message() : std::string("unknown reason")));
+  if (::access(dir.c_str(), W_OK | X_OK) != 0) throw IoError(dir, "the folder is not writable");
+}
+
+void WriteSimulation(const std::string& dir, const SceneSpec& scene, const ScenePipeline& pipeline,
+                     const Simulation& sim, const nlohmann::json* scene_json) {
+  CheckArgument(pipeline.scene().name == scene.name && pipeline.scene().source == scene.source, "WriteSimulation",
+                "pipeline", pipeline.scene().name, "the pipeline compiled from `scene` (" + scene.name + ")");
+  CheckSimulation(scene, sim);
+  PrepareSimulationOutput(dir, scene);
+  std::error_code ec;
+  // A folder holds a manifest only when every file it names is of the same run (top of dataset.hpp).
+  const std::string manifest = Join(dir, kManifestFileName);
+  if (fs::exists(manifest, ec) && !fs::remove(manifest, ec))
+    throw IoError(manifest, "cannot remove the previous manifest: " + ec.message());
+
+  const SceneGeometry& g = sim.geometry;
+  ImageStack adu, valid, weights;
+  for (const DetectorFrame& f : sim.frames) {
+    adu.push_back(f.adu);
+    valid.push_back(f.valid);
+    weights.push_back(f.inverse_variance);
+  }
+  WriteFitsCube(Join(dir, kFramesFile), adu, SimulationHeader(scene, g, "frames", "adu", false), FitsType::kFloat64);
+  WriteFitsCube(Join(dir, kValidFile), valid, SimulationHeader(scene, g, "valid: 1 usable, 0 bad or saturated", "", false));
+  WriteFitsCube(Join(dir, kWeightsFile), weights, SimulationHeader(scene, g, "inverse variance", "adu-2", false),
+                FitsType::kFloat64);
+  WriteFits(Join(dir, kTruthFile), sim.truth, SimulationHeader(scene, g, "truth", "electron", true), FitsType::kFloat64);
+  FitsHeader psf = SimulationHeader(scene, g, "psfs: unit sum, HR sampling", "", true);
+  WriteFitsCube(Join(dir, kPsfsFile), sim.psfs, psf, FitsType::kFloat64);
+  WriteFitsCube(Join(dir, kExpectedFile), sim.expected_e, SimulationHeader(scene, g, "noiseless frames", "electron", false),
+                FitsType::kFloat64);
+  WriteJsonAtomically(manifest, BuildManifest(scene, pipeline, sim, scene_json));
+}
+
+ImageStack Dataset::FramesElectrons() const {
+  ImageStack out;
+  out.reserve(frames.size());
+  for (const Image& f : frames) out.push_back((f - bias_adu) * gain_e_per_adu);
+  return out;
+}
+
+Dataset LoadDataset(const std::string& manifest_or_dir) {
+  CheckArgument(!manifest_or_dir.empty(), "LoadDataset", "manifest_or_dir", "\"\"", "a manifest.json or its folder");
+  std::error_code ec;
+  Dataset ds;
+  ds.manifest_path = fs::is_directory(manifest_or_dir, ec) ? Join(manifest_or_dir, kManifestFileName) : manifest_or_dir;
+  if (!IsRegularFile(ds.manifest_path))
+    throw IoError(ds.manifest_path, fs::is_directory(manifest_or_dir, ec) ? "no manifest.json in this folder"
+                                                                           : "no such manifest file");
+  ds.manifest = ReadJsonFile(ds.manifest_path);
+  const ConfigNode root(ds.manifest, ds.manifest_path);
+
+  // ---- Every field first (cheap), so a typo is reported before any cube is read. ----------------------
+  const std::string format = root.String("format");
+  if (format != kManifestFormat) root.Fail("format", "\"" + format + "\"", std::string("\"") + kManifestFormat + "\"");
+  const long long version = root.Integer("version", 0, 1000000);
+  if (version != kManifestVersion)
+    root.Fail("version", std::to_string(version), std::to_string(kManifestVersion) + " (the version this aosr reads)");
+  root.StringOr("software", "");
+  if (root.Has("noise")) root.Child("noise");            // provenance, not interpreted
+  if (root.Has("simulation")) root.Child("simulation");  // provenance, not interpreted
+
+  const std::string frames_path = FileField(root, "frames");
+  const bool has_psfs = root.Has("psfs"), has_scene = root.Has("scene");
+  if (has_psfs == has_scene)
+    root.Fail(has_psfs ? "scene" : "psfs", has_psfs ? "(both psfs and scene given)" : "(missing)",
+              "exactly one of psfs (a PSF cube at HR sampling) and scene (an instrument scene file)");
+  const std::string psfs_path = has_psfs ? FileField(root, "psfs") : std::string();
+  const std::string scene_path = has_scene ? FileField(root, "scene") : std::string();
+  std::optional<SceneSpec> scene;
+  if (has_scene) {
+    scene = LoadScene(scene_path);  // errors name the scene file and its field
+    if (root.Has("offsets"))
+      root.Fail("offsets", "(given with scene)", "no offsets: with a scene they are its offsets section");
+    ds.r = scene->r;
+    if (root.Has("r") && root.Integer("r", 1, 16) != ds.r)
+      root.Fail("r", root.json().at("r").dump(), "the scene's r = " + std::to_string(ds.r) + " (or no r)");
+    ds.gain_e_per_adu = root.PositiveOr("gain_e_per_adu", scene->detector.gain_e_per_adu);
+    ds.bias_adu = root.NumberOr("bias_adu", scene->detector.bias_adu, -1e15, 1e15);
+  } else {
+    ds.r = int(root.Integer("r", 1, 16));
+    ds.gain_e_per_adu = root.Positive("gain_e_per_adu");
+    ds.bias_adu = root.Number("bias_adu", -1e15, 1e15);
+  }
+  const std::string valid_path = root.Has("valid") ? FileField(root, "valid") : std::string();
+  const std::string weights_path = root.Has("weights") ? FileField(root, "weights") : std::string();
+  const std::string truth_path = root.Has("truth") ? FileField(root, "truth") : std::string();
+  if (root.Has("expected")) ds.expected_file = FileField(root, "expected");
+  std::optional<Shape> frame_shape, hr_shape;
+  if (root.Has("frame_shape")) frame_shape = ShapeField(root, "frame_shape");
+  if (root.Has("hr_shape")) hr_shape = ShapeField(root, "hr_shape");
+  const long long psf_size = root.IntegerOr("psf_size_px", 0, 2, 1 << 20);
+  const long long border = root.IntegerOr("trustworthy_border_px", -1, 0, 1 << 20);
+  if (root.Has("offsets"))
+    for (const ConfigNode& o : root.Array("offsets")) ds.offsets.push_back(ParseOffset(o));
+  if (root.Has("stars"))
+    for (const ConfigNode& s : root.Array("stars")) ds.stars.push_back(ParseStar(s, ds.r));
+  ds.wavelength_m = root.PositiveOr("wavelength_m", scene ? scene->telescope.science_wavelength_m : 0.0);
+  ds.camera_pixel_rad = scene ? scene->CameraPixelRad() : 0.0;
+  if (root.Has("pixel_scale")) {
+    const ConfigNode p = root.Child("pixel_scale");
+    const double camera = p.Positive("camera_rad");
+    if (scene && !Close(camera, ds.camera_pixel_rad))
+      p.Fail("camera_rad", ToString(camera), "the scene's camera pixel, " + ToString(ds.camera_pixel_rad) + " rad");
+    ds.camera_pixel_rad = camera;
+    const auto check = [&p](const char* key, double expected, const std::string& rule) {
+      if (!p.Has(key)) return;
+      const double v = p.Positive(key);
+      if (!Close(v, expected)) p.Fail(key, ToString(v), ToString(expected) + " (" + rule + ")");
+    };
+    check("hr_rad", camera / ds.r, "camera_rad / r");
+    check("camera_mas", camera / kRadPerMas, "camera_rad in mas");
+    check("hr_mas", camera / ds.r / kRadPerMas, "camera_rad / r in mas");
+    p.PositiveOr("camera_lambda_over_d", 1.0);  // informational: λ/D needs the telescope
+    p.PositiveOr("hr_lambda_over_d", 1.0);
+    p.CheckNoOtherFields();
+  }
+  root.CheckNoOtherFields();
+
+  // ---- The frames and the PSFs. --------------------------------------------------------------------------
+  ds.frames = ReadFits(frames_path).planes;
+  ds.frame = ShapeOf(ds.frames.front());
+  ds.hr_frame = {ds.frame.rows * ds.r, ds.frame.cols * ds.r};
+  const std::size_t n = ds.frames.size();
+  if (frame_shape && *frame_shape != ds.frame)
+    root.Fail("frame_shape", ToString(*frame_shape), "the frames' shape " + ToString(ds.frame) + " (" + frames_path + ")");
+  if (hr_shape && *hr_shape != ds.hr_frame)
+    root.Fail("hr_shape", ToString(*hr_shape), "r x the frames' shape = " + ToString(ds.hr_frame));
+
+  if (scene) {
+    if (scene->frames != int(n) || scene->frame != ds.frame)
+      root.Fail("frames", std::to_string(n) + " x " + ToString(ds.frame) + " (" + frames_path + ")",
+                "the scene's frames x frame_px = " + std::to_string(scene->frames) + " x " + ToString(scene->frame) + " (" +
+                    scene_path + ")");
+    const ScenePipeline pipeline(*scene);
+    ds.psfs = pipeline.ComputePsfs(nullptr, nullptr, nullptr);
+    ds.offsets = scene->offsets.frames;
+    ds.trustworthy_border_px = pipeline.geometry().trustworthy_border_px;
+  } else {
+    ImageStack psfs = ReadFits(psfs_path).planes;
+    const Shape k = ShapeOf(psfs.front());
+    if ((psfs.size() != n && psfs.size() != 1) || k.rows != k.cols || k.rows % 2)
+      root.Fail("psfs", std::to_string(psfs.size()) + " x " + ToString(k) + " (" + psfs_path + ")",
+                std::to_string(n) + " (one per frame) or 1 (shared) square planes K x K with K even");
+    if (psfs.size() == 1) psfs.assign(n, psfs.front());
+    ds.psfs = std::move(psfs);
+    if (root.Has("offsets") && ds.offsets.size() != n)
+      root.Fail("offsets", std::to_string(ds.offsets.size()) + " entries", "one per frame (" + std::to_string(n) + ")");
+    if (!root.Has("offsets")) ds.offsets.assign(n, DmOffset{});
+    ds.trustworthy_border_px = (ds.psf_size() / 2 + ds.r - 1) / ds.r;
+  }
+  // Unit sum: the forward model conserves flux only with normalised kernels. Negative values (noise in a
+  // measured PSF) are kept; a kernel without positive total light is meaningless.
+  for (std::size_t i = 0; i < n; ++i) {
+    const double sum = ds.psfs[i].sum();
+    if (!AllFinite(ds.psfs[i]) || !(sum > 0))
+      root.Fail(has_scene ? "scene" : "psfs", "plane " + std::to_string(i) + " with sum " + ToString(sum),
+                "PSFs with finite values and a sum > 0");
+    ds.psfs[i] /= sum;
+  }
+  if (psf_size && psf_size != ds.psf_size())
+    root.Fail("psf_size_px", std::to_string(psf_size), "the PSFs' side " + std::to_string(ds.psf_size()));
+  if (border >= 0) ds.trustworthy_border_px = border;
+
+  // ---- Masks, weights, truth. ----------------------------------------------------------------------------
+  if (!valid_path.empty()) {
+    ds.valid = ReadCube(root, "valid", valid_path, n, ds.frame, "masks of the frames' shape");
+    for (std::size_t i = 0; i < n; ++i)
+      if (!((ds.valid[i] == 0) || (ds.valid[i] == 1)).all())
+        root.Fail("valid", "plane " + std::to_string(i) + " holds values other than 0 and 1", "1 (usable) or 0 (not)");
+  } else {
+    ds.valid.assign(n, Image::Ones(ds.frame.rows, ds.frame.cols));
+  }
+  // FITS marks bad pixels NaN; solvers multiply data by weights, so a NaN would poison them (detector.hpp:
+  // dead pixels read the bias for the same reason).
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto bad = !ds.frames[i].isFinite();
+    ds.valid[i] = bad.select(0.0, ds.valid[i]);
+    ds.frames[i] = bad.select(ds.bias_adu, ds.frames[i]);
+  }
+  if (!weights_path.empty()) {
+    ImageStack w = ReadCube(root, "weights", weights_path, n, ds.frame, "inverse variances of the frames' shape");
+    for (std::size_t i = 0; i < n; ++i) {
+      if ((w[i] < 0).any()) root.Fail("weights", "negative values in plane " + std::to_string(i), "inverse variances >= 0");
+      w[i] *= ds.valid[i];
+    }
+    ds.weights = std::move(w);
+  }
+  if (!truth_path.empty()) ds.truth = ReadCube(root, "truth", truth_path, 1, ds.hr_frame, "one HR image").front();
+  if (ds.camera_pixel_rad == 0.0 && scene) ds.camera_pixel_rad = scene->CameraPixelRad();
+  return ds;
+}
+
+}  // namespace aosr

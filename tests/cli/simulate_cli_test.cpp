@@ -1,0 +1,135 @@
+// End-to-end checks of `aosr simulate` through the real executable.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "support/testing.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using aosr::test::CliRun;
+using aosr::test::RunCli;
+using ::testing::AllOf;
+using ::testing::HasSubstr;
+
+// A scratch folder holding a small scene file (paper-8m without turbulence, 32-px frames, r = 2, N = 2,
+// raster offsets, no noise), removed at the end of the test.
+class SimulateCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("aosr_simulate_cli_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    WriteScene(Scene());
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  static nlohmann::json Scene() {
+    return {{"name", "cli-test"},
+            {"telescope", "paper-8m"},
+            {"frames", 2},
+            {"r", 2},
+            {"offsets", {{"type", "raster"}}},
+            {"detector", {{"frame_px", 32}, {"noise", "none"}, {"saturation", false}}},
+            {"objects", nlohmann::json::array({{{"type", "demo"}, {"flux", {{"peak_e", 100.0}}}}})}};
+  }
+  void WriteScene(const nlohmann::json& j) const { std::ofstream(ScenePath()) << j.dump(2); }
+  std::string ScenePath() const { return (dir_ / "scene.json").string(); }
+  std::size_t Entries() const { return std::distance(fs::directory_iterator(dir_), fs::directory_iterator()); }
+
+  fs::path dir_;
+};
+
+TEST_F(SimulateCliTest, PlanListsTheStagesAndRunsNothing) {
+  CliRun r = RunCli("simulate " + ScenePath() + " --plan");
+  ASSERT_EQ(r.status, 0) << r.out;
+  for (const char* stage : {"object", "dm-offsets", "psf", "convolution", "pixel-integration", "detector", "total estimate"})
+    EXPECT_THAT(r.out, HasSubstr(stage));
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("ao-loop")));  // not enabled by the scene
+  r = RunCli("simulate " + ScenePath() + " --plan --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  std::vector<std::string> names;
+  for (const auto& s : j["stages"]) names.push_back(s["name"]);
+  EXPECT_THAT(names, ::testing::ElementsAre("object", "dm-offsets", "psf", "convolution", "pixel-integration", "detector"));
+  EXPECT_EQ(j["hr_shape"], nlohmann::json({64, 64}));
+  EXPECT_EQ(Entries(), 1u);  // only the scene: nothing was written
+  // --plan computes nothing, so it takes no output folder.
+  r = RunCli("simulate " + ScenePath() + " --plan -o " + (dir_ / "out").string());
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("--plan"));
+  EXPECT_FALSE(fs::exists(dir_ / "out"));
+}
+
+TEST_F(SimulateCliTest, OutputFolderGetsTheWholeDataset) {
+  const fs::path out = dir_ / "out" / "run1";  // parents are created
+  const CliRun r = RunCli("simulate " + ScenePath() + " -o " + out.string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_THAT(r.out, AllOf(HasSubstr("scene cli-test"), HasSubstr("convolution"), HasSubstr("Strehl"),
+                           HasSubstr((out / "manifest.json").string())));
+  for (const char* f : {"frames.fits", "valid.fits", "weights.fits", "truth.fits", "psfs.fits", "expected.fits",
+                        "manifest.json"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  std::ifstream in(out / "manifest.json");
+  const nlohmann::json m = nlohmann::json::parse(in);
+  EXPECT_EQ(m["format"], "aosr-manifest");
+  EXPECT_EQ(m["simulation"]["scene"]["json"], Scene());
+}
+
+TEST_F(SimulateCliTest, JsonSummaryParses) {
+  const CliRun r = RunCli("simulate " + ScenePath() + " --json --set detector.frame_px=40");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["scene"], "cli-test");
+  EXPECT_EQ(j["frame_shape"], nlohmann::json({40, 40}));  // --set applied
+  EXPECT_EQ(j["strehl"].size(), 2u);
+  EXPECT_FALSE(j["timings"].empty());
+  EXPECT_TRUE(j["output"].is_null());
+  EXPECT_EQ(Entries(), 1u);
+}
+
+TEST_F(SimulateCliTest, BadSceneOrOutputExitsOneNamingTheProblem) {
+  nlohmann::json bad = Scene();
+  bad["r"] = 0;
+  WriteScene(bad);
+  CliRun r = RunCli("simulate " + ScenePath() + " -o " + (dir_ / "out").string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, AllOf(HasSubstr("scene.json: r = 0"), HasSubstr("allowed")));
+  EXPECT_FALSE(fs::exists(dir_ / "out"));  // the scene is checked before anything is made
+  bad = Scene();
+  bad["detector"]["nosie"] = "none";
+  WriteScene(bad);
+  r = RunCli("simulate " + ScenePath());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, AllOf(HasSubstr("detector.nosie"), HasSubstr("unknown field")));
+  WriteScene(Scene());
+  r = RunCli("simulate " + ScenePath() + " --set r=40");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("r = 40"));
+  r = RunCli("simulate " + ScenePath() + " --set =3");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("--set"));
+  r = RunCli("simulate " + (dir_ / "missing.json").string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("missing.json"));
+  // The output folder is checked before the simulation runs.
+  r = RunCli("simulate " + ScenePath() + " -o /dev/null/out");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("/dev/null/out"));
+  // Writing the dataset over the scene file itself is refused.
+  fs::rename(ScenePath(), dir_ / "manifest.json");
+  r = RunCli("simulate " + (dir_ / "manifest.json").string() + " -o " + dir_.string());
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("never overwrites an input"));
+  EXPECT_EQ(Entries(), 1u);
+}
+
+}  // namespace

@@ -1,0 +1,217 @@
+// Datasets: a simulation written by WriteSimulation loads back exactly, and a hand-written "real data"
+// manifest over the same frames (PSFs from an instrument scene) loads to the same data.
+#include "aosr/scene/dataset.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "../io/temp_dir.hpp"
+#include "aosr/io/config.hpp"
+#include "aosr/io/fits.hpp"
+#include "dataset_fixture.hpp"
+#include "support/testing.hpp"
+
+namespace aosr {
+namespace {
+
+namespace fs = std::filesystem;
+using testing_io::TempDir;
+using ::testing::ElementsAre;
+
+double MaxAbsDiff(const Image& a, const Image& b) { return (a - b).abs().maxCoeff(); }
+
+// One simulation shared by the tests (the suite never modifies it).
+class DatasetTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new TempDir;
+    written_ = new test::WrittenSimulation(
+        test::SimulateInto(dir_->File("scene.json"), test::SmallDatasetScene(), dir_->File("sim")));
+  }
+  static void TearDownTestSuite() {
+    delete written_;
+    delete dir_;
+  }
+  static TempDir* dir_;
+  static test::WrittenSimulation* written_;
+};
+TempDir* DatasetTest::dir_ = nullptr;
+test::WrittenSimulation* DatasetTest::written_ = nullptr;
+
+TEST_F(DatasetTest, WritesEveryFileAtomicallyAndNothingElse) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir_->File("sim"))) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  // No temporary files are left behind.
+  EXPECT_THAT(names, ElementsAre("expected.fits", "frames.fits", "manifest.json", "psfs.fits", "truth.fits", "valid.fits",
+                                 "weights.fits"));
+  const FitsData frames = ReadFits(dir_->File("sim/frames.fits"));
+  EXPECT_EQ(frames.header.GetString("ORIGIN"), std::string("aosr ") + AOSR_VERSION);
+  EXPECT_EQ(frames.header.GetString("SCENE"), "dataset-test");
+  EXPECT_EQ(frames.header.GetString("BUNIT"), "adu");
+  EXPECT_EQ(frames.header.GetInt("SRFACTOR"), 2);
+  EXPECT_DOUBLE_EQ(frames.header.GetDouble("GAIN"), 2.0);
+  EXPECT_DOUBLE_EQ(frames.header.GetDouble("BIAS"), 100.0);
+  EXPECT_DOUBLE_EQ(frames.header.GetDouble("EXPTIME"), 0.5);  // total 1 s over N = 2
+  // The truth and PSFs are at HR sampling: half the camera pixel's mas.
+  const FitsData truth = ReadFits(dir_->File("sim/truth.fits"));
+  EXPECT_NEAR(truth.header.GetDouble("PIXSCALE"), frames.header.GetDouble("PIXSCALE") / 2, 1e-12);
+  EXPECT_EQ(truth.header.GetString("BUNIT"), "electron");
+}
+
+TEST_F(DatasetTest, ManifestRecordsTheRunsProvenance) {
+  const nlohmann::json m = ReadJsonFile(dir_->File("sim/manifest.json"));
+  const Simulation& sim = written_->sim;
+  EXPECT_EQ(m["format"], "aosr-manifest");
+  EXPECT_EQ(m["version"], 1);
+  EXPECT_EQ(m["software"], std::string("aosr ") + AOSR_VERSION);
+  EXPECT_EQ(m["simulation"]["scene"]["name"], "dataset-test");
+  EXPECT_EQ(m["simulation"]["scene"]["json"], test::SmallDatasetScene());  // the file as read
+  EXPECT_EQ(m["simulation"]["seeds"]["scene"], 7);
+  EXPECT_EQ(m["simulation"]["seeds"]["noise"], written_->scene.noise_seed);
+  EXPECT_EQ(m["simulation"]["seeds"]["objects"].size(), 2u);
+  ASSERT_EQ(m["simulation"]["exposures"].size(), 2u);
+  EXPECT_DOUBLE_EQ(m["simulation"]["exposures"][1]["strehl"].get<double>(), sim.strehl[1]);
+  EXPECT_DOUBLE_EQ(m["simulation"]["exposures"][1]["psf_window_fraction"].get<double>(), sim.psf_window_fraction[1]);
+  EXPECT_EQ(m["simulation"]["timings_s"].size(), sim.timings.size());
+  EXPECT_EQ(m["noise"]["model"], "none");
+  EXPECT_EQ(m["noise"]["frame_time_s"], 0.5);
+  // paper-8m: camera pixel = lambda/D at 2.2 um on 8 m = 2.75e-7 rad = 56.72 mas; HR = half.
+  EXPECT_NEAR(m["pixel_scale"]["camera_lambda_over_d"].get<double>(), 1.0, 1e-12);
+  EXPECT_NEAR(m["pixel_scale"]["hr_mas"].get<double>(), 2.75e-7 / 2 * 180 / M_PI * 3600e3, 1e-9);
+  // Catalogue stars: camera (10.25, 20.5) <-> HR ((c + 0.5) r - 0.5) = (21, 41.5).
+  ASSERT_EQ(m["stars"].size(), 2u);
+  EXPECT_DOUBLE_EQ(m["stars"][0]["y_hr_px"].get<double>(), 21.0);
+  EXPECT_DOUBLE_EQ(m["stars"][0]["x_hr_px"].get<double>(), 41.5);
+  EXPECT_DOUBLE_EQ(m["stars"][0]["y_px"].get<double>(), 10.25);
+  EXPECT_DOUBLE_EQ(m["stars"][0]["flux_e"].get<double>(), 3000.0);
+}
+
+TEST_F(DatasetTest, RoundTripLoadsExactlyWhatWasSimulated) {
+  const Simulation& sim = written_->sim;
+  for (const std::string& where : {dir_->File("sim"), dir_->File("sim/manifest.json")}) {
+    SCOPED_TRACE(where);
+    const Dataset ds = LoadDataset(where);
+    EXPECT_EQ(ds.r, 2);
+    EXPECT_EQ(ds.frame, (Shape{32, 32}));
+    EXPECT_EQ(ds.hr_frame, (Shape{64, 64}));
+    ASSERT_EQ(ds.size(), 2);
+    EXPECT_EQ(ds.gain_e_per_adu, 2.0);
+    EXPECT_EQ(ds.bias_adu, 100.0);
+    EXPECT_EQ(ds.trustworthy_border_px, sim.geometry.trustworthy_border_px);
+    EXPECT_EQ(ds.psf_size(), sim.geometry.psf_size);
+    EXPECT_NEAR(ds.camera_pixel_rad, 2.75e-7, 1e-20);
+    EXPECT_EQ(ds.wavelength_m, 2.2e-6);
+    ASSERT_TRUE(ds.weights.has_value());
+    ASSERT_TRUE(ds.truth.has_value());
+    EXPECT_EQ(MaxAbsDiff(*ds.truth, sim.truth), 0.0);  // float64 files: bit exact
+    EXPECT_TRUE(fs::exists(ds.expected_file));
+    const ImageStack electrons = ds.FramesElectrons();
+    for (int i = 0; i < 2; ++i) {
+      EXPECT_EQ(MaxAbsDiff(ds.frames[i], sim.frames[i].adu), 0.0);
+      EXPECT_EQ(MaxAbsDiff(ds.valid[i], sim.frames[i].valid), 0.0);
+      EXPECT_EQ(MaxAbsDiff((*ds.weights)[i], sim.frames[i].inverse_variance), 0.0);
+      // Re-normalising a unit-sum kernel changes it by rounding only.
+      EXPECT_LT(MaxAbsDiff(ds.psfs[i], sim.psfs[i]), 1e-15 * sim.psfs[i].maxCoeff() * 10);
+      EXPECT_NEAR(ds.psfs[i].sum(), 1.0, 1e-12);
+      // Noise "none": ADU = e/g + bias exactly, so (ADU - bias) g gives the noiseless electrons back.
+      EXPECT_LT(MaxAbsDiff(electrons[i], sim.expected_e[i]), 1e-10 * sim.expected_e[i].maxCoeff());
+      EXPECT_EQ(ds.offsets[i].shift_y_px, written_->scene.offsets.frames[i].shift_y_px);
+      EXPECT_EQ(ds.offsets[i].shift_x_px, written_->scene.offsets.frames[i].shift_x_px);
+    }
+    // The raster really moved the two exposures (otherwise the offset check above proves nothing).
+    EXPECT_NE(ds.offsets[0].shift_x_px, ds.offsets[1].shift_x_px);
+    ASSERT_EQ(ds.stars.size(), sim.stars.size());
+    for (std::size_t s = 0; s < ds.stars.size(); ++s) {
+      EXPECT_DOUBLE_EQ(ds.stars[s].y, sim.stars[s].y);
+      EXPECT_DOUBLE_EQ(ds.stars[s].x, sim.stars[s].x);
+      EXPECT_DOUBLE_EQ(ds.stars[s].flux, sim.stars[s].flux);
+    }
+  }
+}
+
+// The acceptance for real data: frames copied from the simulation, described by a hand-written
+// manifest whose PSFs come from an instrument scene file, load to the same frames and PSFs.
+TEST_F(DatasetTest, RealDataManifestWithAnInstrumentSceneLoadsTheSameData) {
+  TempDir real;
+  fs::copy_file(dir_->File("sim/frames.fits"), real.File("my_frames.fits"));
+  test::WriteJson(real.File("instrument.json"), test::SmallDatasetScene());
+  test::WriteJson(real.File("night.json"), {{"format", "aosr-manifest"},
+                                            {"version", 1},
+                                            {"comment", "frames of the dataset test, PSFs from the instrument file"},
+                                            {"frames", "my_frames.fits"},
+                                            {"scene", "instrument.json"}});
+  const Dataset ds = LoadDataset(real.File("night.json"));
+  const Dataset sim = LoadDataset(dir_->File("sim"));
+  EXPECT_EQ(ds.r, sim.r);
+  EXPECT_EQ(ds.frame, sim.frame);
+  EXPECT_EQ(ds.gain_e_per_adu, sim.gain_e_per_adu);  // from the scene's detector
+  EXPECT_EQ(ds.bias_adu, sim.bias_adu);
+  EXPECT_EQ(ds.trustworthy_border_px, sim.trustworthy_border_px);
+  EXPECT_EQ(ds.camera_pixel_rad, sim.camera_pixel_rad);
+  EXPECT_FALSE(ds.weights.has_value());
+  EXPECT_FALSE(ds.truth.has_value());
+  ASSERT_EQ(ds.size(), sim.size());
+  for (int i = 0; i < ds.size(); ++i) {
+    EXPECT_EQ(MaxAbsDiff(ds.frames[i], sim.frames[i]), 0.0);
+    EXPECT_EQ(ds.valid[i].minCoeff(), 1.0);
+    EXPECT_LT(MaxAbsDiff(ds.psfs[i], sim.psfs[i]), 1e-14 * sim.psfs[i].maxCoeff());
+    EXPECT_EQ(ds.offsets[i].shift_y_px, sim.offsets[i].shift_y_px);
+    EXPECT_EQ(ds.offsets[i].shift_x_px, sim.offsets[i].shift_x_px);
+  }
+}
+
+// Measured PSFs: one shared plane (not unit sum) is broadcast and normalised; NaN pixels of the frames
+// (the FITS convention for bad ones) become invalid, read the bias and get weight 0.
+TEST_F(DatasetTest, RealDataManifestWithMeasuredPsfsAndBadPixels) {
+  TempDir real;
+  const Dataset sim = LoadDataset(dir_->File("sim"));
+  ImageStack frames = sim.frames;
+  frames[1](3, 4) = std::nan("");
+  WriteFitsCube(real.File("frames.fits"), frames, {}, FitsType::kFloat64);
+  WriteFits(real.File("psf.fits"), Image(sim.psfs[0] * 5.0), {}, FitsType::kFloat64);
+  WriteFitsCube(real.File("w.fits"), *sim.weights, {}, FitsType::kFloat64);
+  test::WriteJson(real.File("manifest.json"), {{"format", "aosr-manifest"},
+                                               {"version", 1},
+                                               {"frames", "frames.fits"},
+                                               {"psfs", real.File("psf.fits")},  // absolute paths are kept
+                                               {"weights", "w.fits"},
+                                               {"r", 2},
+                                               {"gain_e_per_adu", 2.0},
+                                               {"bias_adu", 100.0},
+                                               {"stars", {{{"y_px", 10.25}, {"x_px", 20.5}, {"flux_e", 3000.0}}}}});
+  const Dataset ds = LoadDataset(real.path().string());
+  ASSERT_EQ(ds.size(), 2);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_NEAR(ds.psfs[i].sum(), 1.0, 1e-12);
+    EXPECT_LT(MaxAbsDiff(ds.psfs[i], sim.psfs[0]), 1e-15);
+    EXPECT_EQ(ds.offsets[i], DmOffset{});  // none given
+  }
+  EXPECT_EQ(ds.valid[1](3, 4), 0.0);
+  EXPECT_EQ(ds.valid[1].sum(), 32 * 32 - 1);
+  EXPECT_EQ(ds.frames[1](3, 4), 100.0);
+  EXPECT_EQ((*ds.weights)[1](3, 4), 0.0);
+  EXPECT_EQ(ds.FramesElectrons()[1](3, 4), 0.0);
+  EXPECT_EQ(ds.trustworthy_border_px, (ds.psf_size() / 2 + 1) / 2);  // ceil(K / 2 / r)
+  ASSERT_EQ(ds.stars.size(), 1u);
+  EXPECT_DOUBLE_EQ(ds.stars[0].y, 21.0);  // camera -> HR
+  EXPECT_DOUBLE_EQ(ds.stars[0].x, 41.5);
+}
+
+TEST_F(DatasetTest, RewritingAFolderReplacesTheDataset) {
+  TempDir t;
+  nlohmann::json j = test::SmallDatasetScene();
+  test::SimulateInto(t.File("a.json"), j, t.File("out"));
+  j["objects"][0]["flux"]["peak_e"] = 1000.0;
+  const test::WrittenSimulation second = test::SimulateInto(t.File("b.json"), j, t.File("out"));
+  const Dataset ds = LoadDataset(t.File("out"));
+  EXPECT_EQ(MaxAbsDiff(ds.frames[0], second.sim.frames[0].adu), 0.0);
+  EXPECT_EQ(ds.manifest["simulation"]["scene"]["source"], t.File("b.json"));
+  EXPECT_EQ(std::distance(fs::directory_iterator(t.File("out")), fs::directory_iterator()), 7);
+}
+
+}  // namespace
+}  // namespace aosr
