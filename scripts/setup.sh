@@ -7,7 +7,10 @@ cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config
           libeigen3-dev libceres-dev libfftw3-dev libopencv-dev libopenimageio-dev libcfitsio-dev
-          nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev)
+          nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev
+          # OpenImageIO's CMake config names its command-line tools as imported targets and fails
+          # when they are absent, which --no-install-recommends leaves them.
+          openimageio-tools)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
