@@ -103,12 +103,16 @@ struct SimulationCounters {
 
 struct Simulation {
   SceneGeometry geometry;
-  Image truth;                     // the object on the HR frame, electrons per frame per HR pixel
-  std::vector<PointSource> stars;  // stars in HR-frame pixel coordinates, electrons per frame (also in truth)
+  Image truth;                     // the object on the HR frame, electrons per frame per HR pixel; stars are
+                                   // deposited bilinearly (non-negative, flux and centroid kept)
+  std::vector<PointSource> stars;  // stars in HR-frame pixel coordinates, electrons per frame: the exact truth
   ImageStack psfs;                 // h_i, psf_size², centred (image.hpp), unit sum; one per exposure
   std::vector<int> distinct_psf;   // exposure i used distinct PSF distinct_psf[i]
   std::vector<double> psf_window_fraction;  // light of h_i inside its window before normalisation
-  std::vector<double> strehl;      // on-axis Strehl of h_i's optics (AO residual, offsets, aberrations)
+  // Strehl of h_i about its own centre: diffraction and analytic modes exclude the OPD's tip/tilt (a designed
+  // shift is not a loss of quality; analytic: the residual's Strehl times the static OPD's); closed loop: the
+  // loop's mean on-axis Strehl, which includes the offset's tilt.
+  std::vector<double> strehl;
   ImageStack expected_e;           // noiseless frames, electrons
   std::vector<DetectorFrame> frames;
   std::vector<StageTiming> timings;
@@ -134,7 +138,7 @@ class ScenePipeline {
 
   // The stages before the detector, for callers that need only part of the chain (real data needs the
   // PSFs; tests need the noiseless frames).
-  // The object on the HR frame (stars included as PointSourceImage) and the star catalogue.
+  // The object on the HR frame (stars deposited bilinearly) and the star catalogue.
   Image RenderTruth(std::vector<PointSource>* stars) const;
   // h_i of every exposure (unit sum), with the distinct-PSF map, window fractions and Strehl ratios.
   ImageStack ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
