@@ -8,30 +8,51 @@
 namespace aosr {
 
 bool ConjugateGradientOptions::IsValid(std::string* why) const {
-  if (max_iterations < 1) return *why = "max_iterations must be >= 1", false;
-  if (!(tolerance > 0 && tolerance < 1)) return *why = "tolerance must be in (0, 1)", false;
+  auto fail = [why](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (max_iterations < 1) return fail("max_iterations must be >= 1, got " + std::to_string(max_iterations));
+  if (!(tolerance > 0 && tolerance < 1))
+    return fail("tolerance must be in (0, 1), got " + ToString(tolerance));
   return true;
 }
 
-SolverSummary ConjugateGradient(const LinearOperator& normal, const Vector& b, Vector* x,
-                                const ConjugateGradientOptions& options) {
+namespace {
+
+// The CG recurrence on M⁻¹N (M⁻¹ = I when `preconditioner` is null). Residuals r are of the true system.
+SolverSummary Solve(const char* function, const LinearOperator& normal, const LinearOperator* preconditioner,
+                    const Vector& b, Vector* x, const ConjugateGradientOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument("ConjugateGradient: " + why);
-  CheckArgument(normal.rows() == normal.cols(), "ConjugateGradient", "normal", normal.name(), "a square operator");
-  CheckArgument(x != nullptr && x->size() == normal.cols(), "ConjugateGradient", "x size",
-                x ? x->size() : -1, std::to_string(normal.cols()));
-  CheckArgument(b.size() == normal.rows(), "ConjugateGradient", "b size", b.size(), std::to_string(normal.rows()));
-  CheckArgument(b.allFinite() && x->allFinite(), "ConjugateGradient", "b or x", "non-finite values", "finite");
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(function) + ": options." + why);
+  CheckArgument(normal.rows() == normal.cols(), function, "normal", normal.name(), "a square operator");
+  if (preconditioner)
+    CheckArgument(preconditioner->rows() == normal.rows() && preconditioner->cols() == normal.cols(),
+                  function, "preconditioner",
+                  preconditioner->name() + " (" + std::to_string(preconditioner->rows()) + "x" +
+                      std::to_string(preconditioner->cols()) + ")",
+                  "a square operator of the normal's size " + std::to_string(normal.rows()));
+  CheckArgument(x != nullptr && x->size() == normal.cols(), function, "x size", x ? x->size() : -1,
+                std::to_string(normal.cols()));
+  CheckArgument(b.size() == normal.rows(), function, "b size", b.size(), std::to_string(normal.rows()));
+  CheckArgument(b.allFinite() && x->allFinite(), function, "b or x", "non-finite values", "finite");
   const auto start = std::chrono::steady_clock::now();
   SolverSummary s;
-  s.method = "conjugate-gradient";
+  s.method = preconditioner ? "preconditioned-conjugate-gradient" : "conjugate-gradient";
   const double bnorm = b.norm();
   Vector r = b - normal.Apply(*x);
-  Vector p = r, q(b.size());
-  double rr = r.squaredNorm();
+  Vector z = preconditioner ? preconditioner->Apply(r) : r;
+  Vector p = z, q(b.size());
+  double rz = r.dot(z);
+  double rnorm = r.norm();
   s.termination = Termination::kMaxIterations;
-  if (bnorm == 0 || std::sqrt(rr) <= options.tolerance * bnorm) s.termination = Termination::kConverged;
+  if (bnorm == 0 || rnorm <= options.tolerance * bnorm) s.termination = Termination::kConverged;
   while (s.termination == Termination::kMaxIterations && s.iterations < options.max_iterations) {
+    if (!(rz > 0)) {  // r != 0 here, so rᵀM⁻¹r <= 0 means M⁻¹ is not positive definite
+      s.termination = Termination::kFailed;
+      s.message = "preconditioner not positive definite: r'M^-1 r = " + ToString(rz);
+      break;
+    }
     normal.Apply(p, q);
     const double pq = p.dot(q);
     if (!(pq > 0)) {  // zero curvature: x is a least-squares solution within the range already reached
@@ -39,25 +60,48 @@ SolverSummary ConjugateGradient(const LinearOperator& normal, const Vector& b, V
       s.message = "stopped on non-positive curvature p'Np = " + ToString(pq);
       break;
     }
-    const double alpha = rr / pq;
+    const double alpha = rz / pq;
     x->noalias() += alpha * p;
     r.noalias() -= alpha * q;
-    const double rr_new = r.squaredNorm();
+    const double rnorm_new = r.norm();
     ++s.iterations;
-    if (!std::isfinite(rr_new)) {
+    if (!std::isfinite(rnorm_new)) {
       x->noalias() -= alpha * p;
       s.termination = Termination::kFailed;
       s.message = "non-finite residual; returned the last finite iterate";
       break;
     }
-    if (std::sqrt(rr_new) <= options.tolerance * bnorm) s.termination = Termination::kConverged;
-    p = r + (rr_new / rr) * p;
-    rr = rr_new;
+    rnorm = rnorm_new;
+    if (rnorm <= options.tolerance * bnorm) {
+      s.termination = Termination::kConverged;
+      break;
+    }
+    if (preconditioner) {
+      preconditioner->Apply(r, z);
+    } else {
+      z = r;
+    }
+    const double rz_new = r.dot(z);
+    p = z + (rz_new / rz) * p;
+    rz = rz_new;
   }
-  s.final_cost = bnorm > 0 ? std::sqrt(rr) / bnorm : 0.0;
+  s.final_cost = bnorm > 0 ? rnorm / bnorm : 0.0;
   if (s.message.empty()) s.message = "relative residual " + ToString(s.final_cost);
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return s;
+}
+
+}  // namespace
+
+SolverSummary ConjugateGradient(const LinearOperator& normal, const Vector& b, Vector* x,
+                                const ConjugateGradientOptions& options) {
+  return Solve("ConjugateGradient", normal, nullptr, b, x, options);
+}
+
+SolverSummary PreconditionedConjugateGradient(const LinearOperator& normal,
+                                              const LinearOperator& preconditioner, const Vector& b,
+                                              Vector* x, const ConjugateGradientOptions& options) {
+  return Solve("PreconditionedConjugateGradient", normal, &preconditioner, b, x, options);
 }
 
 }  // namespace aosr

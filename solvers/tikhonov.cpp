@@ -1,6 +1,7 @@
 #include "aosr/solvers/tikhonov.hpp"
 
 #include <Eigen/Dense>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -8,14 +9,20 @@
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
+#include "tikhonov_internal.hpp"
 
 namespace aosr {
 
 const char* ToString(TikhonovPrior p) {
   switch (p) {
-    case TikhonovPrior::kIdentity: return "identity";
-    case TikhonovPrior::kGradient: return "gradient";
-    case TikhonovPrior::kLaplacian: return "laplacian";
+    case TikhonovPrior::kIdentity:
+      return "identity";
+    case TikhonovPrior::kGradient:
+      return "gradient";
+    case TikhonovPrior::kLaplacian:
+      return "laplacian";
+    case TikhonovPrior::kPowerSpectrum:
+      return "power-spectrum";
   }
   return "unknown";
 }
@@ -24,7 +31,21 @@ TikhonovPrior ParseTikhonovPrior(const std::string& name) {
   if (name == "identity") return TikhonovPrior::kIdentity;
   if (name == "gradient") return TikhonovPrior::kGradient;
   if (name == "laplacian") return TikhonovPrior::kLaplacian;
-  throw InvalidArgument("ParseTikhonovPrior", "prior", name, "identity, gradient or laplacian");
+  if (name == "power-spectrum") return TikhonovPrior::kPowerSpectrum;
+  throw InvalidArgument("ParseTikhonovPrior", "prior", name,
+                        "identity, gradient or laplacian, or power-spectrum");
+}
+
+const char* ToString(TikhonovLambdaRule rule) {
+  switch (rule) {
+    case TikhonovLambdaRule::kFixed:
+      return "fixed";
+    case TikhonovLambdaRule::kGcv:
+      return "gcv";
+    case TikhonovLambdaRule::kDiscrepancy:
+      return "discrepancy";
+  }
+  return "unknown";
 }
 
 bool TikhonovOptions::IsValid(std::string* why) const {
@@ -32,190 +53,637 @@ bool TikhonovOptions::IsValid(std::string* why) const {
     if (why) *why = m;
     return false;
   };
-  if (!(lambda >= 0 && std::isfinite(lambda))) return fail("lambda must be finite and >= 0, got " + ToString(lambda));
+  if (!(lambda >= 0 && std::isfinite(lambda)))
+    return fail("lambda must be finite and >= 0, got " + ToString(lambda));
   if (!(rank_tolerance > 0 && rank_tolerance < 1))
     return fail("rank_tolerance must be in (0, 1), got " + ToString(rank_tolerance));
-  if (lambda_rule == TikhonovLambdaRule::kGcv && !(gcv_decades > 0 && gcv_decades <= 20 && gcv_steps_per_decade >= 1 &&
-                                                  gcv_steps_per_decade <= 20))
+  if (lambda_rule == TikhonovLambdaRule::kGcv &&
+      !(gcv_decades > 0 && gcv_decades <= 20 && gcv_steps_per_decade >= 1 && gcv_steps_per_decade <= 20))
     return fail("gcv_decades must be in (0, 20] and gcv_steps_per_decade in 1..20");
-  return true;
-}
-
-OperatorPtr TikhonovPriorOperator(Shape hr, TikhonovPrior prior) {
-  switch (prior) {
-    case TikhonovPrior::kIdentity: return Identity(hr.size());
-    case TikhonovPrior::kGradient: return Gradient(hr, Boundary::kPeriodic);
-    case TikhonovPrior::kLaplacian: return Normal(Gradient(hr, Boundary::kPeriodic));  // ∇ᵀ∇
+  if (!(spectrum_slope >= 0 && spectrum_slope <= 8))
+    return fail("spectrum_slope must be in [0, 8], got " + ToString(spectrum_slope));
+  if (!(spectrum_corner > 0 && spectrum_corner <= 0.5))
+    return fail("spectrum_corner must be in (0, 0.5] cycles per HR pixel, got " + ToString(spectrum_corner));
+  if (object_power_spectrum.size() > 0) {
+    const Image& s = object_power_spectrum;
+    if (!AllFinite(s) || !(s.minCoeff() > 0))
+      return fail("object_power_spectrum must be finite and > 0 everywhere");
+    const Index R = s.rows(), C = s.cols();
+    for (Index y = 0; y < R; ++y)
+      for (Index x = 0; x < C; ++x) {
+        const double t = s((R - y) % R, (C - x) % C);
+        if (std::abs(s(y, x) - t) > 1e-12 * std::max(s(y, x), t))
+          return fail(
+              "object_power_spectrum must be symmetric, S(-f) = S(f) (the spectrum of a real object); "
+              "differs at bin (" +
+              std::to_string(y) + ", " + std::to_string(x) + ")");
+      }
+    if (boundary == TikhonovBoundary::kZeroPadded)
+      return fail(
+          "object_power_spectrum is tied to the model's grid: use boundary kPeriodic or the parametric "
+          "spectrum");
   }
-  throw InvalidArgument("TikhonovPriorOperator", "prior", "unknown", "identity, gradient or laplacian");
-}
-
-double TikhonovPriorSymbol(TikhonovPrior prior, Shape hr, Index fy, Index fx) {
-  if (prior == TikhonovPrior::kIdentity) return 1.0;
-  const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
-  const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
-  const double g = 4.0 * (sy * sy + sx * sx);
-  return prior == TikhonovPrior::kGradient ? g : g * g;
+  if (!(noise_sigma >= 0 && std::isfinite(noise_sigma)))
+    return fail("noise_sigma must be finite and >= 0, got " + ToString(noise_sigma));
+  if (lambda_rule == TikhonovLambdaRule::kDiscrepancy && !(noise_sigma > 0))
+    return fail("noise_sigma must be > 0 for the discrepancy rule (it sets the target residual)");
+  if (compute_std && !(noise_sigma > 0))
+    return fail("noise_sigma must be > 0 for compute_std (it scales the map)");
+  if (lambda_rule == TikhonovLambdaRule::kDiscrepancy) {
+    if (!(discrepancy_factor >= 0.1 && discrepancy_factor <= 10))
+      return fail("discrepancy_factor must be in [0.1, 10], got " + ToString(discrepancy_factor));
+    if (!(discrepancy_tolerance > 0 && discrepancy_tolerance <= 0.1))
+      return fail("discrepancy_tolerance must be in (0, 0.1], got " + ToString(discrepancy_tolerance));
+    if (discrepancy_max_evaluations < 4 || discrepancy_max_evaluations > 1000)
+      return fail("discrepancy_max_evaluations must be in 4..1000, got " +
+                  std::to_string(discrepancy_max_evaluations));
+  }
+  if (padding < -1) return fail("padding must be >= 0, or -1 for automatic, got " + std::to_string(padding));
+  if (method == TikhonovMethod::kFourier && boundary == TikhonovBoundary::kZeroPadded)
+    return fail("method kFourier needs boundary kPeriodic (zero padding breaks the Fourier structure)");
+  std::string cg_why;
+  if (!cg.IsValid(&cg_why)) return fail("cg." + cg_why);
+  return true;
 }
 
 namespace {
 
-// Everything about one LR frequency bin that does not depend on λ.
-struct Bin {
-  Eigen::MatrixXcd a;        // N x r² aliased system
-  Eigen::VectorXcd y;        // N data values
-  Eigen::VectorXd prior;     // |Γ̂|² on the r² aliased HR bins
-  int rank = 0;              // numerical rank of a
-};
+double ParametricSpectrum(const TikhonovOptions& o, Shape hr, Index fy, Index fx) {
+  const double vy = double(SignedFrequency(fy, hr.rows)) / double(hr.rows);
+  const double vx = double(SignedFrequency(fx, hr.cols)) / double(hr.cols);
+  const double f0 = o.spectrum_corner;
+  return std::pow(1.0 + (vy * vy + vx * vx) / (f0 * f0), -0.5 * o.spectrum_slope);
+}
 
-struct BinSolution {
-  Eigen::VectorXcd x;
-  double residual2 = 0;  // |y - A x|²
-  double trace = 0;      // tr(A (AᴴA + wP)⁺ Aᴴ): the bin's share of the influence-matrix trace
-};
+TikhonovOptions WithPrior(TikhonovPrior prior) {
+  TikhonovOptions o;
+  o.prior = prior;
+  return o;
+}
 
-// Solves one bin for weight w = λ/r² (see the header's normal equations).
-BinSolution SolveBin(const Bin& b, double w, double sv_floor, bool want_trace) {
+}  // namespace
+
+double TikhonovPriorSymbol(const TikhonovOptions& options, Shape hr, Index fy, Index fx) {
+  switch (options.prior) {
+    case TikhonovPrior::kIdentity:
+      return 1.0;
+    case TikhonovPrior::kGradient:
+    case TikhonovPrior::kLaplacian: {
+      const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
+      const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
+      const double g = 4.0 * (sy * sy + sx * sx);
+      return options.prior == TikhonovPrior::kGradient ? g : g * g;
+    }
+    case TikhonovPrior::kPowerSpectrum:
+      if (options.object_power_spectrum.size() > 0) {
+        if (ShapeOf(options.object_power_spectrum) != hr)
+          throw InvalidArgument("TikhonovPriorSymbol", "options.object_power_spectrum shape",
+                                ToString(ShapeOf(options.object_power_spectrum)),
+                                "the HR grid " + ToString(hr));
+        return 1.0 / options.object_power_spectrum(fy, fx);
+      }
+      return 1.0 / ParametricSpectrum(options, hr, fy, fx);
+  }
+  throw InvalidArgument("TikhonovPriorSymbol", "prior", "unknown",
+                        "identity, gradient, laplacian or power-spectrum");
+}
+
+double TikhonovPriorSymbol(TikhonovPrior prior, Shape hr, Index fy, Index fx) {
+  return TikhonovPriorSymbol(WithPrior(prior), hr, fy, fx);
+}
+
+OperatorPtr TikhonovPriorOperator(Shape hr, const TikhonovOptions& options) {
+  switch (options.prior) {
+    case TikhonovPrior::kIdentity:
+      return Identity(hr.size());
+    case TikhonovPrior::kGradient:
+      return Gradient(hr, Boundary::kPeriodic);
+    case TikhonovPrior::kLaplacian:
+      return Normal(Gradient(hr, Boundary::kPeriodic));  // ∇ᵀ∇
+    case TikhonovPrior::kPowerSpectrum: {
+      // Γ = S^(−½)⊛: a real, even transfer function, so a real symmetric kernel.
+      ComplexImage t(hr.rows, hr.cols / 2 + 1);
+      for (Index fy = 0; fy < hr.rows; ++fy)
+        for (Index fx = 0; fx < t.cols(); ++fx)
+          t(fy, fx) = std::sqrt(TikhonovPriorSymbol(options, hr, fy, fx));
+      return PeriodicConvolution(hr, t);
+    }
+  }
+  throw InvalidArgument("TikhonovPriorOperator", "prior", "unknown",
+                        "identity, gradient, laplacian or power-spectrum");
+}
+
+OperatorPtr TikhonovPriorOperator(Shape hr, TikhonovPrior prior) {
+  return TikhonovPriorOperator(hr, WithPrior(prior));
+}
+
+namespace tikhonov_internal {
+
+Image PriorSymbolImage(const TikhonovOptions& options, Shape hr) {
+  Image p(hr.rows, hr.cols);
+  for (Index fy = 0; fy < hr.rows; ++fy)
+    for (Index fx = 0; fx < hr.cols; ++fx) p(fy, fx) = TikhonovPriorSymbol(options, hr, fy, fx);
+  return p;
+}
+
+FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_symbol, double rank_tolerance,
+                             TikhonovBinSolver solver)
+    : model_(model), solver_(solver) {
+  const Shape lr = model.lr_shape();
+  const int r = model.r(), rr = r * r;
+  bins_.resize(lr.size());
+  double trace_ata = 0, trace_p = 0, sv_max = 0;
+  std::vector<Eigen::VectorXd> svs(bins_.size());
+  for (Index uy = 0; uy < lr.rows; ++uy)
+    for (Index ux = 0; ux < lr.cols; ++ux) {
+      Bin& b = bins_[uy * lr.cols + ux];
+      b.a = model.AliasedSystem(uy, ux);
+      b.y = Eigen::VectorXcd::Zero(model.frames());
+      b.prior.resize(rr);
+      for (int ky = 0; ky < r; ++ky)
+        for (int kx = 0; kx < r; ++kx)
+          b.prior[ky * r + kx] = prior_symbol(uy + ky * lr.rows, ux + kx * lr.cols);
+      b.prior_positive = (b.prior.array() > 0).all();
+      trace_ata += b.a.squaredNorm();
+      trace_p += b.prior.sum();
+      svs[uy * lr.cols + ux] = Eigen::JacobiSVD<Eigen::MatrixXcd>(b.a).singularValues();
+      if (svs[uy * lr.cols + ux].size()) sv_max = std::max(sv_max, svs[uy * lr.cols + ux][0]);
+    }
+  sv_floor_ = rank_tolerance * sv_max;
+  for (std::size_t i = 0; i < bins_.size(); ++i) {
+    bins_[i].rank = int((svs[i].array() > sv_floor_).count());
+    if (bins_[i].rank < rr) {
+      ++deficient_;
+      unconstrained_ += rr - bins_[i].rank;
+    }
+  }
+  lambda0_ = trace_p > 0 && trace_ata > 0 ? trace_ata / trace_p : 1.0;
+}
+
+void FourierSystem::SetData(const ImageStack& frames) {
+  const Shape lr = model_.lr_shape();
+  for (int i = 0; i < model_.frames(); ++i) {
+    const ComplexImage s = FftForward(frames.at(i).cast<Complex>());
+    for (Index u = 0; u < lr.size(); ++u) bins_[u].y[i] = s(u / lr.cols, u % lr.cols);
+  }
+}
+
+FourierSystem::Path FourierSystem::Choose(const Bin& b, double w) const {
+  const Index n = b.a.rows(), rr = b.a.cols();
+  if (w > 0 && b.prior_positive && solver_ != TikhonovBinSolver::kNormalEquations &&
+      (solver_ == TikhonovBinSolver::kWoodbury || n < rr))
+    return Path::kWoodbury;
+  if (b.rank == rr || (w > 0 && b.prior_positive)) return Path::kNormal;
+  return Path::kMinimumNorm;
+}
+
+namespace {
+
+// The stacked system [A; √(wP)] of a bin, its SVD with the global floor (minimum-norm path).
+Eigen::JacobiSVD<Eigen::MatrixXcd> StackedSvd(const Eigen::MatrixXcd& a, const Eigen::VectorXd& prior,
+                                              double w, double sv_floor) {
+  const Index n = a.rows(), rr = a.cols();
+  Eigen::MatrixXcd stacked = Eigen::MatrixXcd::Zero(n + rr, rr);
+  stacked.topRows(n) = a;
+  for (Index k = 0; k < rr; ++k) stacked(n + k, k) = std::sqrt(w * prior[k]);
+  Eigen::JacobiSVD<Eigen::MatrixXcd> svd(stacked, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  const double local_max = svd.singularValues().size() ? svd.singularValues()[0] : 0.0;
+  svd.setThreshold(local_max > 0 ? std::min(1.0, sv_floor / local_max) : 1.0);
+  return svd;
+}
+
+}  // namespace
+
+FourierSystem::BinSolution FourierSystem::SolveBin(const Bin& b, double w, bool want_trace) const {
   const Index n = b.a.rows(), rr = b.a.cols();
   BinSolution s;
-  const bool prior_positive = (b.prior.array() > 0).all();
-  if (b.rank == rr || (w > 0 && prior_positive)) {
-    // Well posed: Cholesky of the Hermitian positive definite normal matrix.
+  Path path = Choose(b, w);
+  if (path == Path::kWoodbury) {
+    // (3): K = A P⁻¹ Aᴴ + w I (N x N), X = P⁻¹ Aᴴ K⁻¹ Y.
+    const Eigen::MatrixXcd ap = b.a * b.prior.cwiseInverse().asDiagonal();  // A P⁻¹
+    Eigen::MatrixXcd k = ap * b.a.adjoint();
+    k.diagonal().array() += w;
+    const Eigen::LLT<Eigen::MatrixXcd> llt(k);
+    if (llt.info() == Eigen::Success) {
+      s.x = ap.adjoint() * llt.solve(b.y);
+      s.woodbury = true;
+      if (want_trace) {
+        // N − tr H = w tr K⁻¹ = w ||L⁻¹||²: the residual degrees of freedom without cancellation.
+        s.dof = w * llt.matrixL().solve(Eigen::MatrixXcd::Identity(n, n)).squaredNorm();
+      }
+    } else {
+      path = Path::kNormal;
+    }
+  }
+  if (path == Path::kNormal) {
+    // Well posed: Cholesky of the Hermitian positive definite normal matrix (2).
     Eigen::MatrixXcd normal = b.a.adjoint() * b.a;
     normal.diagonal().array() += w * b.prior.array();
     const Eigen::LLT<Eigen::MatrixXcd> llt(normal);
-    s.x = llt.solve(b.a.adjoint() * b.y);
-    if (want_trace) {
-      const Eigen::MatrixXcd z = llt.matrixL().solve(b.a.adjoint());  // L⁻¹Aᴴ
-      s.trace = z.squaredNorm();
+    if (llt.info() == Eigen::Success) {
+      s.x = llt.solve(b.a.adjoint() * b.y);
+      if (want_trace) s.dof = double(n) - llt.matrixL().solve(b.a.adjoint()).squaredNorm();  // N − ||L⁻¹Aᴴ||²
+    } else {
+      path = Path::kMinimumNorm;
     }
-  } else {
-    // Otherwise the minimum-norm least-squares solution of the stacked system [A; sqrt(w) P^½] by SVD,
-    // singular values below the global floor dropped: unconstrained frequencies come back as zero.
-    Eigen::MatrixXcd stacked = Eigen::MatrixXcd::Zero(n + rr, rr);
-    stacked.topRows(n) = b.a;
-    for (Index k = 0; k < rr; ++k) stacked(n + k, k) = std::sqrt(w * b.prior[k]);
-    Eigen::JacobiSVD<Eigen::MatrixXcd> svd(stacked, Eigen::ComputeThinU | Eigen::ComputeThinV);
-    const double local_max = svd.singularValues().size() ? svd.singularValues()[0] : 0.0;
-    svd.setThreshold(local_max > 0 ? std::min(1.0, sv_floor / local_max) : 1.0);
+  }
+  if (path == Path::kMinimumNorm) {
+    // The minimum-norm least-squares solution of the stacked system [A; √w P^½], singular values below the
+    // global floor dropped: unconstrained frequencies come back as zero.
+    const auto svd = StackedSvd(b.a, b.prior, w, sv_floor_);
     Eigen::VectorXcd rhs = Eigen::VectorXcd::Zero(n + rr);
     rhs.head(n) = b.y;
     s.x = svd.solve(rhs);
     if (want_trace) {
       Eigen::MatrixXcd e = Eigen::MatrixXcd::Zero(n + rr, n);
       e.topRows(n).setIdentity();
-      s.trace = (b.a * svd.solve(e)).trace().real();
+      s.dof = double(n) - (b.a * svd.solve(e)).trace().real();
     }
   }
   s.residual2 = (b.y - b.a * s.x).squaredNorm();
   return s;
 }
 
+Eigen::MatrixXcd FourierSystem::InverseBin(const Bin& b, double w, bool* proper, bool* woodbury) const {
+  const Index rr = b.a.cols();
+  Path path = Choose(b, w);
+  *woodbury = false;
+  if (path == Path::kWoodbury) {
+    // G⁻¹ = (P⁻¹ − P⁻¹Aᴴ K⁻¹ A P⁻¹) / w.
+    const Eigen::VectorXd pinv = b.prior.cwiseInverse();
+    const Eigen::MatrixXcd ap = b.a * pinv.asDiagonal();
+    Eigen::MatrixXcd k = ap * b.a.adjoint();
+    k.diagonal().array() += w;
+    const Eigen::LLT<Eigen::MatrixXcd> llt(k);
+    if (llt.info() == Eigen::Success) {
+      const Eigen::MatrixXcd z = llt.matrixL().solve(ap);  // L⁻¹ A P⁻¹
+      Eigen::MatrixXcd g = -(z.adjoint() * z);
+      g.diagonal() += pinv.cast<Complex>();
+      *woodbury = true;
+      return g / w;
+    }
+    path = Path::kNormal;
+  }
+  if (path == Path::kNormal) {
+    Eigen::MatrixXcd normal = b.a.adjoint() * b.a;
+    normal.diagonal().array() += w * b.prior.array();
+    const Eigen::LLT<Eigen::MatrixXcd> llt(normal);
+    if (llt.info() == Eigen::Success) return llt.solve(Eigen::MatrixXcd::Identity(rr, rr));
+  }
+  // Pseudo-inverse of G = SᴴS, S the stacked system: V diag(1/s²) Vᴴ over the singular values kept.
+  const auto svd = StackedSvd(b.a, b.prior, w, sv_floor_);
+  const Eigen::VectorXd& sv = svd.singularValues();
+  Eigen::VectorXd inv2 = Eigen::VectorXd::Zero(sv.size());
+  for (Index k = 0; k < sv.size(); ++k) {
+    if (sv[k] > sv_floor_ && sv[k] > 0) {
+      inv2[k] = 1.0 / (sv[k] * sv[k]);
+    } else {
+      *proper = false;
+    }
+  }
+  return svd.matrixV() * inv2.asDiagonal() * svd.matrixV().adjoint();
+}
+
+FourierSystem::Fit FourierSystem::Evaluate(double lambda, bool want_trace) const {
+  const double w = lambda / double(model_.r() * model_.r());
+  Fit f;
+  for (const Bin& b : bins_) {
+    const BinSolution s = SolveBin(b, w, want_trace);
+    f.residual2 += s.residual2;
+    f.dof += s.dof;
+    f.woodbury_bins += s.woodbury;
+  }
+  f.residual2 /= double(bins_.size());  // Parseval for the unnormalised DFT: ||y||² = Σ|Y|² / m²
+  return f;
+}
+
+Image FourierSystem::Solve(double lambda, Fit* fit) const {
+  const Shape hr = model_.hr_shape(), lr = model_.lr_shape();
+  const int r = model_.r();
+  const double w = lambda / double(r * r);
+  ComplexImage X(hr.rows, hr.cols);
+  Fit f;
+  for (Index uy = 0; uy < lr.rows; ++uy)
+    for (Index ux = 0; ux < lr.cols; ++ux) {
+      const BinSolution s = SolveBin(bins_[uy * lr.cols + ux], w, false);
+      f.residual2 += s.residual2;
+      f.woodbury_bins += s.woodbury;
+      for (int ky = 0; ky < r; ++ky)
+        for (int kx = 0; kx < r; ++kx) X(uy + ky * lr.rows, ux + kx * lr.cols) = s.x[ky * r + kx];
+    }
+  f.residual2 /= double(bins_.size());
+  if (fit) *fit = f;
+  Image x = FftInverse(X).real();
+  if (!AllFinite(x)) throw NumericalError("Tikhonov Fourier solve produced non-finite values");
+  return x;
+}
+
+std::vector<Eigen::MatrixXcd> FourierSystem::Inverses(double lambda, bool* proper,
+                                                      Index* woodbury_bins) const {
+  const double w = lambda / double(model_.r() * model_.r());
+  std::vector<Eigen::MatrixXcd> out(bins_.size());
+  bool ok = true;
+  Index wb = 0;
+  for (std::size_t i = 0; i < bins_.size(); ++i) {
+    bool used = false;
+    out[i] = InverseBin(bins_[i], w, &ok, &used);
+    wb += used;
+  }
+  if (proper) *proper = ok;
+  if (woodbury_bins) *woodbury_bins = wb;
+  return out;
+}
+
+namespace {
+
+class FourierInverseOp final : public LinearOperator {
+ public:
+  FourierInverseOp(Shape hr, int r, std::vector<Eigen::MatrixXcd> inverses, double scale)
+      : LinearOperator(hr.size(), hr.size(),
+                       "FourierInverse(" + ToString(hr) + ", r=" + std::to_string(r) + ")"),
+        hr_(hr),
+        r_(r),
+        inverses_(std::move(inverses)),
+        scale_(scale / double(r * r)) {}
+
+ private:
+  // (1/r²) IFFT(G⁻¹ FFT b), bin by bin.
+  void ApplyImpl(ConstRef b, Ref x) const override {
+    const Shape lr{hr_.rows / r_, hr_.cols / r_};
+    const ComplexImage B = FftForward(AsImage(Vector(b), hr_).cast<Complex>());
+    ComplexImage X(hr_.rows, hr_.cols);
+    Eigen::VectorXcd v(r_ * r_), z(r_ * r_);
+    for (Index uy = 0; uy < lr.rows; ++uy)
+      for (Index ux = 0; ux < lr.cols; ++ux) {
+        for (int ky = 0; ky < r_; ++ky)
+          for (int kx = 0; kx < r_; ++kx) v[ky * r_ + kx] = B(uy + ky * lr.rows, ux + kx * lr.cols);
+        z.noalias() = inverses_[uy * lr.cols + ux] * v;
+        for (int ky = 0; ky < r_; ++ky)
+          for (int kx = 0; kx < r_; ++kx) X(uy + ky * lr.rows, ux + kx * lr.cols) = z[ky * r_ + kx];
+      }
+    const Image out = FftInverse(X).real() * scale_;
+    x = AsVector(out);
+  }
+  void ApplyAdjointImpl(ConstRef y, Ref x) const override { ApplyImpl(y, x); }  // self-adjoint
+  Shape hr_;
+  int r_;
+  std::vector<Eigen::MatrixXcd> inverses_;
+  double scale_;
+};
+
 }  // namespace
+
+OperatorPtr FourierInverseOperator(Shape hr, int r, std::vector<Eigen::MatrixXcd> inverses, double scale) {
+  return std::make_shared<FourierInverseOp>(hr, r, std::move(inverses), scale);
+}
+
+Image InverseDiagonal(Shape hr, int r, const std::vector<Eigen::MatrixXcd>& inverses) {
+  const int rr = r * r;
+  Eigen::MatrixXcd mean = Eigen::MatrixXcd::Zero(rr, rr);
+  for (const Eigen::MatrixXcd& g : inverses) mean += g;
+  mean /= double(inverses.size());
+  // C_pp = (1/r⁴) φ(p)ᴴ Ḡ φ(p), φ_k(p) = exp(−2πi k·p/r), for the r x r phases p mod r.
+  Image cell(r, r);
+  Eigen::VectorXcd phi(rr);
+  for (int py = 0; py < r; ++py)
+    for (int px = 0; px < r; ++px) {
+      for (int ky = 0; ky < r; ++ky)
+        for (int kx = 0; kx < r; ++kx)
+          phi[ky * r + kx] = std::polar(1.0, -2.0 * M_PI * double(ky * py + kx * px) / r);
+      cell(py, px) = (phi.adjoint() * mean * phi)(0, 0).real() / double(rr * rr);
+    }
+  Image d(hr.rows, hr.cols);
+  for (Index y = 0; y < hr.rows; ++y)
+    for (Index x = 0; x < hr.cols; ++x) d(y, x) = cell(y % r, x % r);
+  return d;
+}
+
+LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, double target, double lambda0,
+                               double tolerance, int max_evaluations) {
+  constexpr double kTMin = -16, kTMax = 8, kStep = 2;
+  LambdaSearch out;
+  // g(t) = log(residual / target): increasing in t = log10(λ/λ₀); a zero residual stays finite.
+  auto g = [&](double t) {
+    out.lambda = lambda0 * std::pow(10.0, t);
+    out.residual = residual(out.lambda);
+    ++out.evaluations;
+    out.met = std::abs(out.residual / target - 1.0) <= tolerance;
+    return std::log((out.residual + 1e-300 * target) / target);
+  };
+  double ta = -3, ga = g(ta);
+  if (out.met) return out;
+  // Bracket: walk in 2-decade steps towards the sign change.
+  const double dir = ga < 0 ? kStep : -kStep;
+  double tb = ta, gb = ga;
+  while ((gb < 0) == (ga < 0)) {
+    if (out.evaluations >= max_evaluations) {
+      out.note = "no bracket within the evaluation limit";
+      return out;
+    }
+    if (tb == (dir > 0 ? kTMax : kTMin)) {
+      out.note = dir > 0
+                     ? "even the largest lambda leaves a residual below the target (sigma overestimated?)"
+                     : "even the smallest lambda leaves a residual above the target (model misfit or sigma "
+                       "underestimated?)";
+      return out;
+    }
+    ta = tb;
+    ga = gb;
+    tb = std::clamp(tb + dir, kTMin, kTMax);
+    gb = g(tb);
+    if (out.met) return out;
+  }
+  // Illinois (modified regula falsi) on the bracket [ta, tb].
+  int side = 0;
+  while (out.evaluations < max_evaluations) {
+    if (std::abs(tb - ta) < 1e-12) {
+      out.note = "the residual jumps across the target";
+      return out;
+    }
+    const double tc = (ta * gb - tb * ga) / (gb - ga);
+    const double gc = g(tc);
+    if (out.met) return out;
+    if ((gc < 0) == (gb < 0)) {
+      tb = tc;
+      gb = gc;
+      if (side == -1) ga *= 0.5;
+      side = -1;
+    } else {
+      ta = tc;
+      ga = gc;
+      if (side == +1) gb *= 0.5;
+      side = +1;
+    }
+  }
+  out.note = "evaluation limit reached";
+  return out;
+}
+
+double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations) {
+  // GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² (Golub, Heath & Wahba 1979), exactly per bin, on a log grid.
+  const double n_data = double(sys.model().frames()) * double(sys.bins());
+  const int steps = int(std::lround(options.gcv_decades * options.gcv_steps_per_decade));
+  double best = std::numeric_limits<double>::infinity(), lambda = sys.lambda0();
+  for (int k = 0; k <= steps; ++k) {
+    const double lam =
+        sys.lambda0() * std::pow(10.0, -options.gcv_decades + double(k) / options.gcv_steps_per_decade);
+    const FourierSystem::Fit f = sys.Evaluate(lam, true);
+    const double g = n_data * f.residual2 / (f.dof * f.dof);
+    if (g < best) best = g, lambda = lam;
+  }
+  *score = best;
+  *evaluations = steps + 1;
+  return lambda;
+}
+
+void FinishSummary(const ReconstructionProblem& solved, const Image& x, double lambda,
+                   const TikhonovOptions& options, TikhonovSummary* s) {
+  std::vector<double> rms;
+  const double misfit = WeightedDataMisfit(solved, x, &rms);
+  s->frame_residual_rms = rms;
+  s->weighted_residual = 2.0 * misfit;
+  const Vector gx = TikhonovPriorOperator(ShapeOf(x), options)->Apply(AsVector(x));
+  s->final_cost = 2.0 * misfit + lambda * gx.squaredNorm();
+  s->lambda = lambda;
+  s->solved_hr_shape = ShapeOf(x);
+}
+
+std::string BinReport(const FourierSystem& sys) {
+  const Shape hr = sys.model().hr_shape();
+  return std::to_string(sys.unconstrained()) + " of " + std::to_string(hr.size()) +
+         " HR frequencies unconstrained by the data (" + std::to_string(sys.deficient_bins()) +
+         " rank-deficient bins)";
+}
+
+bool PosteriorStd(const FourierSystem& sys, double lambda_eff, double variance_scale, Image* std_map,
+                  double* mean_variance) {
+  bool proper = true;
+  const std::vector<Eigen::MatrixXcd> inv = sys.Inverses(lambda_eff, &proper, nullptr);
+  if (!proper) return false;
+  const Image var = InverseDiagonal(sys.model().hr_shape(), sys.model().r(), inv) * variance_scale;
+  *mean_variance = var.mean();
+  *std_map = var.max(0.0).sqrt();
+  return true;
+}
+
+namespace {
+
+TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovOptions& options,
+                           std::chrono::steady_clock::time_point start) {
+  const MultiFrameModel& model = *problem.model;
+  const double w0 = problem.weights.empty() ? 1.0 : problem.weights.front()(0, 0);
+  FourierSystem sys(model, PriorSymbolImage(options, model.hr_shape()), options.rank_tolerance,
+                    options.bin_solver);
+  sys.SetData(problem.CleanFrames());
+  TikhonovResult result;
+  TikhonovSummary& s = result.summary;
+  s.method = "tikhonov-fourier";
+  std::string note;
+  // λ' = λ / w₀ is the weight of the unit-weight objective the engine solves.
+  double lambda_eff = options.lambda / w0;
+  s.lambda_evaluations = 1;
+  if (options.lambda_rule == TikhonovLambdaRule::kGcv) {
+    lambda_eff = GcvSearch(sys, options, &s.gcv, &s.lambda_evaluations);
+    note = " (GCV)";
+  } else if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy) {
+    const double n_w = double(model.frames()) * double(model.lr_shape().size());
+    s.discrepancy_target = options.discrepancy_factor * options.noise_sigma * options.noise_sigma * n_w;
+    const LambdaSearch d = DiscrepancySearch(
+        [&](double lam) { return w0 * sys.Evaluate(lam, false).residual2; }, s.discrepancy_target,
+        sys.lambda0(), options.discrepancy_tolerance, options.discrepancy_max_evaluations);
+    lambda_eff = d.lambda;
+    s.lambda_evaluations = d.evaluations;
+    note = " (discrepancy";
+    if (!d.met) {
+      s.termination = Termination::kFailed;
+      note += " not met: " + d.note;
+    }
+    note += ")";
+  }
+  FourierSystem::Fit fit;
+  result.image = sys.Solve(lambda_eff, &fit);
+  s.woodbury_bins = fit.woodbury_bins;
+  s.lr_bins = sys.bins();
+  s.rank_deficient_bins = sys.deficient_bins();
+  s.unconstrained_frequencies = sys.unconstrained();
+  FinishSummary(problem, result.image, lambda_eff * w0, options, &s);
+  s.message = "lambda " + ToString(s.lambda) + note + "; " + BinReport(sys);
+  if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy)
+    s.message += "; weighted residual " + ToString(s.weighted_residual) + " vs target " +
+                 ToString(s.discrepancy_target);
+  if (options.compute_std) {
+    s.std_computed = PosteriorStd(sys, lambda_eff, options.noise_sigma * options.noise_sigma / w0,
+                                  &result.posterior_std, &s.mean_posterior_variance);
+    if (!s.std_computed) s.message += "; posterior improper (a singular bin): no std map";
+  }
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace
+
+TikhonovResult Reconstruct(const char* function, const ReconstructionProblem& problem,
+                           const TikhonovOptions& options) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(function) + ": options." + why);
+  problem.Validate(function);
+  const auto start = std::chrono::steady_clock::now();
+  const Shape hr = problem.model->hr_shape();
+  if (options.object_power_spectrum.size() > 0 && ShapeOf(options.object_power_spectrum) != hr)
+    throw InvalidArgument(function, "options.object_power_spectrum shape",
+                          ToString(ShapeOf(options.object_power_spectrum)),
+                          "the model's HR shape " + ToString(hr));
+  if (!problem.weights.empty()) {
+    bool any = false;
+    for (const Image& w : problem.weights) any = any || (w.array() > 0).any();
+    if (!any) throw InvalidArgument(function, "problem.weights", "all zero", "at least one weighted pixel");
+  }
+  const bool fourier_exact = problem.HasUniformWeights() && options.boundary == TikhonovBoundary::kPeriodic;
+  if (options.method == TikhonovMethod::kFourier && !fourier_exact)
+    throw InvalidArgument(
+        function, "options.method", "kFourier",
+        "kAuto or kConjugateGradient: the weights are not uniform, so no exact Fourier solution");
+  if (options.lambda_rule == TikhonovLambdaRule::kGcv && !fourier_exact)
+    throw InvalidArgument(
+        function, "options.lambda_rule", "kGcv",
+        "kFixed or kDiscrepancy: GCV needs the exact influence-matrix trace, which only the Fourier "
+        "path (uniform weights, periodic boundary) has");
+  const bool use_cg = options.method == TikhonovMethod::kConjugateGradient || !fourier_exact;
+  if (!use_cg) return FourierPath(problem, options, start);
+  return ConjugateGradientPath(function, problem, options, start);
+}
+
+}  // namespace tikhonov_internal
+
+TikhonovResult ReconstructTikhonov(const ReconstructionProblem& problem, const TikhonovOptions& options) {
+  return tikhonov_internal::Reconstruct("ReconstructTikhonov", problem, options);
+}
 
 Image TikhonovFourier(const MultiFrameModel& model, const ImageStack& frames, const TikhonovOptions& options,
                       TikhonovSummary* summary) {
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument("TikhonovFourier: " + why);
-  const Vector y_all = model.Flatten(frames);  // checks count and shapes
+  if (options.method == TikhonovMethod::kConjugateGradient)
+    throw InvalidArgument("TikhonovFourier", "options.method", "kConjugateGradient",
+                          "kAuto or kFourier (ReconstructTikhonov runs the iterative path)");
+  if (options.boundary != TikhonovBoundary::kPeriodic)
+    throw InvalidArgument("TikhonovFourier", "options.boundary", "kZeroPadded",
+                          "kPeriodic (ReconstructTikhonov handles zero-padded boundaries)");
+  model.Flatten(frames);  // checks count and shapes
   for (std::size_t i = 0; i < frames.size(); ++i)
     if (!AllFinite(frames[i]))
       throw InvalidArgument("TikhonovFourier", "frame " + std::to_string(i), "contains NaN or Inf",
-                            "finite values (mask bad pixels with an iterative solver)");
-  const auto start = std::chrono::steady_clock::now();
-  const Shape hr = model.hr_shape(), lr = model.lr_shape();
-  const int r = model.r(), n = model.frames(), rr = r * r;
-
-  std::vector<ComplexImage> spectra;
-  for (const Image& f : frames) spectra.push_back(FftForward(f.cast<Complex>()));
-
-  // Per-bin systems, their singular values (to report what the data cannot determine) and the scale
-  // λ₀ = Σ tr(AᴴA) / Σ tr(P) that makes λ/λ₀ dimensionless for the GCV search.
-  std::vector<Bin> bins(lr.size());
-  std::vector<double> smallest(lr.size());
-  double sv_max = 0, trace_ata = 0, trace_p = 0;
-  for (Index uy = 0; uy < lr.rows; ++uy)
-    for (Index ux = 0; ux < lr.cols; ++ux) {
-      Bin& b = bins[uy * lr.cols + ux];
-      b.a = model.AliasedSystem(uy, ux);
-      b.y.resize(n);
-      for (int i = 0; i < n; ++i) b.y[i] = spectra[i](uy, ux);
-      b.prior.resize(rr);
-      for (int ky = 0; ky < r; ++ky)
-        for (int kx = 0; kx < r; ++kx)
-          b.prior[ky * r + kx] = TikhonovPriorSymbol(options.prior, hr, uy + ky * lr.rows, ux + kx * lr.cols);
-      trace_ata += b.a.squaredNorm();
-      trace_p += b.prior.sum();
-    }
-  std::vector<Eigen::VectorXd> svs(bins.size());
-  for (std::size_t i = 0; i < bins.size(); ++i) {
-    svs[i] = Eigen::JacobiSVD<Eigen::MatrixXcd>(bins[i].a).singularValues();
-    if (svs[i].size()) sv_max = std::max(sv_max, svs[i][0]);
-  }
-  const double sv_floor = options.rank_tolerance * sv_max;
-  Index deficient = 0, unconstrained = 0;
-  for (std::size_t i = 0; i < bins.size(); ++i) {
-    bins[i].rank = int((svs[i].array() > sv_floor).count());
-    if (bins[i].rank < rr) {
-      ++deficient;
-      unconstrained += rr - bins[i].rank;
-    }
-  }
-
-  // λ: fixed, or the minimiser of generalised cross-validation (Golub, Heath & Wahba 1979)
-  //     GCV(λ) = n_data · ||y − A x_λ||² / (n_data − tr H_λ)²,
-  // evaluated exactly per bin (Parseval: both terms are sums over bins) on a log grid of λ/λ₀.
-  double lambda = options.lambda;
-  double gcv_best = 0;
-  const double lambda0 = trace_p > 0 ? trace_ata / trace_p : 1.0;
-  if (options.lambda_rule == TikhonovLambdaRule::kGcv) {
-    const double n_data = double(n) * double(lr.size());
-    const int steps = int(std::lround(options.gcv_decades * options.gcv_steps_per_decade));
-    gcv_best = std::numeric_limits<double>::infinity();
-    for (int k = 0; k <= steps; ++k) {
-      const double lam = lambda0 * std::pow(10.0, -options.gcv_decades + double(k) / options.gcv_steps_per_decade);
-      double res2 = 0, trace = 0;
-      for (const Bin& b : bins) {
-        const BinSolution s = SolveBin(b, lam / rr, sv_floor, true);
-        res2 += s.residual2;
-        trace += s.trace;
-      }
-      // Parseval for the unnormalised DFT: ||y||² = Σ|Y|² / m².
-      const double g = n_data * (res2 / double(lr.size())) / std::pow(n_data - trace, 2);
-      if (g < gcv_best) gcv_best = g, lambda = lam;
-    }
-  }
-
-  ComplexImage X(hr.rows, hr.cols);
-  for (Index uy = 0; uy < lr.rows; ++uy)
-    for (Index ux = 0; ux < lr.cols; ++ux) {
-      const BinSolution s = SolveBin(bins[uy * lr.cols + ux], lambda / rr, sv_floor, false);
-      for (int ky = 0; ky < r; ++ky)
-        for (int kx = 0; kx < r; ++kx) X(uy + ky * lr.rows, ux + kx * lr.cols) = s.x[ky * r + kx];
-    }
-  Image x = FftInverse(X).real();
-  if (!AllFinite(x)) throw NumericalError("TikhonovFourier: the solve produced non-finite values");
-
-  if (summary) {
-    TikhonovSummary& s = *summary;
-    s = TikhonovSummary{};
-    s.method = "tikhonov";
-    s.lambda = lambda;
-    s.gcv = gcv_best;
-    s.lr_bins = lr.size();
-    s.rank_deficient_bins = deficient;
-    s.unconstrained_frequencies = unconstrained;
-    const Vector resid = model.Operator()->Apply(AsVector(x)) - y_all;
-    const Vector gx = TikhonovPriorOperator(hr, options.prior)->Apply(AsVector(x));
-    s.final_cost = resid.squaredNorm() + lambda * gx.squaredNorm();
-    for (int i = 0; i < n; ++i)
-      s.frame_residual_rms.push_back(std::sqrt(resid.segment(i * lr.size(), lr.size()).squaredNorm() / lr.size()));
-    s.message = "lambda " + ToString(lambda) + (options.lambda_rule == TikhonovLambdaRule::kGcv ? " (GCV)" : "") +
-                "; " + std::to_string(unconstrained) + " of " + std::to_string(hr.size()) +
-                " HR frequencies unconstrained by the data (" + std::to_string(deficient) + " rank-deficient bins)";
-    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  }
-  return x;
+                            "finite values (mask bad pixels: ReconstructTikhonov with weights)");
+  ReconstructionProblem problem;
+  // A non-owning handle: the problem lives only for this call.
+  problem.model = std::shared_ptr<const MultiFrameModel>(&model, [](const MultiFrameModel*) {});
+  problem.frames = frames;
+  TikhonovOptions o = options;
+  o.method = TikhonovMethod::kFourier;
+  o.compute_std = false;
+  TikhonovResult r = tikhonov_internal::Reconstruct("TikhonovFourier", problem, o);
+  if (summary) *summary = r.summary;
+  return std::move(r.image);
 }
 
 }  // namespace aosr

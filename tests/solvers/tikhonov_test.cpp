@@ -8,6 +8,8 @@
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
+#include "aosr/solvers/problem.hpp"
+#include "solvers/tikhonov_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {
@@ -15,28 +17,13 @@ namespace {
 
 Image Random(Shape s, std::uint64_t seed) { return aosr::test::RandomImage(s, seed); }
 
-Image Gaussian(Index n, double sigma) {
-  Image k(n, n);
-  for (Index y = 0; y < n; ++y)
-    for (Index x = 0; x < n; ++x) {
-      const double dy = y - n / 2, dx = x - n / 2;
-      k(y, x) = std::exp(-0.5 * (dy * dy + dx * dx) / (sigma * sigma));
-    }
-  return k / k.sum();
-}
-
-// N frames: one PSF, moved by the given HR-pixel offsets (the tip/tilt raster).
-MultiFrameModel RasterModel(Shape hr, int r, const std::vector<std::pair<double, double>>& shifts, double sigma) {
-  const ComplexImage h = TransferFunction(hr, Gaussian(11, sigma));
-  std::vector<ComplexImage> otfs;
-  for (auto [dy, dx] : shifts) otfs.push_back(h * ShiftTransfer(hr, dy, dx));
-  return MultiFrameModel(hr, r, otfs);
-}
+using test::RasterModel;
 
 // The Fourier solution must be the minimiser of the spatial objective: check it against CG on
 // (AᵀA + λΓᵀΓ) x = Aᵀy built from the very same operators.
 TEST(TikhonovTest, FourierSolveMatchesSpatialNormalEquations) {
-  for (TikhonovPrior prior : {TikhonovPrior::kIdentity, TikhonovPrior::kGradient, TikhonovPrior::kLaplacian})
+  for (TikhonovPrior prior : {TikhonovPrior::kIdentity, TikhonovPrior::kGradient, TikhonovPrior::kLaplacian,
+                              TikhonovPrior::kPowerSpectrum})
     for (int r : {2, 3}) {
       const Shape hr{6 * r, 8 * r};
       const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {0.5, 1}, {1.3, 0.2}}, 1.1);
@@ -117,7 +104,8 @@ TEST(TikhonovTest, GcvChoosesALambdaNearTheOracle) {
   const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}, 1.0);
   Image x(hr.rows, hr.cols);
   for (Index y = 0; y < hr.rows; ++y)
-    for (Index c = 0; c < hr.cols; ++c) x(y, c) = 1.0 + std::sin(0.3 * y) * std::cos(0.21 * c) + ((y / 9 + c / 7) % 2);
+    for (Index c = 0; c < hr.cols; ++c)
+      x(y, c) = 1.0 + std::sin(0.3 * y) * std::cos(0.21 * c) + ((y / 9 + c / 7) % 2);
   ImageStack frames = m.Render(x);
   std::mt19937_64 rng(17);
   std::normal_distribution<double> noise(0.0, 0.02 * 4.0);
@@ -135,6 +123,269 @@ TEST(TikhonovTest, GcvChoosesALambdaNearTheOracle) {
   }
   EXPECT_GT(s.gcv, 0);
   EXPECT_LT(err_gcv, 1.25 * err_best) << "GCV lambda " << s.lambda;
+}
+
+}  // namespace
+}  // namespace aosr
+
+namespace aosr {
+namespace {
+
+using test::RasterModel;
+
+std::shared_ptr<const MultiFrameModel> Shared(MultiFrameModel m) {
+  return std::make_shared<const MultiFrameModel>(std::move(m));
+}
+
+// Woodbury (N x N per bin) and the normal equations (r² x r² per bin) are the same solve: agreement to
+// rounding for every prior, for N < r² with r = 2 and 3, for the image, the GCV score and the std map.
+TEST(TikhonovTest, WoodburyMatchesTheNormalEquations) {
+  for (int r : {2, 3})
+    for (TikhonovPrior prior : {TikhonovPrior::kIdentity, TikhonovPrior::kGradient, TikhonovPrior::kLaplacian,
+                                TikhonovPrior::kPowerSpectrum}) {
+      const Shape hr{8 * r, 10 * r};
+      const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}, 1.0);  // N = 3 < r²
+      ReconstructionProblem p;
+      p.model = Shared(m);
+      p.frames = test::AddNoise(m.Render(test::RandomImage(hr, 3).abs()), 0.01, 5);
+      TikhonovOptions direct;
+      direct.prior = prior;
+      direct.lambda_rule = TikhonovLambdaRule::kGcv;
+      direct.bin_solver = TikhonovBinSolver::kNormalEquations;
+      direct.compute_std = true;
+      direct.noise_sigma = 0.01;
+      TikhonovOptions woodbury = direct;
+      woodbury.bin_solver = TikhonovBinSolver::kAuto;  // N < r²: Woodbury wherever the bin allows it
+      const TikhonovResult a = ReconstructTikhonov(p, direct);
+      const TikhonovResult b = ReconstructTikhonov(p, woodbury);
+      EXPECT_EQ(a.summary.woodbury_bins, 0);
+      // Every bin but the DC bin of the gradient/Laplacian (whose prior is 0 there) takes Woodbury.
+      EXPECT_GE(b.summary.woodbury_bins, b.summary.lr_bins - 1) << ToString(prior);
+      EXPECT_EQ(a.summary.lambda, b.summary.lambda) << ToString(prior) << " r=" << r;
+      // GCV's denominator n − tr H is small at small λ when N < r² (the data are nearly interpolated). The
+      // normal equations get it as N − ||L⁻¹Aᴴ||², losing ~1e-10 to cancellation (checked against long
+      // double: ~1e-10 vs ~1e-13 for Woodbury's w·tr K⁻¹), hence the looser tolerance on the score.
+      EXPECT_NEAR(a.summary.gcv, b.summary.gcv, 1e-8 * a.summary.gcv) << ToString(prior) << " r=" << r;
+      // The two paths are different factorisations of bins whose condition grows as λ shrinks (the
+      // Laplacian's |Γ̂|⁴ makes its GCV λ the smallest): measured agreement 1e-13..1.2e-10, hence 1e-9.
+      EXPECT_LT((a.image - b.image).matrix().norm() / a.image.matrix().norm(), 1e-9)
+          << ToString(prior) << " r=" << r;
+      ASSERT_TRUE(a.summary.std_computed && b.summary.std_computed);
+      EXPECT_LT((a.posterior_std - b.posterior_std).abs().maxCoeff() / a.posterior_std.maxCoeff(), 1e-10);
+    }
+}
+
+// Each prior's symbol is what its operator does: ||Γx||² = (1/M²) Σ_f |Γ̂(f)|² |X(f)|² (Parseval).
+TEST(TikhonovTest, PriorSymbolsAreTheOperatorsSpectra) {
+  const Shape hr{12, 18};
+  const Image x = test::RandomImage(hr, 21);
+  const ComplexImage X = FftForward(x.cast<Complex>());
+  TikhonovOptions given;
+  given.prior = TikhonovPrior::kPowerSpectrum;
+  given.object_power_spectrum = Image(hr.rows, hr.cols);
+  for (Index fy = 0; fy < hr.rows; ++fy)
+    for (Index fx = 0; fx < hr.cols; ++fx) {
+      const double vy = double(SignedFrequency(fy, hr.rows)), vx = double(SignedFrequency(fx, hr.cols));
+      given.object_power_spectrum(fy, fx) = 1.0 / (1.0 + vy * vy + 0.5 * vx * vx);  // symmetric in f
+    }
+  std::vector<TikhonovOptions> cases(5);
+  cases[0].prior = TikhonovPrior::kIdentity;
+  cases[1].prior = TikhonovPrior::kGradient;
+  cases[2].prior = TikhonovPrior::kLaplacian;
+  cases[3].prior = TikhonovPrior::kPowerSpectrum;
+  cases[3].spectrum_slope = 3.0;
+  cases[3].spectrum_corner = 0.1;
+  cases[4] = given;
+  for (const TikhonovOptions& o : cases) {
+    double spectral = 0;
+    for (Index fy = 0; fy < hr.rows; ++fy)
+      for (Index fx = 0; fx < hr.cols; ++fx)
+        spectral += TikhonovPriorSymbol(o, hr, fy, fx) * std::norm(X(fy, fx));
+    spectral /= double(hr.size());
+    const double spatial = TikhonovPriorOperator(hr, o)->Apply(AsVector(x)).squaredNorm();
+    EXPECT_NEAR(spatial, spectral, 1e-11 * spectral) << ToString(o.prior);
+  }
+  // The parametric spectrum: S(0) = 1, the power law beyond the corner, β = 0 is the identity.
+  TikhonovOptions ps;
+  ps.prior = TikhonovPrior::kPowerSpectrum;
+  ps.spectrum_slope = 2.0;
+  ps.spectrum_corner = 1.0 / 12.0;
+  EXPECT_DOUBLE_EQ(TikhonovPriorSymbol(ps, hr, 0, 0), 1.0);
+  EXPECT_NEAR(TikhonovPriorSymbol(ps, hr, 1, 0), 2.0, 1e-12);  // |f| = f₀: (1 + 1)^(β/2)
+  ps.spectrum_slope = 0.0;
+  EXPECT_DOUBLE_EQ(TikhonovPriorSymbol(ps, hr, 5, 7), 1.0);
+}
+
+// Each prior acts as its maths says on the reconstruction: identity shrinks towards 0 (a large λ gives
+// x ≈ Aᵀy/λ), the gradient and Laplacian leave the mean alone (a constant is in their null space, the DC
+// of the data decides it), and a power-spectrum prior of slope 0 is the identity prior.
+TEST(TikhonovTest, EachPriorActsAsItsNullSpaceSays) {
+  const int r = 2;
+  const Shape hr{16, 20};
+  const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}, 1.0);
+  const Image truth = 3.0 + test::RandomImage(hr, 9, false);
+  const ImageStack y = m.Render(truth);
+  TikhonovOptions o;
+  o.lambda = 1e6;
+  for (TikhonovPrior prior : {TikhonovPrior::kGradient, TikhonovPrior::kLaplacian}) {
+    o.prior = prior;
+    const Image x = TikhonovFourier(m, y, o);
+    EXPECT_NEAR(x.mean(), truth.mean(), 1e-9) << ToString(prior);     // the flux is kept
+    EXPECT_LT(x.maxCoeff() - x.minCoeff(), 1e-3) << ToString(prior);  // and only the flux
+  }
+  o.prior = TikhonovPrior::kIdentity;
+  const Image x_id = TikhonovFourier(m, y, o);
+  const Vector aty = m.Operator()->ApplyAdjoint(m.Flatten(y));
+  EXPECT_LT((AsVector(x_id) - aty / o.lambda).norm() / (aty / o.lambda).norm(), 1e-4);
+  o.lambda = 0.3;
+  const Image a = TikhonovFourier(m, y, o);
+  o.prior = TikhonovPrior::kPowerSpectrum;
+  o.spectrum_slope = 0.0;
+  const Image b = TikhonovFourier(m, y, o);
+  EXPECT_LT((a - b).abs().maxCoeff(), 1e-12 * a.abs().maxCoeff());
+}
+
+// Uniform weights w₀ are a rescaling of the objective: the solution at λ is the unweighted one at λ/w₀.
+TEST(TikhonovTest, UniformWeightsRescaleLambda) {
+  const int r = 2;
+  const Shape hr{16, 16};
+  const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {0.5, 1}, {1, 0.3}}, 1.0);
+  ReconstructionProblem p;
+  p.model = Shared(m);
+  p.frames = m.Render(test::RandomImage(hr, 2));
+  p.weights = ImageStack(3, Image::Constant(8, 8, 4.0));
+  TikhonovOptions o;
+  o.lambda = 0.2;
+  const TikhonovResult weighted = ReconstructTikhonov(p, o);
+  EXPECT_EQ(weighted.summary.method, "tikhonov-fourier");
+  o.lambda = 0.05;
+  const Image plain = TikhonovFourier(m, p.frames, o);
+  EXPECT_LT((weighted.image - plain).matrix().norm() / plain.matrix().norm(), 1e-12);
+  EXPECT_DOUBLE_EQ(weighted.summary.lambda, 0.2);
+}
+
+// The discrepancy principle returns the λ at which Σ w (y − A x_λ)² = τ σ² n_w, and with τ = 1 that λ is a
+// sensible one: its error within 1.5x of the best λ's for this truth (an oracle that knows it).
+TEST(TikhonovTest, DiscrepancyLambdaHitsTheTargetResidual) {
+  const int r = 2;
+  const Shape hr{48, 48};
+  const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}}, 1.0);
+  Image x(hr.rows, hr.cols);
+  for (Index yy = 0; yy < hr.rows; ++yy)
+    for (Index c = 0; c < hr.cols; ++c)
+      x(yy, c) = 1.0 + std::sin(0.3 * yy) * std::cos(0.21 * c) + ((yy / 9 + c / 7) % 2);
+  const double sigma = 0.05;
+  ReconstructionProblem p;
+  p.model = Shared(m);
+  p.frames = test::AddNoise(m.Render(x), sigma, 31);
+  for (double tau : {1.0, 1.5}) {
+    TikhonovOptions o;
+    o.lambda_rule = TikhonovLambdaRule::kDiscrepancy;
+    o.noise_sigma = sigma;
+    o.discrepancy_factor = tau;
+    const TikhonovResult res = ReconstructTikhonov(p, o);
+    const double target = tau * sigma * sigma * 5 * 24 * 24;
+    EXPECT_EQ(res.summary.termination, Termination::kConverged) << res.summary.BriefReport();
+    EXPECT_DOUBLE_EQ(res.summary.discrepancy_target, target);
+    EXPECT_NEAR(res.summary.weighted_residual, target, 1e-4 * target) << res.summary.BriefReport();
+    // The same figure recomputed from the returned image through the spatial operator.
+    const Vector resid = m.Operator()->Apply(AsVector(res.image)) - m.Flatten(p.frames);
+    EXPECT_NEAR(resid.squaredNorm(), target, 1.01e-4 * target);
+    EXPECT_LT(res.summary.lambda_evaluations, 20);
+    // Against the oracle λ (the truth known) on a grid of quarter decades around it.
+    double err_best = std::numeric_limits<double>::infinity(), lambda_best = 0;
+    for (double t = -3; t <= 3; t += 0.25) {
+      TikhonovOptions fixed;
+      fixed.lambda = res.summary.lambda * std::pow(10.0, t);
+      const double e = (TikhonovFourier(m, p.frames, fixed) - x).matrix().norm();
+      if (e < err_best) err_best = e, lambda_best = fixed.lambda;
+    }
+    const double err = (res.image - x).matrix().norm();
+    std::printf(
+        "discrepancy tau=%.1f: lambda %.4g after %d evaluations, residual/target - 1 = %.2e; error %.4g "
+        "vs oracle %.4g at lambda %.4g\n",
+        tau, res.summary.lambda, res.summary.lambda_evaluations, resid.squaredNorm() / target - 1, err,
+        err_best, lambda_best);
+    if (tau == 1.0) {
+      EXPECT_LT(err, 1.5 * err_best);
+    }
+  }
+  // An unreachable target (σ far too large: even x = const leaves less residual) is reported, not thrown.
+  TikhonovOptions o;
+  o.lambda_rule = TikhonovLambdaRule::kDiscrepancy;
+  o.noise_sigma = 100.0;
+  const TikhonovResult res = ReconstructTikhonov(p, o);
+  EXPECT_EQ(res.summary.termination, Termination::kFailed);
+  EXPECT_NE(res.summary.message.find("not met"), std::string::npos) << res.summary.message;
+  EXPECT_TRUE(AllFinite(res.image));
+}
+
+// The std map is exactly √diag(σ²(AᵀWA + λΓᵀΓ)⁻¹): check against a dense inverse of the spatial normal
+// matrix on tiny grids (r = 2 and 3, N below and above r², uniform weight 2), and its period r.
+TEST(TikhonovTest, PosteriorStdIsTheDiagonalOfTheDenseInverse) {
+  struct Case {
+    int r;
+    std::vector<std::pair<double, double>> shifts;
+    TikhonovPrior prior;
+  };
+  const std::vector<Case> cases = {
+      {2, {{0, 0}, {0.5, 1.3}}, TikhonovPrior::kGradient},
+      {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.2}}, TikhonovPrior::kIdentity},
+      {3, {{0, 0}, {1.2, 0.4}, {2, 2.5}}, TikhonovPrior::kLaplacian},
+      {3, {{0, 0}, {1.2, 0.4}, {2, 2.5}, {0.3, 1.7}}, TikhonovPrior::kPowerSpectrum}};
+  for (const Case& c : cases) {
+    const Shape hr{6 * c.r, 7 * c.r};
+    const MultiFrameModel m = RasterModel(hr, c.r, c.shifts, 0.9);
+    const double w0 = 2.0, sigma = 0.3, lambda = 0.07;
+    ReconstructionProblem p;
+    p.model = Shared(m);
+    p.frames = m.Render(test::RandomImage(hr, 1));
+    p.weights = ImageStack(c.shifts.size(), Image::Constant(6, 7, w0));
+    TikhonovOptions o;
+    o.prior = c.prior;
+    o.lambda = lambda;
+    o.compute_std = true;
+    o.noise_sigma = sigma;
+    const TikhonovResult res = ReconstructTikhonov(p, o);
+    ASSERT_TRUE(res.summary.std_computed) << res.summary.message;
+    // Dense Q = w₀AᵀA + λΓᵀΓ, column by column.
+    const OperatorPtr q =
+        Sum({Scale(w0, Normal(m.Operator())), Scale(lambda, Normal(TikhonovPriorOperator(hr, o)))});
+    Eigen::MatrixXd dense(hr.size(), hr.size());
+    for (Index j = 0; j < hr.size(); ++j) dense.col(j) = q->Apply(Vector::Unit(hr.size(), j));
+    const Eigen::MatrixXd cov =
+        sigma * sigma * dense.ldlt().solve(Eigen::MatrixXd::Identity(hr.size(), hr.size()));
+    double worst = 0;
+    for (Index j = 0; j < hr.size(); ++j) {
+      const double s = res.posterior_std(j / hr.cols, j % hr.cols);
+      worst = std::max(worst, std::abs(s * s - cov(j, j)) / cov(j, j));
+    }
+    EXPECT_LT(worst, 1e-10) << "r=" << c.r << " N=" << c.shifts.size() << " " << ToString(c.prior);
+    EXPECT_NEAR(res.summary.mean_posterior_variance, cov.trace() / double(hr.size()), 1e-10 * cov.trace());
+    // Period r: the dense diagonal itself repeats every camera pixel.
+    for (Index j = 0; j < hr.size(); ++j) {
+      const Index y = j / hr.cols, x = j % hr.cols;
+      const Index j0 = (y % c.r) * hr.cols + (x % c.r);
+      EXPECT_NEAR(cov(j, j), cov(j0, j0), 1e-10 * cov(j0, j0));
+    }
+  }
+}
+
+// λ = 0 with too few frames: the posterior is improper and no map is returned, said in the summary.
+TEST(TikhonovTest, NoStdMapWhenThePosteriorIsImproper) {
+  const Shape hr{16, 16};
+  const MultiFrameModel m = RasterModel(hr, 2, {{0, 0}, {1, 1}}, 1.0);
+  ReconstructionProblem p;
+  p.model = Shared(m);
+  p.frames = m.Render(test::RandomImage(hr, 2));
+  TikhonovOptions o;
+  o.lambda = 0;
+  o.compute_std = true;
+  o.noise_sigma = 1;
+  const TikhonovResult res = ReconstructTikhonov(p, o);
+  EXPECT_FALSE(res.summary.std_computed);
+  EXPECT_EQ(res.posterior_std.size(), 0);
+  EXPECT_NE(res.summary.message.find("improper"), std::string::npos) << res.summary.message;
 }
 
 }  // namespace

@@ -1,0 +1,115 @@
+// Private to solvers/tikhonov*.cpp: the per-bin Fourier engine of tikhonov.hpp and the λ searches, shared
+// by the Fourier path and the conjugate-gradient path (whose preconditioner is this engine's inverse).
+#pragma once
+
+#include <Eigen/Dense>
+#include <chrono>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "aosr/core/forward_model.hpp"
+#include "aosr/solvers/tikhonov.hpp"
+
+namespace aosr::tikhonov_internal {
+
+// |Γ̂|² on the full HR spectrum of grid `hr` (validated options).
+Image PriorSymbolImage(const TikhonovOptions& options, Shape hr);
+
+// Everything about a periodic model and a Fourier-diagonal prior that depends on neither λ nor the data:
+// the N x r² systems A(u), the prior P(u) and the ranks. λ below is always the λ' of the *unweighted*
+// objective ||y − Ax||² + λ'||Γx||² (tikhonov.hpp, (2) with w = λ'/r²).
+class FourierSystem {
+ public:
+  FourierSystem(const MultiFrameModel& model, const Image& prior_symbol, double rank_tolerance,
+                TikhonovBinSolver solver);
+
+  // Data spectra (frames on the model's LR grid, finite).
+  void SetData(const ImageStack& frames);
+
+  struct Fit {
+    double residual2 = 0;  // ||y − A x_λ||² (spatial units, Parseval-normalised)
+    double dof = 0;  // n − tr H_λ = Σ_u (N − tr(A G⁻¹ Aᴴ)), residual degrees of freedom (only if asked)
+    Index woodbury_bins = 0;
+  };
+  Fit Evaluate(double lambda, bool want_trace) const;
+  Image Solve(double lambda, Fit* fit = nullptr) const;
+
+  // G(u)⁻¹ for every bin (pseudo-inverse where singular; *proper = false then).
+  std::vector<Eigen::MatrixXcd> Inverses(double lambda, bool* proper, Index* woodbury_bins) const;
+
+  const MultiFrameModel& model() const { return model_; }
+  double lambda0() const { return lambda0_; }  // Σ tr AᴴA / Σ tr P
+  Index bins() const { return Index(bins_.size()); }
+  Index deficient_bins() const { return deficient_; }
+  Index unconstrained() const { return unconstrained_; }
+
+ private:
+  struct Bin {
+    Eigen::MatrixXcd a;     // N x r²
+    Eigen::VectorXcd y;     // N data values
+    Eigen::VectorXd prior;  // |Γ̂|² on the r² aliased bins
+    bool prior_positive = false;
+    int rank = 0;
+  };
+  struct BinSolution {
+    Eigen::VectorXcd x;
+    double residual2 = 0;
+    double dof = 0;  // N − tr(A G⁻¹ Aᴴ)
+    bool woodbury = false;
+  };
+  enum class Path { kWoodbury, kNormal, kMinimumNorm };
+  Path Choose(const Bin& b, double w) const;
+  BinSolution SolveBin(const Bin& b, double w, bool want_trace) const;
+  Eigen::MatrixXcd InverseBin(const Bin& b, double w, bool* proper, bool* woodbury) const;
+
+  const MultiFrameModel& model_;
+  TikhonovBinSolver solver_;
+  std::vector<Bin> bins_;
+  double sv_floor_ = 0;
+  double lambda0_ = 1;
+  Index deficient_ = 0, unconstrained_ = 0;
+};
+
+// x = scale · (AᵀA + λ'ΓᵀΓ)⁻¹ b as a self-adjoint LinearOperator on the HR grid: FFT, per-bin G⁻¹, inverse
+// FFT ((1/r²) IFFT(G⁻¹ FFT b), see tikhonov.hpp).
+OperatorPtr FourierInverseOperator(Shape hr, int r, std::vector<Eigen::MatrixXcd> inverses, double scale);
+
+// diag (AᵀA + λ'ΓᵀΓ)⁻¹ on the HR grid from the per-bin inverses: (6) of tikhonov.hpp without σ²/w₀.
+Image InverseDiagonal(Shape hr, int r, const std::vector<Eigen::MatrixXcd>& inverses);
+
+// Discrepancy search: the λ where residual(λ) (nondecreasing) equals target, on t = log10(λ/λ₀) in
+// [-16, 8], bracketed from t = -3 in steps of 2 decades, refined by the Illinois method.
+struct LambdaSearch {
+  double lambda = 0;
+  double residual = 0;  // residual at that λ
+  int evaluations = 0;
+  bool met = false;
+  std::string note;
+};
+LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, double target, double lambda0,
+                               double tolerance, int max_evaluations);
+
+// GCV grid search on the engine (data set): returns λ' and the score.
+double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations);
+
+// Fills lambda, final_cost, weighted_residual, frame_residual_rms (WeightedDataMisfit of `solved`, the
+// problem on the grid x lives on) and solved_hr_shape.
+void FinishSummary(const ReconstructionProblem& solved, const Image& x, double lambda,
+                   const TikhonovOptions& options, TikhonovSummary* s);
+// "k of n HR frequencies unconstrained by the data (b rank-deficient bins)".
+std::string BinReport(const FourierSystem& sys);
+// The std map √(variance_scale · diag (AᵀA + λ'ΓᵀΓ)⁻¹); false (and nothing written) if the posterior is
+// improper.
+bool PosteriorStd(const FourierSystem& sys, double lambda_eff, double variance_scale, Image* std_map,
+                  double* mean_variance);
+
+// The entry behind ReconstructTikhonov/TikhonovFourier (errors name `function`), and the CG path
+// (tikhonov_cg.cpp), called with validated options and problem.
+TikhonovResult Reconstruct(const char* function, const ReconstructionProblem& problem,
+                           const TikhonovOptions& options);
+TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionProblem& problem,
+                                     const TikhonovOptions& options,
+                                     std::chrono::steady_clock::time_point start);
+
+}  // namespace aosr::tikhonov_internal
