@@ -9,5 +9,6 @@ namespace aosr::cli {
 void RegisterDemo(CLI::App& app);
 void RegisterPsf(CLI::App& app);
 void RegisterSimulate(CLI::App& app);
+void RegisterEvaluate(CLI::App& app);
 
 }  // namespace aosr::cli

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   aosr::cli::RegisterDemo(app);
   aosr::cli::RegisterPsf(app);
   aosr::cli::RegisterSimulate(app);
+  aosr::cli::RegisterEvaluate(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

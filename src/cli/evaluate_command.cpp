@@ -1,0 +1,110 @@
+// `aosr evaluate`: how close a reconstruction is to the truth — PSNR, SSIM, RMSE, and for star fields the
+// photometric and astrometric errors of the brightest stars.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "aosr/core/error.hpp"
+#include "aosr/core/metrics.hpp"
+#include "aosr/io/fits.hpp"
+#include "aosr/scene/dataset.hpp"
+#include "aosr/scene/star_metrics.hpp"
+#include "cli_util.hpp"
+#include "commands.hpp"
+
+namespace aosr::cli {
+namespace {
+
+struct EvaluateArgs {
+  std::string truth;
+  std::string manifest;
+  std::string estimate;
+  int crop = -1;  // < 0: the dataset's trustworthy border (in HR pixels) with --manifest, else 0
+  double peak = 0;
+  int stars = 20;
+  double aperture = 3.0;
+  bool json = false;
+};
+
+void RunEvaluate(const EvaluateArgs& a) {
+  if (a.truth.empty() == a.manifest.empty())
+    throw InvalidArgument("aosr evaluate", "--truth/--manifest", a.truth.empty() ? "(neither)" : "(both)",
+                          "exactly one of --truth FILE and --manifest DIR");
+  Image truth;
+  std::vector<PointSource> stars;
+  int crop = std::max(0, a.crop);
+  if (!a.manifest.empty()) {
+    const Dataset d = LoadDataset(a.manifest);
+    if (!d.truth) throw InvalidArgument("aosr evaluate", "--manifest", a.manifest, "a dataset whose manifest names a truth image");
+    truth = *d.truth;
+    stars = d.stars;
+    if (a.crop < 0) crop = int(d.trustworthy_border_px * d.r);
+  } else {
+    truth = ReadFitsImage(a.truth);
+  }
+  const Image estimate = ReadFitsImage(a.estimate);
+  if (ShapeOf(estimate) != ShapeOf(truth))
+    throw InvalidArgument("aosr evaluate", "--estimate", a.estimate + " (" + ToString(ShapeOf(estimate)) + ")",
+                          "an image of the truth's shape " + ToString(ShapeOf(truth)));
+  if (!AllFinite(estimate)) throw InvalidArgument("aosr evaluate", "--estimate", a.estimate, "an image with finite values only");
+  if (2 * crop >= std::min(truth.rows(), truth.cols()))
+    throw InvalidArgument("aosr evaluate", "--crop", std::to_string(crop) + (a.crop < 0 ? " (the dataset's border)" : ""),
+                          "less than half the smaller image side; the border a periodic model cannot reproduce is "
+                          "the PSF's half-width, so a frame smaller than the PSF window needs an explicit --crop");
+  MetricOptions mo;
+  mo.crop_px = crop;
+  mo.peak = a.peak;
+  const ImageMetrics m = CompareImages(truth, estimate, mo);
+  nlohmann::json j = {{"estimate", a.estimate}, {"crop_px", crop}, {"psnr_db", m.psnr}, {"ssim", m.ssim}, {"rmse", m.rmse}};
+  StarMetrics sm;
+  if (!stars.empty()) {
+    StarMetricsOptions so;
+    so.brightest = a.stars;
+    so.aperture_px = a.aperture;
+    so.annulus_inner_px = a.aperture + 2;
+    so.annulus_outer_px = a.aperture + 5;
+    sm = MeasureStars(truth, estimate, stars, so);
+    nlohmann::json list = nlohmann::json::array();
+    for (const StarMeasurement& s : sm.stars)
+      list.push_back({{"y_hr_px", s.truth.y}, {"x_hr_px", s.truth.x}, {"flux_e", s.truth.flux}, {"flux_error", s.flux_error},
+                      {"dy_hr_px", s.dy}, {"dx_hr_px", s.dx}});
+    j["stars"] = {{"measured", sm.stars.size()},
+                  {"skipped_at_edge", sm.skipped},
+                  {"median_abs_flux_error", sm.median_abs_flux_error},
+                  {"rms_position_error_hr_px", sm.rms_position_error_px},
+                  {"aperture_hr_px", a.aperture},
+                  {"brightest", list}};
+  }
+  if (a.json) {
+    std::printf("%s\n", j.dump(2).c_str());
+    return;
+  }
+  std::printf("%s: PSNR %.2f dB  SSIM %.4f  RMSE %.4g  (crop %d px)\n", a.estimate.c_str(), m.psnr, m.ssim, m.rmse, crop);
+  if (!stars.empty())
+    std::printf("  %zu brightest stars (%d skipped at the edge): median |flux error| %.2f%%, RMS position error %.3f HR px\n",
+                sm.stars.size(), sm.skipped, 100 * sm.median_abs_flux_error, sm.rms_position_error_px);
+}
+
+}  // namespace
+
+void RegisterEvaluate(CLI::App& app) {
+  auto args = std::make_shared<EvaluateArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "evaluate",
+      "Compare a reconstruction with the truth: PSNR, SSIM and RMSE (metrics.hpp), and with --manifest on a star "
+      "field the aperture-photometry and centroid errors of the brightest stars (star_metrics.hpp).");
+  cmd->add_option("--truth", args->truth, "truth image (FITS, HR grid)");
+  cmd->add_option("--manifest", args->manifest, "a dataset (folder or manifest.json) whose truth and stars to use");
+  cmd->add_option("--estimate", args->estimate, "the reconstruction (FITS, HR grid)")->required();
+  cmd->add_option("--crop", args->crop, "pixels ignored at each border (default: the dataset's border, else 0)")
+      ->check(CLI::Range(0, 100000));
+  cmd->add_option("--peak", args->peak, "PSNR/SSIM dynamic range L (default max - min of the truth)")->check(NonNegativeFinite());
+  cmd->add_option("--stars", args->stars, "number of brightest stars measured")->capture_default_str()->check(CLI::Range(1, 100000));
+  cmd->add_option("--aperture", args->aperture, "star aperture radius [HR px]")->capture_default_str()->check(CLI::Range(0.5, 1000.0));
+  cmd->add_flag("--json", args->json, "print the results as JSON");
+  cmd->callback([args] { RunEvaluate(*args); });
+}
+
+}  // namespace aosr::cli

@@ -1,0 +1,106 @@
+// End-to-end checks of `aosr evaluate` through the real executable: metrics against hand-computed values.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "aosr/io/fits.hpp"
+#include "support/testing.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using aosr::Image;
+using aosr::test::CliRun;
+using aosr::test::RunCli;
+using ::testing::HasSubstr;
+
+class EvaluateCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("aosr_evaluate_cli_" + std::to_string(getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  fs::path dir_;
+};
+
+// estimate = truth + c everywhere: RMSE = c and PSNR = 20 log10(L / c) with L = max − min of the truth.
+TEST_F(EvaluateCliTest, ConstantOffsetGivesTheExactRmseAndPsnr) {
+  Image truth(32, 40);
+  for (int y = 0; y < 32; ++y)
+    for (int x = 0; x < 40; ++x) truth(y, x) = std::sin(0.3 * y) * std::cos(0.2 * x) * 50 + 60;
+  const double c = 0.5;
+  aosr::WriteFits(Path("truth.fits"), truth);
+  aosr::WriteFits(Path("estimate.fits"), Image(truth + c));
+  const CliRun r = RunCli("evaluate --truth " + Path("truth.fits") + " --estimate " + Path("estimate.fits") + " --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  // Files hold floats: the offset survives to ~1e-5 relative.
+  EXPECT_NEAR(j["rmse"].get<double>(), c, 1e-5);
+  const double range = truth.maxCoeff() - truth.minCoeff();
+  EXPECT_NEAR(j["psnr_db"].get<double>(), 20 * std::log10(range / c), 1e-3);
+  EXPECT_GT(j["ssim"].get<double>(), 0.99);
+  EXPECT_EQ(j["crop_px"].get<int>(), 0);
+  const CliRun text = RunCli("evaluate --truth " + Path("truth.fits") + " --estimate " + Path("estimate.fits") + " --crop 4");
+  ASSERT_EQ(text.status, 0) << text.out;
+  EXPECT_THAT(text.out, HasSubstr("PSNR"));
+  EXPECT_THAT(text.out, HasSubstr("crop 4 px"));
+}
+
+// A simulated star field: evaluating the truth against itself gives zero photometric and astrometric error.
+TEST_F(EvaluateCliTest, StarFieldTruthAgainstItselfHasNoStarErrors) {
+  const nlohmann::json scene = {
+      {"name", "evaluate-stars"},
+      {"telescope", "paper-8m"},
+      {"frames", 2},
+      {"r", 2},
+      {"offsets", {{"type", "raster"}}},
+      {"detector", {{"frame_px", 64}, {"noise", "none"}, {"saturation", false}}},
+      {"objects", nlohmann::json::array({{{"type", "stars"}, {"count", 12}, {"margin_px", 4},
+                                          {"flux_range_e", {1e3, 1e5}}}})}};
+  std::ofstream(Path("scene.json")) << scene.dump(2);
+  CliRun r = RunCli("simulate " + Path("scene.json") + " -o " + Path("out"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json manifest = nlohmann::json::parse(std::ifstream(Path("out/manifest.json")));
+  ASSERT_TRUE(manifest.contains("truth")) << manifest.dump(2);
+  const std::string truth = Path("out/" + manifest["truth"].get<std::string>());
+  r = RunCli("evaluate --manifest " + Path("out") + " --estimate " + truth + " --stars 5 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j.contains("stars")) << r.out;
+  EXPECT_GT(j["stars"]["measured"].get<int>(), 0);
+  EXPECT_LT(j["stars"]["median_abs_flux_error"].get<double>(), 1e-6);
+  EXPECT_LT(j["stars"]["rms_position_error_hr_px"].get<double>(), 1e-6);
+  EXPECT_EQ(j["crop_px"].get<int>(), manifest["trustworthy_border_px"].get<int>() * 2);  // camera px × r
+}
+
+TEST_F(EvaluateCliTest, BadInputNamesTheProblem) {
+  Image a = Image::Zero(8, 8), b = Image::Zero(8, 10);
+  a(2, 3) = 1;
+  aosr::WriteFits(Path("a.fits"), a);
+  aosr::WriteFits(Path("b.fits"), b);
+  CliRun r = RunCli("evaluate --truth " + Path("a.fits") + " --estimate " + Path("b.fits"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("--estimate"));
+  EXPECT_THAT(r.out, HasSubstr("shape"));
+  r = RunCli("evaluate --estimate " + Path("b.fits"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("--truth/--manifest"));
+  r = RunCli("evaluate --truth " + Path("missing.fits") + " --estimate " + Path("a.fits"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("missing.fits"));
+  r = RunCli("evaluate --truth " + Path("a.fits") + " --estimate " + Path("a.fits") + " --crop 4");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("--crop"));
+}
+
+}  // namespace
