@@ -78,6 +78,66 @@ Image ShiftAndAdd(const ImageStack& frames, const std::vector<FrameOffset>& offs
   return out;
 }
 
+Image ShiftAndAdd(const ReconstructionProblem& problem, Combine combine, SolverSummary* summary) {
+  constexpr const char* kFn = "ShiftAndAdd";
+  problem.Validate(kFn);
+  CheckArgument(problem.offsets.size() == problem.frames.size(), kFn, "problem.offsets count",
+                problem.offsets.size(), "one per frame (" + std::to_string(problem.frames.size()) + ")");
+  const auto start = std::chrono::steady_clock::now();
+  const int r = problem.model->r();
+  const Shape hr = problem.model->hr_shape();
+  const ImageStack clean = problem.CleanFrames();
+  const std::size_t n = clean.size();
+  ImageStack values, masks;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Image w = problem.Weight(int(i));
+    Image up(hr.rows, hr.cols), m(hr.rows, hr.cols);
+    for (Index y = 0; y < hr.rows; ++y)
+      for (Index x = 0; x < hr.cols; ++x) {
+        const bool ok = w(y / r, x / r) > 0;
+        m(y, x) = ok ? 1.0 : 0.0;
+        up(y, x) = ok ? clean[i](y / r, x / r) / double(r * r) : 0.0;
+      }
+    values.push_back(Shift(up, -problem.offsets[i].dy, -problem.offsets[i].dx));
+    masks.push_back(Shift(m, -problem.offsets[i].dy, -problem.offsets[i].dx));
+  }
+  Image out = Image::Zero(hr.rows, hr.cols);
+  Index holes = 0;
+  std::vector<double> v;
+  for (Index p = 0; p < out.size(); ++p) {
+    if (combine == Combine::kMean) {
+      double num = 0, den = 0;
+      for (std::size_t i = 0; i < n; ++i) num += values[i].data()[p], den += masks[i].data()[p];
+      // A Fourier-shifted mask rings around holes; below ½ a frame's worth of coverage the ratio is noise.
+      if (den > 0.5) out.data()[p] = num / den; else ++holes;
+    } else {
+      v.clear();
+      for (std::size_t i = 0; i < n; ++i) {
+        const double m = masks[i].data()[p];
+        if (m > 0.5) v.push_back(values[i].data()[p] / m);
+      }
+      if (v.empty()) {
+        ++holes;
+        continue;
+      }
+      const std::size_t h = v.size() / 2;
+      std::nth_element(v.begin(), v.begin() + h, v.end());
+      double med = v[h];
+      if (v.size() % 2 == 0) med = 0.5 * (med + *std::max_element(v.begin(), v.begin() + h));
+      out.data()[p] = med;
+    }
+  }
+  if (summary) {
+    *summary = SolverSummary{};
+    summary->method = combine == Combine::kMean ? "shift-and-add (mean)" : "shift-and-add (median)";
+    summary->termination = holes == out.size() ? Termination::kFailed : Termination::kConverged;
+    summary->message = holes == 0 ? "every HR pixel covered"
+                                  : std::to_string(holes) + " HR pixels reached by no valid frame (set to 0)";
+    summary->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  return out;
+}
+
 Image BicubicUpsample(const Image& frame, int r) {
   CheckFrames("BicubicUpsample", {frame}, r);
   cv::Mat src(int(frame.rows()), int(frame.cols()), CV_64F, const_cast<double*>(frame.data()));

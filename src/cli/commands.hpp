@@ -10,5 +10,6 @@ void RegisterDemo(CLI::App& app);
 void RegisterPsf(CLI::App& app);
 void RegisterSimulate(CLI::App& app);
 void RegisterEvaluate(CLI::App& app);
+void RegisterReconstruct(CLI::App& app);
 
 }  // namespace aosr::cli

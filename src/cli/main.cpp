@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   aosr::cli::RegisterPsf(app);
   aosr::cli::RegisterSimulate(app);
   aosr::cli::RegisterEvaluate(app);
+  aosr::cli::RegisterReconstruct(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "aosr/core/forward_model.hpp"
+#include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/summary.hpp"
 
 namespace aosr {
@@ -25,6 +26,14 @@ Image ShiftAndAdd(const ImageStack& frames, const std::vector<FrameOffset>& offs
                   SolverSummary* summary = nullptr);
 
 // One LR frame to the HR grid by bicubic interpolation, in flux per HR pixel.
+// The same for a ReconstructionProblem (its offsets are required): pixels of weight 0 are left out. Weights
+// act as a mask only (the astronomers' shift-and-add is an unweighted combination). Mean: normalised
+// convolution, Σ_i S_i(m_i·u_i) / Σ_i S_i(m_i) with u_i the upsampled frame, m_i its upsampled mask and S_i
+// the registration shift (exact for whole HR-pixel shifts, Fourier-interpolated otherwise). Median: over the
+// frames whose shifted mask exceeds ½ at the pixel. HR pixels no valid frame reaches are 0; the summary
+// message counts them.
+Image ShiftAndAdd(const ReconstructionProblem& problem, Combine combine, SolverSummary* summary = nullptr);
+
 Image BicubicUpsample(const Image& frame, int r);
 
 }  // namespace aosr

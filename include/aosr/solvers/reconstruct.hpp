@@ -1,0 +1,71 @@
+// One entry point for every reconstructor, so the CLI, the benchmarks and the phase-design evaluation run
+// a method by name with the same options and get the same kind of result.
+//
+//   method            what runs                                          second map (aux)
+//   shift-add         ShiftAndAdd (mean), masks honoured                 —
+//   shift-add-median  ShiftAndAdd (median)                               —
+//   drizzle           Drizzle (drizzle.hpp)                              weight map W
+//   tikhonov          ReconstructTikhonov (tikhonov.hpp)                 posterior std (when computable)
+//   tv                TotalVariationAdmm (total_variation.hpp)           —
+//   map               MapReconstruct (map.hpp), warm-started by Tikhonov —
+//
+// Automatic regularisation for tv and map (ReconstructOptions::auto_regularisation, on by default). There is
+// no universal TV weight; this rule follows how the objective scales. Divide ½Σw(y − Ax)² + μTV(x) by the
+// noise variance ρ² in weight units and measure the object in units of the pixel noise σ_n = ρ/√w̄ (w̄ the
+// mean positive weight): the data term becomes a sum of squared noise-unit residuals and the TV weight
+// μ' = μ/(ρ√w̄). The rule keeps μ' fixed,
+//
+//     μ = k · ρ · √w̄,   ρ² = Σ w (y − A x̂_T)² / n_w  (x̂_T: the GCV Tikhonov estimate),   k = 0.5,
+//
+// (ρ ≈ 1 with true inverse-variance weights, ρ = σ with unit weights). k from measurements: the PSNR-best μ
+// of total_variation_physics_test (unit weights, blocks, σ = 0.05 and 0.1) gives k = 0.5 and 1; the demo
+// scene (σ = 1% of the peak, inverse-variance weights) k = 0.26–0.5 (PSNR within 0.5 dB of its best over
+// k = 0.1–1.5). MAP uses the same TV weight in its own convention (λ = 2μ: F = ½[data + λR]) with
+// Charbonnier ε = 10⁻³ s, s = q₉₉.₅(x̂_T) − q₅₀(x̂_T) the object's contrast. A heuristic: scan μ for science.
+#pragma once
+
+#include <string>
+
+#include "aosr/solvers/drizzle.hpp"
+#include "aosr/solvers/map.hpp"
+#include "aosr/solvers/problem.hpp"
+#include "aosr/solvers/shift_and_add.hpp"
+#include "aosr/solvers/tikhonov.hpp"
+#include "aosr/solvers/total_variation.hpp"
+
+namespace aosr {
+
+enum class ReconstructionMethod { kShiftAddMean, kShiftAddMedian, kDrizzle, kTikhonov, kTotalVariation, kMap };
+const char* ToString(ReconstructionMethod m);
+// "shift-add" | "shift-add-median" | "drizzle" | "tikhonov" | "tv" | "map"; InvalidArgument otherwise.
+ReconstructionMethod ParseReconstructionMethod(const std::string& name);
+
+struct ReconstructOptions {
+  ReconstructionMethod method = ReconstructionMethod::kTikhonov;
+  DrizzleOptions drizzle;
+  // Default GCV λ and the gradient prior: the one choice that needs no noise level.
+  TikhonovOptions tikhonov = [] {
+    TikhonovOptions t;
+    t.lambda_rule = TikhonovLambdaRule::kGcv;
+    return t;
+  }();
+  TotalVariationOptions tv;
+  MapOptions map;
+  // tv and map: set μ (tv.mu) and λ, ε (map.lambda, map.epsilon) by the rule above, overriding the fields.
+  bool auto_regularisation = true;
+};
+
+struct Reconstruction {
+  Image image;           // HR estimate, flux per HR pixel (frame units), always finite
+  Image aux;             // the method's second map (see the table), or empty
+  std::string aux_name;  // "weight" | "posterior-std" | ""
+  SolverSummary summary;  // termination, message, iterations, final cost, seconds, per-frame residual RMS
+  double regularisation = 0.0;  // λ (tikhonov, map) or μ (tv) used; 0 for the baselines
+  double seconds_total = 0.0;   // including warm start and automatic regularisation
+};
+
+// Validates the problem and options (InvalidArgument names the field); never returns NaN: a non-finite
+// estimate is reported as Termination::kFailed with the image zeroed.
+Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options);
+
+}  // namespace aosr

@@ -1,0 +1,181 @@
+#include "aosr/solvers/reconstruct.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <vector>
+
+#include "aosr/core/error.hpp"
+
+namespace aosr {
+namespace {
+
+constexpr const char* kFn = "Reconstruct";
+
+double Quantile(const Image& x, double q) {
+  std::vector<double> v(x.data(), x.data() + x.size());
+  const std::size_t k = std::min(v.size() - 1, std::size_t(q * double(v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+// The GCV Tikhonov estimate and the noise variance (in weight units) it leaves in the residual.
+struct Pilot {
+  TikhonovResult tikhonov;
+  double contrast = 1.0;  // s of the rule in reconstruct.hpp
+  double mu = 0.0;        // μ of that rule
+};
+
+Pilot RunPilot(const ReconstructionProblem& problem, const TikhonovOptions& base) {
+  TikhonovOptions t = base;
+  t.lambda_rule = problem.HasUniformWeights() ? TikhonovLambdaRule::kGcv : t.lambda_rule;  // GCV needs Fourier
+  t.compute_std = false;
+  Pilot p;
+  p.tikhonov = ReconstructTikhonov(problem, t);
+  p.contrast = Quantile(p.tikhonov.image, 0.995) - Quantile(p.tikhonov.image, 0.5);
+  if (!(p.contrast > 0)) p.contrast = std::max(1e-12, p.tikhonov.image.abs().maxCoeff());
+  Index weighted = 0;
+  double weight_sum = 0;
+  for (int i = 0; i < problem.frame_count(); ++i) {
+    const Image w = problem.Weight(i);
+    weighted += (w > 0).count();
+    weight_sum += (w > 0).select(w, 0.0).sum();
+  }
+  const double n = double(std::max<Index>(1, weighted));
+  const double rho = std::sqrt(std::max(p.tikhonov.summary.weighted_residual / n, 1e-300));
+  p.mu = 0.5 * rho * std::sqrt(weight_sum / n);
+  return p;
+}
+
+}  // namespace
+
+const char* ToString(ReconstructionMethod m) {
+  switch (m) {
+    case ReconstructionMethod::kShiftAddMean: return "shift-add";
+    case ReconstructionMethod::kShiftAddMedian: return "shift-add-median";
+    case ReconstructionMethod::kDrizzle: return "drizzle";
+    case ReconstructionMethod::kTikhonov: return "tikhonov";
+    case ReconstructionMethod::kTotalVariation: return "tv";
+    case ReconstructionMethod::kMap: return "map";
+  }
+  return "unknown";
+}
+
+ReconstructionMethod ParseReconstructionMethod(const std::string& name) {
+  for (ReconstructionMethod m : {ReconstructionMethod::kShiftAddMean, ReconstructionMethod::kShiftAddMedian,
+                                 ReconstructionMethod::kDrizzle, ReconstructionMethod::kTikhonov,
+                                 ReconstructionMethod::kTotalVariation, ReconstructionMethod::kMap})
+    if (name == ToString(m)) return m;
+  throw InvalidArgument("ParseReconstructionMethod", "method", name, "shift-add | shift-add-median | drizzle | tikhonov | tv | map");
+}
+
+Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options) {
+  problem.Validate(kFn);
+  std::string why;
+  const auto check = [&why](bool ok, const char* what) {
+    if (!ok) throw InvalidArgument(std::string(kFn) + ": options." + what + "." + why);
+  };
+  const auto start = std::chrono::steady_clock::now();
+  Reconstruction out;
+  switch (options.method) {
+    case ReconstructionMethod::kShiftAddMean:
+    case ReconstructionMethod::kShiftAddMedian: {
+      CheckArgument(problem.offsets.size() == problem.frames.size(), kFn, "problem.offsets",
+                    std::to_string(problem.offsets.size()) + " entries", "one per frame for shift-and-add");
+      out.image = ShiftAndAdd(problem,
+                              options.method == ReconstructionMethod::kShiftAddMean ? Combine::kMean : Combine::kMedian,
+                              &out.summary);
+      WeightedDataMisfit(problem, out.image, &out.summary.frame_residual_rms);
+      break;
+    }
+    case ReconstructionMethod::kDrizzle: {
+      check(options.drizzle.IsValid(&why), "drizzle");
+      DrizzleResult d = Drizzle(problem, options.drizzle);
+      out.image = std::move(d.image);
+      out.aux = std::move(d.weight);
+      out.aux_name = "weight";
+      out.summary = d.summary;
+      // A NaN fill value is the astronomers' INDEF: keep it out of the misfit.
+      if (AllFinite(out.image)) WeightedDataMisfit(problem, out.image, &out.summary.frame_residual_rms);
+      break;
+    }
+    case ReconstructionMethod::kTikhonov: {
+      check(options.tikhonov.IsValid(&why), "tikhonov");
+      TikhonovOptions t = options.tikhonov;
+      // GCV needs a Fourier-exact problem (tikhonov.hpp). For weighted or masked data choose λ by GCV on the
+      // same frames with uniform weights, then scale it by the mean positive weight (λ and the weights enter
+      // (1) together). Masked pixels enter that choice as zeros: harmless for the λ of a few bad pixels.
+      if (t.lambda_rule == TikhonovLambdaRule::kGcv && !problem.HasUniformWeights()) {
+        ReconstructionProblem uniform = problem;
+        uniform.frames = problem.CleanFrames();
+        uniform.weights.clear();
+        TikhonovOptions g = t;
+        g.compute_std = false;
+        const double lambda_uniform = ReconstructTikhonov(uniform, g).summary.lambda;
+        // Uniform weights w = 1 vs the problem's mean positive weight: λ scales with the weights.
+        double sum = 0;
+        Index count = 0;
+        for (int i = 0; i < problem.frame_count(); ++i) {
+          const Image w = problem.Weight(i);
+          sum += (w > 0).select(w, 0.0).sum();
+          count += (w > 0).count();
+        }
+        t.lambda_rule = TikhonovLambdaRule::kFixed;
+        t.lambda = lambda_uniform * (count > 0 ? sum / double(count) : 1.0);
+      }
+      TikhonovResult r = ReconstructTikhonov(problem, t);
+      out.image = std::move(r.image);
+      if (r.summary.std_computed) {
+        out.aux = std::move(r.posterior_std);
+        out.aux_name = "posterior-std";
+      }
+      out.regularisation = r.summary.lambda;
+      out.summary = r.summary;
+      if (t.lambda != options.tikhonov.lambda && options.tikhonov.lambda_rule == TikhonovLambdaRule::kGcv)
+        out.summary.message += "; λ by GCV on the unweighted frames, scaled by the mean weight";
+      break;
+    }
+    case ReconstructionMethod::kTotalVariation: {
+      TotalVariationOptions tv = options.tv;
+      Image initial;
+      if (options.auto_regularisation) {
+        const Pilot p = RunPilot(problem, options.tikhonov);
+        tv.mu = p.mu;
+        initial = p.tikhonov.image;
+      }
+      check(tv.IsValid(&why), "tv");
+      TotalVariationSummary s;
+      out.image = TotalVariationAdmm(problem, tv, &s, initial.size() ? &initial : nullptr);
+      out.regularisation = tv.mu;
+      out.summary = s;
+      break;
+    }
+    case ReconstructionMethod::kMap: {
+      MapOptions m = options.map;
+      const Pilot p = RunPilot(problem, options.tikhonov);
+      if (options.auto_regularisation) {
+        m.lambda = 2 * p.mu;
+        m.epsilon = 1e-3 * p.contrast;
+        m.delta = 1e-3 * p.contrast;
+      }
+      check(m.IsValid(&why), "map");
+      Image warm = p.tikhonov.image;
+      if (m.positivity == MapPositivity::kSoftplus) warm = warm.max(0.0);
+      MapResult r = MapReconstruct(problem, m, warm);
+      out.image = std::move(r.image);
+      out.regularisation = m.lambda;
+      out.summary = r.summary;
+      break;
+    }
+  }
+  if (!AllFinite(out.image) &&
+      !(options.method == ReconstructionMethod::kDrizzle && std::isnan(options.drizzle.fill_value))) {
+    out.image.setZero();
+    out.summary.termination = Termination::kFailed;
+    out.summary.message = "non-finite estimate discarded (image zeroed): " + out.summary.message;
+  }
+  out.seconds_total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+}  // namespace aosr

@@ -1,0 +1,228 @@
+// `aosr reconstruct DIR --method M -o OUT.fits`: a super-resolved image from a dataset (simulated or
+// measured, scene/dataset.hpp) by any reconstructor (solvers/reconstruct.hpp), with its summary, and the
+// method's second map (Drizzle weight, Tikhonov posterior std) beside it.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+
+#include "aosr/core/error.hpp"
+#include "aosr/core/metrics.hpp"
+#include "aosr/io/fits.hpp"
+#include "aosr/scene/dataset.hpp"
+#include "aosr/solvers/dataset_problem.hpp"
+#include "aosr/solvers/reconstruct.hpp"
+#include "cli_util.hpp"
+#include "commands.hpp"
+
+namespace aosr::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ReconstructArgs {
+  std::string dataset;
+  std::string method = "tikhonov";
+  std::string out;
+  bool json = false;
+  std::string weights = "auto";
+  std::string offsets = "auto";
+  std::string model_psfs;
+  // Tikhonov
+  double lambda = -1;  // < 0: GCV
+  std::string prior = "gradient";
+  std::string boundary = "periodic";
+  bool std_map = false;
+  double noise_sigma = 1.0;
+  // TV / MAP
+  double mu = -1;  // < 0: automatic
+  int iterations = -1;
+  bool positivity = false;
+  std::string likelihood = "gaussian";
+  std::string map_prior = "charbonnier-tv";
+  double read_noise = 0;
+  // Drizzle
+  std::string kernel = "square";
+  double pixfrac = 1.0;
+};
+
+// The dataset's files, resolved: the output must not be one of them.
+std::set<fs::path> InputFiles(const Dataset& d) {
+  std::set<fs::path> in;
+  const fs::path manifest = fs::weakly_canonical(d.manifest_path);
+  in.insert(manifest);
+  for (const char* key : {"frames", "valid", "weights", "psfs", "truth", "expected", "scene"})
+    if (d.manifest.contains(key) && d.manifest[key].is_string()) {
+      fs::path p = d.manifest[key].get<std::string>();
+      if (p.is_relative()) p = manifest.parent_path() / p;
+      in.insert(fs::weakly_canonical(p));
+    }
+  return in;
+}
+
+std::string AuxPath(const std::string& out, const std::string& aux) {
+  fs::path p(out);
+  const std::string stem = p.stem().string();
+  return (p.parent_path() / (stem + "_" + aux + p.extension().string())).string();
+}
+
+void RunReconstruct(const ReconstructArgs& a) {
+  const Progress progress(!a.json);
+  ReconstructOptions o;
+  o.method = ParseReconstructionMethod(a.method);
+  DatasetProblemOptions dpo;
+  dpo.weights = ParseDatasetWeights(a.weights);
+  dpo.offsets = ParseDatasetOffsets(a.offsets);
+  // Options, checked before anything is read or computed.
+  o.tikhonov.prior = ParseTikhonovPrior(a.prior);
+  if (a.lambda >= 0) {
+    o.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
+    o.tikhonov.lambda = a.lambda;
+  }
+  if (a.boundary == "padded") {
+    o.tikhonov.boundary = TikhonovBoundary::kZeroPadded;
+  } else if (a.boundary != "periodic") {
+    throw InvalidArgument("aosr reconstruct", "--boundary", a.boundary, "periodic | padded");
+  }
+  o.tikhonov.compute_std = a.std_map;
+  o.tikhonov.noise_sigma = a.noise_sigma;
+  o.drizzle.kernel = ParseDrizzleKernel(a.kernel);
+  o.drizzle.pixfrac = a.pixfrac;
+  o.drizzle.compute_context = false;
+  if (a.mu >= 0) {
+    o.auto_regularisation = false;
+    o.tv.mu = a.mu;
+    o.map.lambda = 2 * a.mu;
+  }
+  if (a.iterations > 0) o.tv.max_iterations = o.map.max_iterations = a.iterations;
+  o.tv.positivity = a.positivity;
+  o.map.positivity = a.positivity ? MapPositivity::kSoftplus : MapPositivity::kNone;
+  o.map.likelihood = ParseMapLikelihood(a.likelihood);
+  o.map.prior = ParseMapPrior(a.map_prior);
+  o.map.read_noise = a.read_noise;
+  CheckWritableFile(a.out);
+
+  progress.Step("reading " + a.dataset);
+  const Dataset d = LoadDataset(a.dataset);
+  const fs::path out_canonical = fs::weakly_canonical(a.out);
+  const std::set<fs::path> inputs = InputFiles(d);
+  for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std")})
+    if (inputs.count(fs::weakly_canonical(p)))
+      throw InvalidArgument("aosr reconstruct", "-o", a.out, "a path that is not one of the dataset's input files (" + p + ")");
+  if (!a.model_psfs.empty()) dpo.model_psfs = ReadFits(a.model_psfs).planes;
+  const DatasetProblem dp = ProblemFromDataset(d, dpo);
+
+  progress.Step(std::string("reconstructing with ") + ToString(o.method) + " (" + std::to_string(d.size()) +
+                " frames of " + ToString(d.frame) + ", r = " + std::to_string(d.r) + ")");
+  const Reconstruction rec = Reconstruct(dp.problem, o);
+
+  FitsHeader h;
+  h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
+  h.Set("AOSRDATA", "reconstruction", "content of this HDU");
+  h.Set("METHOD", std::string(ToString(o.method)), "reconstruction method");
+  h.Set("SRFACTOR", static_cast<long long>(d.r), "super-resolution factor r");
+  h.Set("NFRAMES", static_cast<long long>(d.size()), "number of sub-exposures N");
+  h.Set("BUNIT", "electron", "per HR pixel per frame");
+  h.Set("REGUL", rec.regularisation, "lambda (tikhonov, map) or mu (tv); 0 for baselines");
+  h.Set("TERMINAT", std::string(ToString(rec.summary.termination)), "solver termination");
+  h.Set("NITER", static_cast<long long>(rec.summary.iterations), "iterations");
+  if (d.camera_pixel_rad > 0) h.Set("HRPIXRAD", d.camera_pixel_rad / d.r, "[rad] HR pixel angular pitch");
+  progress.Step("writing " + a.out);
+  WriteFits(a.out, rec.image, h, FitsType::kFloat32);
+  std::string aux_path;
+  if (!rec.aux_name.empty()) {
+    aux_path = AuxPath(a.out, rec.aux_name == "weight" ? "weight" : "std");
+    FitsHeader ha = h;
+    ha.Set("AOSRDATA", rec.aux_name, "content of this HDU");
+    WriteFits(aux_path, rec.aux, ha, FitsType::kFloat32);
+  }
+
+  nlohmann::json j = {{"method", ToString(o.method)},
+                      {"dataset", a.dataset},
+                      {"output", a.out},
+                      {"frames", d.size()},
+                      {"r", d.r},
+                      {"weights", dp.weights_source},
+                      {"offsets", dp.offsets_source},
+                      {"model_psfs_replaced", dp.model_psfs_replaced},
+                      {"masked_pixels", dp.masked_pixels},
+                      {"regularisation", rec.regularisation},
+                      {"summary",
+                       {{"method", rec.summary.method},
+                        {"termination", ToString(rec.summary.termination)},
+                        {"message", rec.summary.message},
+                        {"iterations", rec.summary.iterations},
+                        {"final_cost", rec.summary.final_cost},
+                        {"seconds", rec.summary.seconds},
+                        {"frame_residual_rms", rec.summary.frame_residual_rms}}},
+                      {"seconds_total", rec.seconds_total}};
+  if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
+  if (d.truth) {
+    MetricOptions mo;
+    mo.crop_px = int(d.trustworthy_border_px * d.r);
+    if (2 * mo.crop_px + 11 > std::min(d.hr_frame.rows, d.hr_frame.cols)) mo.crop_px = 0;
+    const ImageMetrics m = CompareImages(*d.truth, rec.image, mo);
+    j["against_truth"] = {{"psnr_db", m.psnr}, {"ssim", m.ssim}, {"rmse", m.rmse}, {"crop_px", mo.crop_px}};
+  }
+  if (a.json) {
+    std::printf("%s\n", j.dump(2).c_str());
+    return;
+  }
+  std::printf("%s: %s, %d iterations, %.3f s (total %.3f s)\n", ToString(o.method),
+              ToString(rec.summary.termination), rec.summary.iterations, rec.summary.seconds, rec.seconds_total);
+  std::printf("  %s\n", rec.summary.message.c_str());
+  std::printf("  weights: %s; offsets: %s%s\n", dp.weights_source.c_str(), dp.offsets_source.c_str(),
+              dp.model_psfs_replaced ? ("; model PSFs replaced by " + a.model_psfs).c_str() : "");
+  if (j.contains("against_truth"))
+    std::printf("  against the truth (crop %d HR px): PSNR %.2f dB, SSIM %.4f\n", j["against_truth"]["crop_px"].get<int>(),
+                j["against_truth"]["psnr_db"].get<double>(), j["against_truth"]["ssim"].get<double>());
+  std::printf("  wrote %s%s\n", a.out.c_str(), aux_path.empty() ? "" : (" and " + aux_path).c_str());
+}
+
+}  // namespace
+
+void RegisterReconstruct(CLI::App& app) {
+  auto a = std::make_shared<ReconstructArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "reconstruct",
+      "Super-resolve a dataset (folder or manifest.json from `aosr simulate`, or measured frames) with one "
+      "method. Writes OUT.fits (e- per HR pixel per frame) and, for drizzle/tikhonov --std, OUT_weight.fits / "
+      "OUT_std.fits. If the dataset has a truth, reports PSNR/SSIM against it.");
+  cmd->add_option("dataset", a->dataset, "dataset folder or manifest")->required();
+  cmd->add_option("-m,--method", a->method, "shift-add | shift-add-median | drizzle | tikhonov | tv | map")
+      ->capture_default_str();
+  cmd->add_option("-o,--output", a->out, "output FITS image")->required();
+  cmd->add_flag("--json", a->json, "print the summary as JSON");
+  cmd->add_option("--weights", a->weights, "auto | dataset (inverse variances) | mask (uniform on valid pixels)")
+      ->capture_default_str();
+  cmd->add_option("--offsets", a->offsets, "registration offsets for shift-add/drizzle: auto | dm | centroids")
+      ->capture_default_str();
+  cmd->add_option("--model-psfs", a->model_psfs,
+                  "FITS cube of PSFs (HR sampling, centred) the reconstructor uses instead of the dataset's");
+  cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
+  cmd->add_option("--prior", a->prior, "Tikhonov prior: identity | gradient | laplacian | power-spectrum")
+      ->capture_default_str();
+  cmd->add_option("--boundary", a->boundary, "Tikhonov boundary: periodic | padded")->capture_default_str();
+  cmd->add_flag("--std", a->std_map, "Tikhonov: write the posterior standard deviation map (Fourier path only)");
+  cmd->add_option("--noise-sigma", a->noise_sigma,
+                  "Tikhonov --std: noise sigma of a weight-1 pixel (1 for inverse-variance weights)")
+      ->capture_default_str()
+      ->check(NonNegativeFinite());
+  cmd->add_option("--mu", a->mu, "TV weight mu (MAP: lambda = 2 mu); default automatic (reconstruct.hpp)")
+      ->check(NonNegativeFinite());
+  cmd->add_option("--iterations", a->iterations, "iteration limit of tv / map")->check(CLI::Range(1, 1000000));
+  cmd->add_flag("--positivity", a->positivity, "tv / map: constrain the image to be >= 0");
+  cmd->add_option("--likelihood", a->likelihood, "map: gaussian | poisson")->capture_default_str();
+  cmd->add_option("--map-prior", a->map_prior, "map: tikhonov | charbonnier-tv | huber-tv")->capture_default_str();
+  cmd->add_option("--read-noise", a->read_noise, "map poisson: read noise [e-]")->check(NonNegativeFinite());
+  cmd->add_option("--kernel", a->kernel, "drizzle: square | turbo | point | gaussian | lanczos3")->capture_default_str();
+  cmd->add_option("--pixfrac", a->pixfrac, "drizzle: drop size as a fraction of the camera pixel, (0, 1]")
+      ->capture_default_str();
+  cmd->callback([a] { RunReconstruct(*a); });
+}
+
+}  // namespace aosr::cli
