@@ -19,6 +19,29 @@ double Quantile(const Image& x, double q) {
   return v[k];
 }
 
+// GCV needs a Fourier-exact problem (tikhonov.hpp). For weighted or masked data choose λ by GCV on the same
+// frames with uniform weights, then scale it by the mean positive weight (λ and the weights enter (1)
+// together). Masked pixels enter that choice as zeros: harmless for the λ of a few bad pixels.
+TikhonovOptions WithGcvLambda(const ReconstructionProblem& problem, TikhonovOptions t) {
+  if (t.lambda_rule != TikhonovLambdaRule::kGcv || problem.HasUniformWeights()) return t;
+  ReconstructionProblem uniform = problem;
+  uniform.frames = problem.CleanFrames();
+  uniform.weights.clear();
+  TikhonovOptions g = t;
+  g.compute_std = false;
+  const double lambda_uniform = ReconstructTikhonov(uniform, g).summary.lambda;
+  double sum = 0;
+  Index count = 0;
+  for (int i = 0; i < problem.frame_count(); ++i) {
+    const Image w = problem.Weight(i);
+    sum += (w > 0).select(w, 0.0).sum();
+    count += (w > 0).count();
+  }
+  t.lambda_rule = TikhonovLambdaRule::kFixed;
+  t.lambda = lambda_uniform * (count > 0 ? sum / double(count) : 1.0);
+  return t;
+}
+
 // The GCV Tikhonov estimate and the noise variance (in weight units) it leaves in the residual.
 struct Pilot {
   TikhonovResult tikhonov;
@@ -27,8 +50,7 @@ struct Pilot {
 };
 
 Pilot RunPilot(const ReconstructionProblem& problem, const TikhonovOptions& base) {
-  TikhonovOptions t = base;
-  t.lambda_rule = problem.HasUniformWeights() ? TikhonovLambdaRule::kGcv : t.lambda_rule;  // GCV needs Fourier
+  TikhonovOptions t = WithGcvLambda(problem, base);
   t.compute_std = false;
   Pilot p;
   p.tikhonov = ReconstructTikhonov(problem, t);
@@ -101,28 +123,7 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
     }
     case ReconstructionMethod::kTikhonov: {
       check(options.tikhonov.IsValid(&why), "tikhonov");
-      TikhonovOptions t = options.tikhonov;
-      // GCV needs a Fourier-exact problem (tikhonov.hpp). For weighted or masked data choose λ by GCV on the
-      // same frames with uniform weights, then scale it by the mean positive weight (λ and the weights enter
-      // (1) together). Masked pixels enter that choice as zeros: harmless for the λ of a few bad pixels.
-      if (t.lambda_rule == TikhonovLambdaRule::kGcv && !problem.HasUniformWeights()) {
-        ReconstructionProblem uniform = problem;
-        uniform.frames = problem.CleanFrames();
-        uniform.weights.clear();
-        TikhonovOptions g = t;
-        g.compute_std = false;
-        const double lambda_uniform = ReconstructTikhonov(uniform, g).summary.lambda;
-        // Uniform weights w = 1 vs the problem's mean positive weight: λ scales with the weights.
-        double sum = 0;
-        Index count = 0;
-        for (int i = 0; i < problem.frame_count(); ++i) {
-          const Image w = problem.Weight(i);
-          sum += (w > 0).select(w, 0.0).sum();
-          count += (w > 0).count();
-        }
-        t.lambda_rule = TikhonovLambdaRule::kFixed;
-        t.lambda = lambda_uniform * (count > 0 ? sum / double(count) : 1.0);
-      }
+      TikhonovOptions t = WithGcvLambda(problem, options.tikhonov);
       TikhonovResult r = ReconstructTikhonov(problem, t);
       out.image = std::move(r.image);
       if (r.summary.std_computed) {
@@ -131,7 +132,7 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
       }
       out.regularisation = r.summary.lambda;
       out.summary = r.summary;
-      if (t.lambda != options.tikhonov.lambda && options.tikhonov.lambda_rule == TikhonovLambdaRule::kGcv)
+      if (t.lambda_rule != options.tikhonov.lambda_rule)
         out.summary.message += "; λ by GCV on the unweighted frames, scaled by the mean weight";
       break;
     }
