@@ -89,6 +89,10 @@ ObjectSpec ParseObject(const ConfigNode& n, const SceneSpec& scene, std::size_t 
     CheckOptions(n, o.usaf);
   } else if (o.type == "demo") {
     o.kind = ObjectSpec::Kind::kDemo;
+    // DemoObject draws its bars and stars on at least 64 x 64 HR pixels (objects.hpp).
+    if (scene.HrFrame().rows < 64 || scene.HrFrame().cols < 64)
+      n.Fail("type", "demo", "an HR frame (r * frame_px) of at least 64 x 64 pixels for the demo object; here " +
+                                 ToString(scene.HrFrame()));
   } else if (o.type == "stars") {
     o.kind = ObjectSpec::Kind::kStars;
     if (n.Has("catalogue")) {
@@ -128,6 +132,17 @@ ObjectSpec ParseObject(const ConfigNode& n, const SceneSpec& scene, std::size_t 
       o.stars.margin_px = n.NumberOr("margin_px", 0.0, 0.0, 1e4);
       if (2 * o.stars.margin_px >= double(std::min(scene.frame.rows, scene.frame.cols)))
         n.Fail("margin_px", ToString(o.stars.margin_px), "less than half the smaller frame side");
+      // The hard-core field's packing limit (star_field.hpp), checked here so that it fails before any
+      // computation. Camera pixels: the fraction is the same on the HR grid.
+      if (o.stars.min_separation_px > 0) {
+        const double m = o.stars.margin_px, sep = o.stars.min_separation_px;
+        const double area = (double(scene.frame.rows) - 2 * m) * (double(scene.frame.cols) - 2 * m);
+        const double packing = o.stars.count * M_PI * sep * sep / 4.0 / area;
+        if (packing > 0.4)
+          n.Fail("min_separation_px", ToString(sep),
+                 "a packing fraction count*pi*s^2/4/area <= 0.4 (here " + ToString(packing) + " for count = " +
+                     std::to_string(o.stars.count) + " on " + ToString(area) + " camera px^2)");
+      }
       CheckOptions(n, o.stars);
     }
     if (o.star_magnitudes) {

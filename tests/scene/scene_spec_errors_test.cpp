@@ -413,3 +413,27 @@ TEST(SceneSpecErrorsTest, LoadSceneNamesTheFile) {
 
 }  // namespace
 }  // namespace aosr
+
+namespace aosr {
+namespace {
+
+// Checks that used to fire only when the scene ran now fail at parse time (so `--plan` refuses them too).
+TEST(SceneSpecErrorsTest, DemoObjectNeedsA64PixelHrFrame) {
+  Json j = BaseScene();
+  j["detector"]["frame_px"] = 16;
+  j["objects"] = Json::array({Json{{"type", "demo"}}});
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("objects[0].type = demo"), HasSubstr("at least 64 x 64")));
+  j["detector"]["frame_px"] = 32;  // 64 HR pixels at r = 2
+  EXPECT_EQ(ParseError(j), "no exception");
+}
+
+TEST(SceneSpecErrorsTest, OverpackedHardCoreStarFieldFailsAtParse) {
+  Json j = BaseScene();
+  j["objects"] = Json::array({Json{{"type", "stars"}, {"count", 500}, {"min_separation_px", 3}}});
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("objects[0].min_separation_px = 3"), HasSubstr("packing fraction")));
+  j["objects"][0]["count"] = 20;
+  EXPECT_EQ(ParseError(j), "no exception");
+}
+
+}  // namespace
+}  // namespace aosr
