@@ -23,7 +23,7 @@ nlohmann::json WithActuators(const std::string& telescope, int count) {
           {"r", telescope == "paper-bench" ? 4 : 2},
           {"offsets", {{"type", "design"}, {"frames", frames}}},
           {"detector", {{"frame_px", 16}, {"noise", "none"}}},
-          {"objects", nlohmann::json::array({{{"type", "demo"}}})}};
+          {"objects", nlohmann::json::array({{{"type", "usaf"}}})}};
 }
 
 TEST(ScenePipelineErrors, ActuatorCountMustMatchTheDm) {
