@@ -10,6 +10,8 @@ void RegisterDemo(CLI::App& app);
 void RegisterPsf(CLI::App& app);
 void RegisterSimulate(CLI::App& app);
 void RegisterEvaluate(CLI::App& app);
+void RegisterDesign(CLI::App& app);
+void RegisterCalibrate(CLI::App& app);
 void RegisterReconstruct(CLI::App& app);
 
 }  // namespace aosr::cli

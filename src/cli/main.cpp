@@ -18,6 +18,8 @@ int main(int argc, char** argv) {
   aosr::cli::RegisterPsf(app);
   aosr::cli::RegisterSimulate(app);
   aosr::cli::RegisterEvaluate(app);
+  aosr::cli::RegisterDesign(app);
+  aosr::cli::RegisterCalibrate(app);
   aosr::cli::RegisterReconstruct(app);
   try {
     app.parse(argc, argv);
