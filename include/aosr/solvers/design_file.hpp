@@ -1,0 +1,53 @@
+// Phase design, part 4: the design file, what an AO real-time controller (and `aosr simulate` / `reconstruct`)
+// loads. Format (read by scene_spec.hpp's LoadDesignFile, documented in data/scenes/README.md "Design files"):
+//
+//   {
+//     "name": "paper-sim-r2-zernike",
+//     "frames": [ {"shift_px": [dy, dx], "zernike": [{"noll": j, "rms_nm": a}, ...], "actuators_nm": [...]}, ... ],
+//     "design": {                                  (provenance; LoadDesignFile keeps it, unchecked)
+//       "method": "expected-mse", "parameterisation": "zernike", "scene": "...", "reconstructor": {...},
+//       "objective": {"raster": J_r, "start": J_0, "final": J, "units": "..."}, "summary": "...",
+//       "wfs": {"model": "shack-hartmann-geometric", "lenslets_across": M, "valid_subapertures": V,
+//               "slope_order": "...", "units": "rad"},
+//       "frames": [ {"rms_nm": ..., "strehl": ..., "strehl_cost": ..., "reference_slopes_rad": [...]}, ... ]
+//     }
+//   }
+//
+// Per exposure: the offset as the scene reads it (tip/tilt as an image shift in camera pixels, Zernike
+// coefficients in nm of wavefront OPD RMS, or DM commands in nm of wavefront OPD, one per active actuator);
+// its pupil RMS (piston removed); the Strehl it keeps, exact, tip/tilt removed (a shift costs nothing), and the
+// cost 1 − S; and the Shack-Hartmann reference-slope offsets that make the closed loop hold it: the noise-free
+// slopes of the offset OPD on the telescope's lenslet geometry, minus those of a flat wavefront
+// (WavefrontSensor::ReferenceOffsetForOpd with the geometric model; closed_loop.hpp applies offsets this way).
+// Slopes are listed as the sensor orders them (all x slopes of the valid lenslets, then all y slopes).
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "aosr/scene/scene_spec.hpp"
+#include "aosr/solvers/design_optimizer.hpp"
+
+namespace aosr {
+
+struct DesignFrameReport {
+  double rms_m = 0.0;        // pupil RMS of the offset, piston removed [m]
+  double strehl = 1.0;       // Strehl kept (tip/tilt removed), exact, at the science wavelength
+  double strehl_cost = 0.0;  // 1 − strehl
+  Vector reference_slopes_rad;  // SH reference-slope offsets [rad]; empty without a Shack-Hartmann
+};
+
+// Per exposure reports for the OPDs of a design (n x n [m] each). The slopes use the scene's telescope's
+// Shack-Hartmann geometry (geometric model, noise-free) when it has an AO section; otherwise they are empty.
+std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const DesignParameterisation& parameterisation,
+                                              const std::vector<Image>& opds);
+
+// The whole design file as JSON (format above). `scene` names the scene file; `frames` the per-exposure reports.
+nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, const DesignResult& result,
+                              const DesignObjective& objective, const std::vector<DesignFrameReport>& frames);
+
+// Writes the JSON atomically (write then rename). IoError naming the path if it cannot be written.
+void WriteDesignFile(const std::string& path, const nlohmann::json& design);
+
+}  // namespace aosr

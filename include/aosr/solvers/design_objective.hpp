@@ -1,0 +1,161 @@
+// Phase design, part 2: objective A, the closed-form expected reconstruction MSE of the linear (Tikhonov /
+// Wiener) reconstructor, as a function of the N DM offsets w_dm,i, with its analytic gradient. No Ceres here:
+// design_optimizer.hpp minimises it.
+//
+// ## The model (DESIGN.md §1, forward_model.hpp, tikhonov.hpp)
+//
+// The design works on a periodic HR grid of M x M pixels (M = the scene's PSF window, a multiple of r;
+// m = M / r LR pixels), large enough to hold the PSF: the expected MSE is a mean over frequencies, so M sets
+// only how finely the frequency axis is sampled. Exposure i's PSF at HR pitch θ_hr is
+//     p_i = |MFT(A exp(i 2π (w_dm,i + w_static) / λ))|²   on the M x M window (psf.hpp),   h_i = p_i / Σ p_i,
+// and its transfer function H_i = DFT(h_i) (unit sum: H_i(0) = 1). Per LR bin u the aliased system is
+//     A(u)_{ik} = (1/r²) B(f_k) H_i(f_k),   f_k = u + k∘m,  k ∈ {0..r−1}²      (N x r², B the pixel box).
+//
+// Nominal and true systems. The reconstructor uses the *nominal* A0(u): the long-exposure OTF of the analytic
+// AO model (analytic_ao.hpp), H0_i(f) = H_diff,i(f) · T(f), T(f) = exp(−D_res(λ f / θ_hr) / 2) (D_res: the
+// residual structure function at pupil separation ρ = λ f, interpolated bilinearly on its lattice; T(0) = 1).
+// Without AO, H0_i = H_diff,i. The frames are made by the *realised* systems A_ρ(u): for each of R
+// realisations ρ (fixed for the whole optimisation: a sample-average approximation), exposure i's PSF is the
+// average of L short-exposure PSFs through residual phase screens ψ_{ρ,i,l} drawn from the analytic model's
+// residual PSD (FFT screens on its K n x K n grid, cropped to the pupil):
+//     p_{ρ,i} = Σ_l |MFT(A exp(i 2π (w_dm,i + w_static + ψ_{ρ,i,l}) / λ))|².
+// With R = 0 the frames are made by the nominal model (A = A0: the idealised case).
+//
+// ## Objective A
+//
+// Object prior: X(f) independent, E|X(f)|² = M² s(f); either s = object_power_spectrum (a spectrum fitted to
+// training images) or the Wiener-consistent s = (σ²/λ) / P(f), P = |Γ̂|² the reconstructor's prior symbol
+// (tikhonov.hpp). Noise: white, σ² per LR pixel. The reconstructor, per bin (tikhonov.hpp (2)),
+//     R(u) = G⁻¹ A0ᴴ,   G = A0ᴴA0 + w P,   w = λ / r²,
+// gives X̂ − X = (R A − I) X + R N, so the expected squared error of a bin, in units where Parseval reads
+// Σ_p |x_p|² = (1/M²) Σ_f |X(f)|², is M² e(u) with
+//     e(u) = tr(F S Fᴴ) + (σ²/r²) tr(R Rᴴ),   F = R A − I,   S = diag s(f_k),
+// and the expected MSE per HR pixel, averaged over realisations, is
+//     J = (1/M²) Σ_u (1/R) Σ_ρ e_ρ(u) = (1/r²) mean_u mean_ρ e_ρ(u).                                   (A)
+// Check: with A = A0 and the Wiener s, e(u) = (σ²/r²) tr G⁻¹ and J is the mean posterior variance
+// tr C / M² of tikhonov.hpp (6) (tested against TikhonovSummary::mean_posterior_variance). Components with
+// s = ∞ (P(f) = 0: the mean level under a gradient prior) are left out: unit-sum PSFs pass the mean exactly
+// in every system, so F has no component there when P(0) = 0.
+//
+// ## Gradient (Wirtinger: for real J of complex Z, Γ_Z = ∂J/∂Re Z + i ∂J/∂Im Z, dJ = Re tr(Γ_Zᴴ dZ))
+//
+//     Γ_A  = 2 Rᴴ F S,                                  (true system; per realisation, weight 1/R)
+//     Γ_R  = 2 (F S Aᴴ + (σ²/r²) R),   Z = G⁻¹ Γ_R,
+//     Γ_A0 = (I − A0 R) Zᴴ − A0 Z Rᴴ,                   (through R = G⁻¹A0ᴴ and G)
+// (with A = A0 the two add). Then Γ_H(f_k) = conj(B(f_k)/r²) Γ_A[i,k] for every HR frequency (each belongs to
+// exactly one bin), Γ_Hdiff = T Γ_H0; through the DFT, ∂J/∂h = M² Re IDFT(Γ_H) (shifted back to the centred
+// window); through the normalisation, ∂J/∂p = (∂J/∂h − ⟨∂J/∂h, h⟩) / Σp; through p = |Y|², Y = MFT(E),
+// Γ_E = 2 MFT^H(∂J/∂p ⊙ Y) (mft.hpp's exact adjoint); and through E = A exp(i k w), k = 2π/λ,
+//     ∂J/∂w = k Im(Γ_E conj(E)),
+// summed over the L screens and every realisation. design_parameterisation.hpp continues to θ. Taylor tests
+// check each parameterisation through the whole chain (remainder falls 4x per halving of h).
+//
+// Cost per evaluation: N (1 + R L) MFTs and as many adjoints of the n-pixel pupil onto M x M, N (1 + R L)
+// FFT pairs of M x M, and m² small solves of r² x r². Paper's system (n = 128, M = 64, N = 4, r = 2): ~2 ms
+// per MFT pair, so ~10 ms for R = 0 and ~0.15 s for R = 2, L = 8 (bench: design_bench).
+//
+// API rules: constructors validate their inputs and options (InvalidArgument naming the field); Evaluate
+// validates the OPDs. Immutable after construction; Evaluate is const and thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "aosr/ao/analytic_ao.hpp"
+#include "aosr/core/forward_model.hpp"
+#include "aosr/core/image.hpp"
+#include "aosr/optics/mft.hpp"
+#include "aosr/scene/scene_spec.hpp"
+#include "aosr/solvers/tikhonov.hpp"
+
+namespace aosr {
+
+// The instrument objective A sees.
+struct DesignOptics {
+  Image amplitude;             // n x n pupil amplitude (pupil.hpp), spanning diameter_m
+  double diameter_m = 0.0;
+  double wavelength_m = 0.0;   // science wavelength
+  double hr_pixel_rad = 0.0;   // θ_hr = camera pixel / r; at most λ/D (the PSF must fit its samples)
+  int r = 1;
+  Index grid = 0;              // M: HR grid side, even and a multiple of r (the PSF window)
+  Image static_opd_m;          // w_static (science path), n x n; empty: none
+  std::optional<AnalyticAoOptions> ao;  // the AO residual model; none: diffraction only (and R is ignored)
+};
+
+// The optics of a scene: its pupil, wavelength, r, PSF window (rounded up to a multiple of 2r), static
+// aberrations, and the analytic AO model of its telescope when the scene has AO (analytic or closed-loop)
+// and the preset has an atmosphere and an AO system.
+DesignOptics DesignOpticsFromScene(const SceneSpec& scene);
+
+struct DesignObjectiveOptions {
+  // The reconstructor whose MSE is minimised: prior (and its spectrum parameters) and λ > 0 (the λ of
+  // tikhonov.hpp (1) for unit weights; only the fixed rule). Default: tikhonov.hpp's gradient prior, 1e-2.
+  TikhonovOptions reconstructor;
+  // σ: noise standard deviation per LR pixel, > 0, in object units (flux per HR pixel). With the
+  // Wiener-consistent prior J scales as σ² and the design does not depend on σ; default 1 (J in units of σ²).
+  double noise_sigma = 1.0;
+  // s(f) = E|X(f)|² / M² on the full M x M grid (unshifted, bin (0,0) = zero frequency), finite, >= 0 and
+  // symmetric; empty: the Wiener-consistent s = (σ²/λ) / P(f).
+  Image object_power_spectrum;
+  // R: AO PSF realisations averaged (0: the frames follow the nominal model); each draws L = screens
+  // residual screens per exposure. In [0, 64] and [1, 256]. Defaults 2 and 4: ~0.1 s per evaluation on the
+  // paper's system (the realised PSFs are then partly speckled, as 0.1 s sub-exposures are).
+  int realisations = 2;
+  int screens = 4;
+  std::uint64_t seed = 1;  // of the screens
+  // Threads computing the PSFs and their adjoints (results do not depend on it), 1 .. 64. Default 1.
+  int threads = 1;
+
+  bool IsValid(std::string* why) const;
+};
+
+class DesignObjective {
+ public:
+  // frames N >= 1. Throws InvalidArgument naming the bad argument, optics field or option.
+  DesignObjective(const DesignOptics& optics, int frames, const DesignObjectiveOptions& options);
+
+  // J of (A) for the DM offsets w_dm,i (N images, n x n, metres; finite where the pupil transmits), and if
+  // `grad` is non-null ∂J/∂w_dm,i (N images n x n, zero outside the pupil).
+  double Evaluate(const std::vector<Image>& dm_opds, std::vector<Image>* grad = nullptr) const;
+
+  // The systems behind J: the nominal model (H0, what the reconstructor uses) and one model per realisation
+  // (the realised OTFs; none when R = 0), on the M x M grid.
+  MultiFrameModel NominalModel(const std::vector<Image>& dm_opds) const;
+  std::vector<MultiFrameModel> RealisedModels(const std::vector<Image>& dm_opds) const;
+
+  // The object spectrum s(f) used (M x M; 0 where the Wiener s is infinite), the prior symbol P and
+  // T(f) (all ones without AO).
+  const Image& object_spectrum() const { return s_; }
+  const Image& prior_symbol() const { return p_; }
+  const Image& ao_factor() const { return t_; }
+  int frames() const { return frames_; }
+  int realisations() const { return int(screens_.size()); }
+  const DesignOptics& optics() const { return optics_; }
+  const DesignObjectiveOptions& options() const { return options_; }
+
+ private:
+  struct Psf;  // one exposure's PSF with what its gradient needs
+  Psf ComputePsf(const Image& opd, const std::vector<const Image*>& screens) const;
+  void PsfPullBack(const Psf& psf, const ComplexImage& gamma_h, Image* grad) const;
+
+  DesignOptics optics_;
+  int frames_;
+  DesignObjectiveOptions options_;
+  Index n_;
+  MatrixFourierTransform mft_;
+  std::vector<Index> lit_;
+  Image s_, p_, t_;
+  std::vector<std::vector<std::vector<Image>>> screens_;  // [ρ][i][l] OPD [m]
+};
+
+// Objective (A) for given models: the nominal one the reconstructor uses and the true ones (empty: the
+// nominal), with the same N, r and HR grid. object_power_spectrum as in DesignObjectiveOptions. This is the
+// engine of DesignObjective::Evaluate; exposed for checks against Monte-Carlo reconstructions and the
+// posterior covariance.
+double ExpectedTikhonovMse(const MultiFrameModel& nominal, const std::vector<MultiFrameModel>& truths,
+                           const TikhonovOptions& reconstructor, double noise_sigma,
+                           const Image& object_power_spectrum = Image());
+
+}  // namespace aosr

@@ -1,0 +1,111 @@
+#include "aosr/solvers/design_file.hpp"
+
+#include <fstream>
+
+#include "aosr/ao/shack_hartmann.hpp"
+#include "aosr/core/error.hpp"
+#include "aosr/io/atomic_file.hpp"
+
+namespace aosr {
+namespace {
+
+constexpr double kNm = 1e-9;
+
+std::unique_ptr<ShackHartmann> GeometricSensor(const SceneSpec& scene) {
+  if (!scene.telescope.ao) return nullptr;
+  AoSystemSpec spec = scene.telescope.ToAoSystemSpec(SensorKind::kGeometric, 0);
+  ShackHartmannOptions o = spec.wfs;
+  o.mode = ShackHartmannMode::kGeometric;
+  o.noise = ShackHartmannNoise();  // noise-free: offsets are references, not measurements
+  return std::make_unique<ShackHartmann>(spec.amplitude, spec.diameter_m, o);
+}
+
+}  // namespace
+
+std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const DesignParameterisation& p,
+                                              const std::vector<Image>& opds) {
+  const char* fn = "DescribeDesign";
+  CheckArgument(int(opds.size()) == p.frames(), fn, "opds count", opds.size(), std::to_string(p.frames()));
+  std::unique_ptr<ShackHartmann> sh = GeometricSensor(scene);
+  std::vector<DesignFrameReport> out;
+  for (const Image& w : opds) {
+    CheckArgument(ShapeOf(w) == Shape{p.pupil_n(), p.pupil_n()}, fn, "opd shape", ToString(ShapeOf(w)),
+                  "the pupil grid " + std::to_string(p.pupil_n()));
+    DesignFrameReport r;
+    r.rms_m = p.OpdRms(w);
+    r.strehl = p.StrehlOf(w);
+    r.strehl_cost = 1.0 - r.strehl;
+    if (sh) r.reference_slopes_rad = sh->ReferenceOffsetForOpd(w);
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, const DesignResult& result,
+                              const DesignObjective& objective, const std::vector<DesignFrameReport>& frames) {
+  CheckArgument(frames.size() == result.offsets.size(), "DesignFileJson", "frames count", frames.size(),
+                std::to_string(result.offsets.size()) + " (one report per offset)");
+  nlohmann::json j;
+  j["name"] = name;
+  nlohmann::json list = nlohmann::json::array();
+  for (const DmOffset& o : result.offsets) list.push_back(DmOffsetToJson(o));
+  j["frames"] = list;
+  const DesignSummary& s = result.summary;
+  const DesignObjectiveOptions& oo = objective.options();
+  nlohmann::json d;
+  d["method"] = "expected-mse";
+  d["comment"] = "objective A: closed-form expected MSE of the Tikhonov/Wiener reconstructor, averaged over AO PSF "
+                 "realisations (solvers/design_objective.hpp)";
+  d["parameterisation"] = s.parameterisation;
+  d["scene"] = scene.source;
+  d["frames_n"] = scene.frames;
+  d["r"] = scene.r;
+  d["reconstructor"] = {{"prior", ToString(oo.reconstructor.prior)},
+                        {"lambda", oo.reconstructor.lambda},
+                        {"noise_sigma", oo.noise_sigma},
+                        {"object_spectrum", oo.object_power_spectrum.size() ? "given" : "wiener-consistent"}};
+  d["realisations"] = objective.realisations();
+  d["screens_per_exposure"] = oo.screens;
+  d["grid_hr_px"] = objective.optics().grid;
+  d["ao_model"] = objective.optics().ao ? "analytic" : "none";
+  d["objective"] = {{"raster", s.raster_objective},
+                    {"start", s.initial_objective},
+                    {"final", s.final_objective},
+                    {"relative_to_raster", s.raster_objective > 0 ? s.final_objective / s.raster_objective : 1.0},
+                    {"units", "expected squared error per HR pixel, object units"}};
+  d["summary"] = s.FullReport();
+  d["iterations"] = s.iterations;
+  d["evaluations"] = s.evaluations;
+  d["seconds"] = s.seconds;
+  nlohmann::json fr = nlohmann::json::array();
+  bool slopes = false;
+  for (const DesignFrameReport& r : frames) {
+    nlohmann::json e = {{"rms_nm", r.rms_m / kNm}, {"strehl", r.strehl}, {"strehl_cost", r.strehl_cost}};
+    if (r.reference_slopes_rad.size()) {
+      slopes = true;
+      e["reference_slopes_rad"] = std::vector<double>(r.reference_slopes_rad.data(),
+                                                      r.reference_slopes_rad.data() + r.reference_slopes_rad.size());
+    }
+    fr.push_back(e);
+  }
+  d["frames"] = fr;
+  if (slopes && scene.telescope.ao)
+    d["wfs"] = {{"model", "shack-hartmann-geometric"},
+                {"lenslets_across", scene.telescope.ao->wfs.lenslets_across},
+                {"valid_subapertures", frames.front().reference_slopes_rad.size() / 2},
+                {"slope_order", "the sensor's measurement order: x slopes of the valid lenslets, then y slopes"},
+                {"units", "rad of wavefront tilt"}};
+  j["design"] = d;
+  return j;
+}
+
+void WriteDesignFile(const std::string& path, const nlohmann::json& design) {
+  AtomicWrite(path, [&](const std::string& tmp) {
+    std::ofstream out(tmp);
+    if (!out) throw IoError(tmp, "cannot open for writing");
+    out << design.dump(2) << "\n";
+    if (!out) throw IoError(tmp, "write failed");
+  });
+}
+
+}  // namespace aosr

@@ -1,0 +1,66 @@
+// Small optics shared by the phase-design tests: a 32-pixel pupil of an 8 m telescope in K band, camera pixel
+// λ/D, r = 2, a 16 x 16 HR design grid, and (optionally) the analytic AO model of a 16-actuator system.
+#pragma once
+
+#include <cmath>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "aosr/optics/pupil.hpp"
+#include "aosr/solvers/design_objective.hpp"
+#include "aosr/solvers/design_parameterisation.hpp"
+
+namespace aosr::design_test {
+
+constexpr double kLambda = 2.2e-6;
+constexpr double kDiameter = 8.0;
+
+inline DesignOptics SmallOptics(bool ao, Index grid = 16, int r = 2, Index pupil_n = 32) {
+  DesignOptics o;
+  o.amplitude = CircularPupil(pupil_n, PupilGeometry{kDiameter, 0.0});
+  o.diameter_m = kDiameter;
+  o.wavelength_m = kLambda;
+  o.hr_pixel_rad = kLambda / kDiameter / r;  // camera pixel = λ/D
+  o.r = r;
+  o.grid = grid;
+  if (ao) {
+    AnalyticAoOptions a;
+    a.diameter_m = kDiameter;
+    a.actuator_pitch_m = 1.0;  // 8 actuators across: a coarse, fast AO model
+    a.science_wavelength_m = kLambda;
+    a.r0_m = 0.12;
+    o.ao = a;
+  }
+  return o;
+}
+
+inline DesignPupil SmallPupil(const DesignOptics& o) {
+  DesignPupil p;
+  p.amplitude = o.amplitude;
+  p.diameter_m = o.diameter_m;
+  p.wavelength_m = o.wavelength_m;
+  p.camera_pixel_rad = o.hr_pixel_rad * o.r;
+  DeformableMirrorOptions dm;
+  dm.actuators_across = 9;
+  dm.pitch_m = 1.0;
+  p.dm = std::make_shared<DeformableMirror>(o.amplitude.rows(), PupilGeometry{kDiameter, 0.0}, dm);
+  return p;
+}
+
+// Remainders |f(x+hd) − f(x) − h<g,d>| for h = h0, h0/2, ...; returns the ratios of consecutive remainders.
+inline std::vector<double> TaylorRatios(const std::function<double(const Vector&, Vector*)>& f, const Vector& x,
+                                        const Vector& d, double h0, int halvings, std::vector<double>* remainders = nullptr) {
+  Vector g;
+  const double f0 = f(x, &g);
+  const double slope = g.dot(d);
+  std::vector<double> rem;
+  double h = h0;
+  for (int k = 0; k <= halvings; ++k, h /= 2) rem.push_back(std::abs(f(x + h * d, nullptr) - f0 - h * slope));
+  std::vector<double> ratios;
+  for (std::size_t k = 1; k < rem.size(); ++k) ratios.push_back(rem[k - 1] / rem[k]);
+  if (remainders) *remainders = rem;
+  return ratios;
+}
+
+}  // namespace aosr::design_test
