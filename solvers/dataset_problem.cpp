@@ -58,6 +58,14 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
 
   // ---- PSFs of the model. ---------------------------------------------------------------------------------
   ImageStack psfs = d.psfs;
+  CheckArgument(!(options.nominal_psfs && !options.model_psfs.empty()), kFn, "nominal_psfs", "true with model_psfs",
+                "one of nominal_psfs and model_psfs");
+  if (options.nominal_psfs) {
+    CheckArgument(d.nominal_psfs.size() == n, kFn, "nominal_psfs", "true",
+                  "a dataset whose manifest gives nominal_psfs (closed-loop simulations write them)");
+    psfs = d.nominal_psfs;
+    out.model_psfs_replaced = true;
+  }
   if (!options.model_psfs.empty()) {
     const ImageStack& m = options.model_psfs;
     CheckArgument(m.size() == n || m.size() == 1, kFn, "model_psfs count", m.size(),

@@ -55,7 +55,7 @@ std::set<fs::path> InputFiles(const Dataset& d) {
   std::set<fs::path> in;
   const fs::path manifest = fs::weakly_canonical(d.manifest_path);
   in.insert(manifest);
-  for (const char* key : {"frames", "valid", "weights", "psfs", "truth", "expected", "scene"})
+  for (const char* key : {"frames", "valid", "weights", "psfs", "nominal_psfs", "truth", "expected", "scene"})
     if (d.manifest.contains(key) && d.manifest[key].is_string()) {
       fs::path p = d.manifest[key].get<std::string>();
       if (p.is_relative()) p = manifest.parent_path() / p;
@@ -113,7 +113,11 @@ void RunReconstruct(const ReconstructArgs& a) {
   for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std")})
     if (inputs.count(fs::weakly_canonical(p)))
       throw InvalidArgument("aosr reconstruct", "-o", a.out, "a path that is not one of the dataset's input files (" + p + ")");
-  if (!a.model_psfs.empty()) dpo.model_psfs = ReadFits(a.model_psfs).planes;
+  if (a.model_psfs == "nominal") {
+    dpo.nominal_psfs = true;
+  } else if (!a.model_psfs.empty()) {
+    dpo.model_psfs = ReadFits(a.model_psfs).planes;
+  }
   const DatasetProblem dp = ProblemFromDataset(d, dpo);
 
   progress.Step(std::string("reconstructing with ") + ToString(o.method) + " (" + std::to_string(d.size()) +
@@ -202,7 +206,8 @@ void RegisterReconstruct(CLI::App& app) {
   cmd->add_option("--offsets", a->offsets, "registration offsets for shift-add/drizzle: auto | dm | centroids")
       ->capture_default_str();
   cmd->add_option("--model-psfs", a->model_psfs,
-                  "FITS cube of PSFs (HR sampling, centred) the reconstructor uses instead of the dataset's");
+                  "PSFs the reconstructor uses instead of the dataset's: a FITS cube (HR sampling, centred), or `nominal` for "
+                  "the dataset's nominal_psfs (closed-loop simulations: the analytic-AO model)");
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
   cmd->add_option("--prior", a->prior, "Tikhonov prior: identity | gradient | laplacian | power-spectrum")
       ->capture_default_str();

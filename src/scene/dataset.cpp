@@ -29,6 +29,7 @@ constexpr const char* kValidFile = "valid.fits";
 constexpr const char* kWeightsFile = "weights.fits";
 constexpr const char* kTruthFile = "truth.fits";
 constexpr const char* kPsfsFile = "psfs.fits";
+constexpr const char* kNominalPsfsFile = "nominal_psfs.fits";
 constexpr const char* kExpectedFile = "expected.fits";
 
 std::string Join(const std::string& dir, const std::string& name) { return (fs::path(dir) / name).string(); }
@@ -106,6 +107,7 @@ OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline,
   m["valid"] = kValidFile;
   m["weights"] = kWeightsFile;
   m["psfs"] = kPsfsFile;
+  if (!sim.nominal_psfs.empty()) m["nominal_psfs"] = kNominalPsfsFile;
   m["truth"] = kTruthFile;
   m["expected"] = kExpectedFile;
   m["gain_e_per_adu"] = d.gain_e_per_adu;
@@ -322,7 +324,7 @@ std::vector<std::string> SceneInputFiles(const SceneSpec& scene) {
 void PrepareSimulationOutput(const std::string& dir, const SceneSpec& scene) {
   CheckArgument(!dir.empty(), "PrepareSimulationOutput", "dir", "\"\"", "a folder name");
   const std::vector<std::string> outputs = {kFramesFile, kValidFile,    kWeightsFile,     kTruthFile,
-                                            kPsfsFile,   kExpectedFile, kManifestFileName};
+                                            kPsfsFile,   kExpectedFile, kManifestFileName, kNominalPsfsFile};
   // Before touching the disk: no output may be an input of the scene.
   const std::vector<std::string> inputs = SceneInputFiles(scene);
   for (const std::string& o : outputs) CheckNotSameFile(Join(dir, o), inputs);
@@ -359,6 +361,9 @@ void WriteSimulation(const std::string& dir, const SceneSpec& scene, const Scene
   WriteFits(Join(dir, kTruthFile), sim.truth, SimulationHeader(scene, g, "truth", "electron", true), FitsType::kFloat64);
   FitsHeader psf = SimulationHeader(scene, g, "psfs: unit sum, HR sampling", "", true);
   WriteFitsCube(Join(dir, kPsfsFile), sim.psfs, psf, FitsType::kFloat64);
+  if (!sim.nominal_psfs.empty())
+    WriteFitsCube(Join(dir, kNominalPsfsFile), sim.nominal_psfs,
+                  SimulationHeader(scene, g, "nominal psfs (analytic AO): unit sum, HR sampling", "", true), FitsType::kFloat64);
   WriteFitsCube(Join(dir, kExpectedFile), sim.expected_e, SimulationHeader(scene, g, "noiseless frames", "electron", false),
                 FitsType::kFloat64);
   WriteJsonAtomically(manifest, BuildManifest(scene, pipeline, sim, scene_json));
@@ -417,6 +422,7 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   const std::string valid_path = root.Has("valid") ? FileField(root, "valid") : std::string();
   const std::string weights_path = root.Has("weights") ? FileField(root, "weights") : std::string();
   const std::string truth_path = root.Has("truth") ? FileField(root, "truth") : std::string();
+  const std::string nominal_path = root.Has("nominal_psfs") ? FileField(root, "nominal_psfs") : std::string();
   if (root.Has("expected")) ds.expected_file = FileField(root, "expected");
   std::optional<Shape> frame_shape, hr_shape;
   if (root.Has("frame_shape")) frame_shape = ShapeField(root, "frame_shape");
@@ -465,7 +471,10 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
                 "the scene's frames x frame_px = " + std::to_string(scene->frames) + " x " + ToString(scene->frame) + " (" +
                     scene_path + ")");
     const ScenePipeline pipeline(*scene);
-    ds.psfs = pipeline.ComputePsfs(nullptr, nullptr, nullptr);
+    // A closed-loop instrument cannot say which turbulence the frames saw: its model is the nominal
+    // (analytic long-exposure) PSF, not one Monte-Carlo draw.
+    ds.psfs = scene->ao.mode == AoSpec::Mode::kClosedLoop ? NominalPsfs(*scene)
+                                                          : pipeline.ComputePsfs(nullptr, nullptr, nullptr);
     ds.offsets = scene->offsets.frames;
     ds.trustworthy_border_px = pipeline.geometry().trustworthy_border_px;
   } else {
@@ -489,6 +498,19 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
       root.Fail(has_scene ? "scene" : "psfs", "plane " + std::to_string(i) + " with sum " + ToString(sum),
                 "PSFs with finite values and a sum > 0");
     ds.psfs[i] /= sum;
+  }
+  if (!nominal_path.empty()) {
+    ImageStack nominal = ReadFits(nominal_path).planes;
+    if (nominal.size() != n || ShapeOf(nominal.front()) != ShapeOf(ds.psfs.front()))
+      root.Fail("nominal_psfs", std::to_string(nominal.size()) + " x " + ToString(ShapeOf(nominal.front())) + " (" + nominal_path + ")",
+                std::to_string(n) + " planes of the PSFs' shape " + ToString(ShapeOf(ds.psfs.front())));
+    for (std::size_t i = 0; i < n; ++i) {
+      const double sum = nominal[i].sum();
+      if (!AllFinite(nominal[i]) || !(sum > 0))
+        root.Fail("nominal_psfs", "plane " + std::to_string(i) + " with sum " + ToString(sum), "PSFs with finite values and a sum > 0");
+      nominal[i] /= sum;
+    }
+    ds.nominal_psfs = std::move(nominal);
   }
   if (psf_size && psf_size != ds.psf_size())
     root.Fail("psf_size_px", std::to_string(psf_size), "the PSFs' side " + std::to_string(ds.psf_size()));

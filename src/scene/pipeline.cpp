@@ -310,6 +310,19 @@ void ScenePipeline::Compile() {
                  " lambda/D from a " + std::to_string(n) + "^2 pupil; " + std::to_string(distinct_count_) + " distinct of " +
                  std::to_string(s.frames) + " exposures",
       distinct_count_, s.ao.mode == AoSpec::Mode::kClosedLoop ? 0.0 : distinct_count_ * psf_each);
+  if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
+    // Closed-loop PSFs are one realisation each; a reconstructor cannot know them. The analytic long-exposure
+    // PSFs of the same offsets are the model it would use (Simulation::nominal_psfs).
+    int groups = 0;
+    for (int i = 0; i < s.frames; ++i) {
+      bool seen = false;
+      for (int j = 0; j < i; ++j) seen = seen || s.offsets.frames[j] == s.offsets.frames[i];
+      groups += seen ? 0 : 1;
+    }
+    add("nominal-psf", "analytic-AO PSFs of the same offsets (the reconstructor's nominal model), " + std::to_string(groups) +
+                           " distinct",
+        groups, groups * (2 * FftSeconds({2 * n, 2 * n}) + MftSeconds(2 * n, k)));
+  }
   const double fft = FftSeconds(g.padded);
   if (has_extended_)
     add("convolution", "FFT on the padded " + ToString(g.padded) + " grid: 1 object r2c + " + std::to_string(distinct_count_) +
@@ -486,6 +499,11 @@ Simulation ScenePipeline::Run() const {
   const int steps0 = c.loop_steps;
   sim.psfs = ComputePsfs(&sim.distinct_psf, &sim.psf_window_fraction, &sim.strehl, &c);
   timed(c.loop_steps > steps0 ? "ao-loop+psf" : "psf", t);
+  if (scene_.ao.mode == AoSpec::Mode::kClosedLoop) {
+    t = Clock::now();
+    sim.nominal_psfs = NominalPsfs(scene_);
+    timed("nominal-psf", t);
+  }
 
   // Convolution on the padded grid: the object's spectrum (extended part by FFT, stars exactly), times each
   // distinct transfer function, back to the image domain.
@@ -535,6 +553,13 @@ Simulation ScenePipeline::Run() const {
   c.phase_screens = PhaseScreensGenerated() - screens0;
   sim.seconds = Seconds(t_run);
   return sim;
+}
+
+ImageStack NominalPsfs(const SceneSpec& scene) {
+  if (scene.ao.mode != AoSpec::Mode::kClosedLoop) return {};
+  SceneSpec analytic = scene;
+  analytic.ao.mode = AoSpec::Mode::kAnalytic;
+  return ScenePipeline(std::move(analytic)).ComputePsfs(nullptr, nullptr, nullptr);
 }
 
 }  // namespace aosr

@@ -215,3 +215,38 @@ TEST_F(DatasetTest, RewritingAFolderReplacesTheDataset) {
 
 }  // namespace
 }  // namespace aosr
+
+namespace aosr {
+namespace {
+
+// A closed-loop simulation also writes the nominal model (the analytic-AO PSFs of the same offsets), which
+// loads as Dataset::nominal_psfs: unit sum, the PSFs' shape, close to but not equal to the loop's draws.
+TEST(DatasetClosedLoopTest, WritesAndLoadsTheNominalPsfs) {
+  TempDir dir;
+  nlohmann::json j = test::SmallDatasetScene();
+  j["ao"] = {{"mode", "closed-loop"}, {"sensor", "geometric"}, {"time_per_frame_s", 0.02}, {"settling_s", 0.02}};
+  j["objects"] = nlohmann::json::array({{{"type", "usaf"}, {"flux", {{"peak_e", 500.0}}}}});
+  const test::WrittenSimulation w = test::SimulateInto(dir.File("scene.json"), j, dir.File("sim"));
+  ASSERT_EQ(w.sim.nominal_psfs.size(), 2u);
+  const ScenePipeline plan(w.scene);
+  bool listed = false;
+  for (const PipelineStage& s : plan.stages()) listed = listed || s.name == "nominal-psf";
+  EXPECT_TRUE(listed);
+  const Dataset d = LoadDataset(dir.File("sim"));
+  ASSERT_EQ(d.nominal_psfs.size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_NEAR(d.nominal_psfs[i].sum(), 1.0, 1e-12);
+    EXPECT_EQ(ShapeOf(d.nominal_psfs[i]), ShapeOf(d.psfs[i]));
+    const double diff = (d.nominal_psfs[i] - d.psfs[i]).abs().sum();
+    EXPECT_GT(diff, 1e-6);  // one loop draw is not the long-exposure model
+    EXPECT_LT(diff, 1.0);   // but both are the same telescope's AO PSF
+  }
+  // Without a closed loop there is no nominal model beyond the PSFs themselves.
+  EXPECT_TRUE(NominalPsfs(LoadScene(dir.File("scene.json"))).size() == 2u);
+  j["ao"] = {{"mode", "none"}};
+  test::WriteJson(dir.File("none.json"), j);
+  EXPECT_TRUE(NominalPsfs(LoadScene(dir.File("none.json"))).empty());
+}
+
+}  // namespace
+}  // namespace aosr

@@ -46,7 +46,7 @@ TEST(ScenePipeline, EachEffectAddsItsStage) {
   j["ao"] = {{"mode", "closed-loop"}, {"sensor", "ideal"}, {"time_per_frame_s", 0.01}, {"settling_s", 0.0}};
   j["objects"].push_back({{"type", "demo"}});
   const ScenePipeline q(ParseScene(j, "<test>"));
-  EXPECT_THAT(StageNames(q), ::testing::ElementsAre("object", "static-aberrations", "dm-offsets", "ao-loop", "psf",
+  EXPECT_THAT(StageNames(q), ::testing::ElementsAre("object", "static-aberrations", "dm-offsets", "ao-loop", "psf", "nominal-psf",
                                                     "convolution", "point-sources", "pixel-integration", "detector"));
 }
 

@@ -125,6 +125,9 @@ TEST(DatasetProblemTest, BadRequestsNameTheOption) {
   EXPECT_THAT(test::ErrorOf([&] { ProblemFromDataset(d, o); }), HasSubstr("model_psfs[0]"));
   o.model_psfs = ImageStack(3, test::GaussianKernel(5, 1));
   EXPECT_THAT(test::ErrorOf([&] { ProblemFromDataset(d, o); }), HasSubstr("model_psfs count"));
+  o = {};
+  o.nominal_psfs = true;  // the dataset has none
+  EXPECT_THAT(test::ErrorOf([&] { ProblemFromDataset(d, o); }), HasSubstr("nominal_psfs"));
   EXPECT_THAT(test::ErrorOf([] { ParseReconstructionMethod("wiener"); }), HasSubstr("shift-add | "));
   EXPECT_THAT(test::ErrorOf([] { ParseDatasetOffsets("x"); }), HasSubstr("auto | dm | centroids"));
 }

@@ -16,7 +16,8 @@
 //                                               per frame or one plane shared by all; each is renormalised to
 //                                               unit sum (error if a sum is <= 0 or not finite).
 //                                               scene: an instrument scene file (scene_spec.hpp; its objects are
-//                                               ignored): the PSFs are ScenePipeline::ComputePsfs of it, and r,
+//                                               ignored): the PSFs are ScenePipeline::ComputePsfs of it (for a
+//                                               closed-loop scene NominalPsfs: one loop draw is not the model), and r,
 //                                               the offsets, the pixel scale, the wavelength, the trustworthy
 //                                               border and the frame shape (checked against `frames`) are the
 //                                               scene's.
@@ -30,6 +31,9 @@
 //                                               ({"shift_px": [dy, dx], "zernike": [{"noll", "rms_nm"}],
 //                                               "actuators_nm": [...]}); default none. Informational for
 //                                               solvers that take the PSFs as given.
+//   nominal_psfs           no                   N PSFs of the psfs' shape: the model a reconstructor would use when
+//                                               the psfs are realisations it cannot know (closed-loop simulations
+//                                               write the analytic-AO PSFs of the same offsets); unit-sum normalised
 //   truth                  no                   the object on the HR grid (r·rows × r·cols), e⁻ per frame per HR px
 //   expected               no                   noiseless frames, e⁻ (simulations); must exist, not loaded
 //   stars                  no                   [{"y_hr_px", "x_hr_px", "flux_e"}] (HR-frame coordinates, e⁻ per
@@ -123,6 +127,7 @@ struct Dataset {
   double bias_adu = 0.0;
 
   ImageStack psfs;                // N PSFs at HR sampling, K × K (K even), each of unit sum
+  ImageStack nominal_psfs;        // N nominal model PSFs (closed-loop simulations: analytic AO), or empty
   std::vector<DmOffset> offsets;  // N DM offsets (all zero when unknown)
   std::optional<Image> truth;     // the HR object, e⁻ per frame per HR pixel, when given
   std::string expected_file;      // resolved path of the noiseless frames, empty when absent

@@ -107,6 +107,7 @@ struct Simulation {
                                    // deposited bilinearly (non-negative, flux and centroid kept)
   std::vector<PointSource> stars;  // stars in HR-frame pixel coordinates, electrons per frame: the exact truth
   ImageStack psfs;                 // h_i, psf_size², centred (image.hpp), unit sum; one per exposure
+  ImageStack nominal_psfs;         // closed loop only: NominalPsfs(scene), the model a reconstructor would use
   std::vector<int> distinct_psf;   // exposure i used distinct PSF distinct_psf[i]
   std::vector<double> psf_window_fraction;  // light of h_i inside its window before normalisation
   // Strehl of h_i about its own centre: diffraction and analytic modes exclude the OPD's tip/tilt (a designed
@@ -157,6 +158,12 @@ class ScenePipeline {
   bool has_extended_ = false;
   bool has_stars_ = false;
 };
+
+// The nominal model PSFs of a closed-loop scene's exposures: those of the same scene with the Monte-Carlo loop
+// replaced by the analytic long-exposure AO residual (same telescope, AO system, atmosphere, static
+// aberrations and offsets), unit sum, the scene's PSF window. Empty for any other AO mode (the simulated PSFs
+// are then the model). Reconstructing closed-loop frames with these measures the cost of PSF mismatch.
+ImageStack NominalPsfs(const SceneSpec& scene);
 
 // The pupil OPD [m] of one exposure: tip/tilt for the offset's shift (zernike.hpp, a = shift·D/4), its
 // Zernike terms, the DM commands through `dm` (may be null when the offset has none), plus w_static

@@ -47,6 +47,8 @@ struct DatasetProblemOptions {
   // Empty: the dataset's PSFs. Else N PSFs (or one shared), centred, at HR sampling, each of positive
   // finite sum (renormalised to unit sum), of any even or odd size.
   ImageStack model_psfs;
+  // Use the dataset's nominal_psfs as the model (an error if it has none; not with model_psfs).
+  bool nominal_psfs = false;
 };
 
 struct DatasetProblem {
