@@ -71,6 +71,7 @@ nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, c
   d["objective"] = {{"raster", s.raster_objective},
                     {"start", s.initial_objective},
                     {"final", s.final_objective},
+                    {"invisible_floor", s.invisible_floor},
                     {"relative_to_raster", s.raster_objective > 0 ? s.final_objective / s.raster_objective : 1.0},
                     {"units", "expected squared error per HR pixel, object units"}};
   d["summary"] = s.FullReport();

@@ -308,9 +308,27 @@ DesignObjective::DesignObjective(const DesignOptics& optics, int frames, const D
   CheckSpectrumOptions(fn, options.reconstructor, options.noise_sigma, options.object_power_spectrum, hr);
   for (Index p = 0; p < optics.amplitude.size(); ++p)
     if (optics.amplitude.data()[p] > 0) lit_.push_back(p);
+  // The periodic path when the sampled pupil's PSF period, Q = n / s pixels (s = θ_hr D / λ), is a whole
+  // multiple of M: then the PSF folded onto the M grid is exact (no window), and its DFT samples the OTF.
+  {
+    const double qd = double(n_) * optics.wavelength_m / (optics.diameter_m * optics.hr_pixel_rad);
+    const Index qi = Index(std::llround(qd));
+    if (std::abs(qd - double(qi)) < 1e-6 * qd && qi >= optics.grid && qi % optics.grid == 0 && qi <= 8192) period_ = qi;
+  }
   p_ = PriorSymbol(options.reconstructor, hr);
   s_ = ObjectSpectrum(options.object_power_spectrum, p_, options.reconstructor.lambda, options.noise_sigma);
   t_ = Image::Ones(hr.rows, hr.cols);
+  {
+    const std::vector<Complex> by = BoxTransfer(hr.rows, optics.r), bx = BoxTransfer(hr.cols, optics.r);
+    const double to_m = optics.wavelength_m / (double(optics.grid) * optics.hr_pixel_rad);  // ρ per frequency bin
+    for (Index fy = 0; fy < hr.rows; ++fy)
+      for (Index fx = 0; fx < hr.cols; ++fx) {
+        const double ry = to_m * double(SignedFrequency(fy, hr.rows)), rx = to_m * double(SignedFrequency(fx, hr.cols));
+        const bool beyond = std::hypot(ry, rx) >= optics.diameter_m;
+        if (beyond || std::abs(by[fy] * bx[fx]) < 1e-9) floor_ += s_(fy, fx);
+      }
+    floor_ /= double(hr.size());
+  }
   if (optics.ao) {
     const AnalyticAoResidual res(*optics.ao, n_);
     t_ = AoFactor(res, optics);
@@ -350,10 +368,53 @@ DesignObjective::Psf DesignObjective::ComputePsf(const Image& opd, const std::ve
   return psf;
 }
 
+DesignObjective::Psf DesignObjective::ComputePeriodicPsf(const Image& opd, const std::vector<const Image*>& screens) const {
+  Psf psf;
+  const double k = kTwoPi / optics_.wavelength_m;
+  const Index m = optics_.grid, q = period_;
+  Image p = Image::Zero(m, m);
+  const std::size_t count = std::max<std::size_t>(1, screens.size());
+  for (std::size_t l = 0; l < count; ++l) {
+    ComplexImage e = ComplexImage::Zero(q, q);  // the field at the top left of the Q x Q grid
+    for (Index idx : lit_) {
+      const double w = opd.data()[idx] + (screens.empty() ? 0.0 : screens[l]->data()[idx]);
+      e(idx / n_, idx % n_) = std::polar(optics_.amplitude.data()[idx], k * w);
+    }
+    ComplexImage y = FftForward(e);
+    // |Y|² is the PSF at α = j·s over one whole period (origin at (0,0)); fold it onto the M x M grid.
+    for (Index a = 0; a < q; ++a)
+      for (Index b = 0; b < q; ++b) p(a % m, b % m) += std::norm(y(a, b));
+    psf.fields.push_back(std::move(e));
+    psf.y.push_back(std::move(y));
+  }
+  psf.sum = p.sum();
+  if (!(psf.sum > 0) || !std::isfinite(psf.sum)) throw NumericalError("DesignObjective: a PSF has no light");
+  psf.h = p / psf.sum;  // origin layout
+  psf.otf = FftForward(psf.h.cast<Complex>());
+  return psf;
+}
+
 void DesignObjective::PsfPullBack(const Psf& psf, const ComplexImage& gamma_h, Image* grad) const {
   const Index m = optics_.grid;
   const double k = kTwoPi / optics_.wavelength_m;
   const Image gt = FftInverse(gamma_h).real() * (double(m) * double(m));
+  if (period_ > 0) {
+    const Index q = period_;
+    const Image gp = (gt - (gt * psf.h).sum()) / psf.sum;
+    ComplexImage tiled(q, q);
+    for (Index a = 0; a < q; ++a)
+      for (Index b = 0; b < q; ++b) tiled(a, b) = gp(a % m, b % m);
+    for (std::size_t l = 0; l < psf.fields.size(); ++l) {
+      // Γ_E = 2 F^H(G ⊙ Y), F^H the unnormalised inverse DFT.
+      const ComplexImage ge = FftInverse(tiled * psf.y[l]) * (2.0 * double(q) * double(q));
+      const ComplexImage& e = psf.fields[l];
+      for (Index idx : lit_) {
+        const Index i = idx / n_, j = idx % n_;
+        grad->data()[idx] += k * std::imag(ge(i, j) * std::conj(e(i, j)));
+      }
+    }
+    return;
+  }
   const Image gh = OriginToCentred(gt, {m, m});
   const Image gp = (gh - (gh * psf.h).sum()) / psf.sum;
   const ComplexImage gpc = gp.cast<Complex>();
@@ -394,7 +455,7 @@ double DesignObjective::Evaluate(const std::vector<Image>& dm_opds, std::vector<
       const int q = (t - frames_) / frames_, i = (t - frames_) % frames_;
       for (const Image& s : screens_[q][i]) screens.push_back(&s);
     }
-    psfs[t] = ComputePsf(base[t % frames_], screens);
+    psfs[t] = period_ > 0 ? ComputePeriodicPsf(base[t % frames_], screens) : ComputePsf(base[t % frames_], screens);
   });
   std::vector<ComplexImage> h0(frames_);
   for (int i = 0; i < frames_; ++i) h0[i] = psfs[i].otf * t_.cast<Complex>();
@@ -440,7 +501,7 @@ MultiFrameModel DesignObjective::NominalModel(const std::vector<Image>& dm_opds)
   std::vector<ComplexImage> h;
   for (int i = 0; i < frames_; ++i) {
     const Image w = optics_.static_opd_m.size() ? Image(dm_opds[i] + optics_.static_opd_m) : dm_opds[i];
-    h.push_back(ComputePsf(w, {}).otf * t_.cast<Complex>());
+    h.push_back((period_ > 0 ? ComputePeriodicPsf(w, {}) : ComputePsf(w, {})).otf * t_.cast<Complex>());
   }
   return ModelOf({optics_.grid, optics_.grid}, optics_.r, h);
 }
@@ -454,7 +515,7 @@ std::vector<MultiFrameModel> DesignObjective::RealisedModels(const std::vector<I
       const Image w = optics_.static_opd_m.size() ? Image(dm_opds[i] + optics_.static_opd_m) : dm_opds[i];
       std::vector<const Image*> screens;
       for (const Image& s : screens_[q][i]) screens.push_back(&s);
-      h.push_back(ComputePsf(w, screens).otf);
+      h.push_back((period_ > 0 ? ComputePeriodicPsf(w, screens) : ComputePsf(w, screens)).otf);
     }
     out.push_back(ModelOf({optics_.grid, optics_.grid}, optics_.r, h));
   }

@@ -35,12 +35,15 @@ bool DesignOptimizerOptions::IsValid(std::string* why) const {
 }
 
 std::string DesignSummary::FullReport() const {
-  char buf[512];
+  char buf[640];
   const double rel = raster_objective > 0 ? 100.0 * (final_objective / raster_objective - 1.0) : 0.0;
+  const double excess = raster_objective - invisible_floor;
+  const double rel_excess = excess > 0 ? 100.0 * (final_objective - raster_objective) / excess : 0.0;
   std::snprintf(buf, sizeof buf,
-                "%s (%d parameters): J %.6g -> %.6g (%+.4f %% vs raster %.6g) in %zu starts, %d iterations, %d "
-                "evaluations, %.2f s; best start %d (%s)%s",
+                "%s (%d parameters): J %.6g -> %.6g (%+.4f %% vs raster %.6g; %+.3f %% of its excess over the "
+                "invisible floor %.6g) in %zu starts, %d iterations, %d evaluations, %.2f s; best start %d (%s)%s",
                 parameterisation.c_str(), parameters, initial_objective, final_objective, rel, raster_objective,
+                rel_excess, invisible_floor,
                 start_objectives.size(), iterations, evaluations, seconds, best_start, ToString(termination),
                 improved ? "" : "; no start improved on the raster: the raster is returned");
   return buf;
@@ -135,6 +138,7 @@ DesignResult OptimizeDesign(const DesignObjective& objective, const DesignParame
   s.parameterisation = ToString(p.options().kind);
   s.parameters = p.parameters();
   s.raster_objective = objective.Evaluate(p.RasterOpds());
+  s.invisible_floor = objective.invisible_floor();
   s.evaluations = 1;
   Vector best_theta = p.RasterParameters();
   double best = objective.Evaluate(p.Opds(best_theta));

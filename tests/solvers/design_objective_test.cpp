@@ -82,7 +82,7 @@ TEST(DesignObjectiveTest, TaylorTestThroughEveryParameterisation) {
     Vector theta = theta0, d(theta0.size());
     for (Index k = 0; k < theta.size(); ++k) theta[k] += 0.3 * scale * n01(rng), d[k] = scale * n01(rng);
     std::vector<double> rem;
-    const std::vector<double> ratios = TaylorRatios(ThroughParameters(f, p), theta, d, 0.05, 6, &rem);
+    const std::vector<double> ratios = TaylorRatios(ThroughParameters(f, p), theta, d, 0.05, 8, &rem);
     ExpectQuadraticRemainders(ratios, rem, std::string(ToString(c.kind)) + (c.ao ? " ao" : ""));
   }
 }

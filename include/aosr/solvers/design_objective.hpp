@@ -130,14 +130,21 @@ class DesignObjective {
   const Image& object_spectrum() const { return s_; }
   const Image& prior_symbol() const { return p_; }
   const Image& ao_factor() const { return t_; }
+  // The part of J no design can change: (1/M²) Σ s(f) over the HR frequencies no exposure sees, beyond the
+  // pupil's cutoff (|λ f| ≥ D) or on the pixel box's zeros (the alias lattice). J − floor is what the design
+  // works on (approximately: the window lets a little light leak past the cutoff).
+  double invisible_floor() const { return floor_; }
   int frames() const { return frames_; }
   int realisations() const { return int(screens_.size()); }
+  // True when the PSFs are the exact periodic ones (below), false on the windowed MFT path.
+  bool periodic() const { return period_ > 0; }
   const DesignOptics& optics() const { return optics_; }
   const DesignObjectiveOptions& options() const { return options_; }
 
  private:
   struct Psf;  // one exposure's PSF with what its gradient needs
   Psf ComputePsf(const Image& opd, const std::vector<const Image*>& screens) const;
+  Psf ComputePeriodicPsf(const Image& opd, const std::vector<const Image*>& screens) const;
   void PsfPullBack(const Psf& psf, const ComplexImage& gamma_h, Image* grad) const;
 
   DesignOptics optics_;
@@ -146,7 +153,9 @@ class DesignObjective {
   Index n_;
   MatrixFourierTransform mft_;
   std::vector<Index> lit_;
+  Index period_ = 0;  // Q of the periodic path (0: the windowed MFT path)
   Image s_, p_, t_;
+  double floor_ = 0;
   std::vector<std::vector<std::vector<Image>>> screens_;  // [ρ][i][l] OPD [m]
 };
 

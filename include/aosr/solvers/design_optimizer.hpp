@@ -56,6 +56,7 @@ struct DesignSummary : SolverSummary {
   double raster_objective = 0.0;   // J of the exact classic raster (tip/tilt)
   double initial_objective = 0.0;  // J at start 0 (the raster in this parameterisation)
   double final_objective = 0.0;    // J of the returned design
+  double invisible_floor = 0.0;    // DesignObjective::invisible_floor(): the part of J no design changes
   std::vector<double> start_objectives;  // final J of every start
   int best_start = 0;
   int evaluations = 0;             // objective (+gradient) evaluations over all starts
