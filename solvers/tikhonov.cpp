@@ -519,20 +519,28 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
   return out;
 }
 
-double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations) {
+double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations,
+                 std::string* edge) {
   // GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² (Golub, Heath & Wahba 1979), exactly per bin, on a log grid.
   const double n_data = double(sys.model().frames()) * double(sys.bins());
   const int steps = int(std::lround(options.gcv_decades * options.gcv_steps_per_decade));
   double best = std::numeric_limits<double>::infinity(), lambda = sys.lambda0();
+  int best_k = steps;
   for (int k = 0; k <= steps; ++k) {
     const double lam =
         sys.lambda0() * std::pow(10.0, -options.gcv_decades + double(k) / options.gcv_steps_per_decade);
     const FourierSystem::Fit f = sys.Evaluate(lam, true);
     const double g = n_data * f.residual2 / (f.dof * f.dof);
-    if (g < best) best = g, lambda = lam;
+    if (g < best) best = g, lambda = lam, best_k = k;
   }
   *score = best;
   *evaluations = steps + 1;
+  if (edge) {
+    edge->clear();
+    if (steps > 0 && (best_k == 0 || best_k == steps))
+      *edge = std::string("; GCV minimum at the ") + (best_k == 0 ? "smallest" : "largest") +
+              " lambda of its grid (lambda0 x 10^[-gcv_decades, 0]): a bound, not a minimiser";
+  }
   return lambda;
 }
 
@@ -583,8 +591,9 @@ TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovO
   double lambda_eff = options.lambda / w0;
   s.lambda_evaluations = 1;
   if (options.lambda_rule == TikhonovLambdaRule::kGcv) {
-    lambda_eff = GcvSearch(sys, options, &s.gcv, &s.lambda_evaluations);
-    note = " (GCV)";
+    std::string edge;
+    lambda_eff = GcvSearch(sys, options, &s.gcv, &s.lambda_evaluations, &edge);
+    note = " (GCV)" + edge;
   } else if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy) {
     const double n_w = double(model.frames()) * double(model.lr_shape().size());
     s.discrepancy_target = options.discrepancy_factor * options.noise_sigma * options.noise_sigma * n_w;

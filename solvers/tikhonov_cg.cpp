@@ -80,8 +80,9 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   if (options.lambda_rule == TikhonovLambdaRule::kGcv) {
     // Reached only for Fourier-exact problems (uniform weights, periodic): GCV there is exact.
     sys.SetData(grid.frames);
-    lambda = w_bar * GcvSearch(sys, options, &s.gcv, &s.lambda_evaluations);
-    note = " (GCV, Fourier)";
+    std::string edge;
+    lambda = w_bar * GcvSearch(sys, options, &s.gcv, &s.lambda_evaluations, &edge);
+    note = " (GCV, Fourier)" + edge;
     solve(lambda);
   } else if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy) {
     s.discrepancy_target =

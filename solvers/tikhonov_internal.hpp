@@ -90,8 +90,10 @@ struct LambdaSearch {
 LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, double target, double lambda0,
                                double tolerance, int max_evaluations);
 
-// GCV grid search on the engine (data set): returns λ' and the score.
-double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations);
+// GCV grid search on the engine (data set): returns λ' and the score. *edge (if non-null) is "" when the minimum
+// is inside the grid, else a note for the summary: a minimum at either end is a bound, not a GCV minimiser.
+double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations,
+                 std::string* edge = nullptr);
 
 // Fills lambda, final_cost, weighted_residual, frame_residual_rms (WeightedDataMisfit of `solved`, the
 // problem on the grid x lives on) and solved_hr_shape.

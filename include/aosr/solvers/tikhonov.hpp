@@ -90,7 +90,9 @@
 //   kGcv          generalised cross-validation (Golub, Heath & Wahba 1979, Technometrics 21, 215): minimises
 //                 GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² on a log grid; needs no noise level. Needs a
 //                 Fourier-exact problem (uniform weights, periodic boundary: tr H exactly, per bin; a CG
-//                 solve then uses that λ); otherwise it is an InvalidArgument.
+//                 solve then uses that λ); otherwise it is an InvalidArgument. A minimum at either end of the
+//                 grid is a bound, not a GCV minimiser, and the summary's message says so (seen with a point
+//                 source 10²–10⁶ times the rest of the scene: GCV then runs to the smallest λ).
 //   kDiscrepancy  Morozov's discrepancy principle: λ such that the weighted residual equals the expected
 //                 noise,  Σ_i Σ_p w_i[p] (y_i − A_i x_λ)[p]² = τ · σ² · n_w,  n_w the number of weighted
 //                 pixels (N·m² without weights), τ = discrepancy_factor. The residual grows monotonically
