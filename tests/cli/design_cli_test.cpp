@@ -1,0 +1,96 @@
+// End-to-end checks of `aosr design` through the real executable: the design file it writes loads in
+// `aosr simulate` through a scene's "offsets": {"type": "design", "file": ...}.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "support/testing.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using aosr::test::CliRun;
+using aosr::test::RunCli;
+using ::testing::HasSubstr;
+
+// A scratch folder with a small scene: paper-8m with the analytic AO model, 32-px frames, r = 2, N = 3.
+class DesignCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("aosr_design_cli_" + std::to_string(getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    std::ofstream(Path("scene.json")) << Scene({{"type", "raster"}}).dump(2);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  static nlohmann::json Scene(const nlohmann::json& offsets) {
+    return {{"name", "design-cli-test"},
+            {"telescope", "paper-8m"},
+            {"frames", 3},
+            {"r", 2},
+            {"ao", {{"mode", "analytic"}}},
+            {"offsets", offsets},
+            {"detector", {{"frame_px", 32}, {"noise", "none"}, {"saturation", false}}},
+            {"objects", nlohmann::json::array({{{"type", "demo"}, {"flux", {{"peak_e", 100.0}}}}})}};
+  }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+
+  fs::path dir_;
+};
+
+TEST_F(DesignCliTest, ZernikeDesignRoundTripsIntoSimulate) {
+  const std::string design = Path("design.json");
+  CliRun r = RunCli("design " + Path("scene.json") +
+                    " --param zernike --modes 4 --realisations 0 --starts 1 --iterations 4 --threads 1 -o " + design);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("zernike (12 parameters)"));
+  std::ifstream in(design);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  ASSERT_EQ(j["frames"].size(), 3u);
+  ASSERT_EQ(j["design"]["frames"].size(), 3u);
+  EXPECT_EQ(j["design"]["parameterisation"], "zernike");
+  for (const auto& f : j["design"]["frames"]) {
+    EXPECT_GT(f["strehl"].get<double>(), 0.5);
+    EXPECT_NEAR(f["strehl_cost"].get<double>(), 1.0 - f["strehl"].get<double>(), 1e-12);
+    EXPECT_EQ(f["reference_slopes_rad"].size(), 2 * j["design"]["wfs"]["valid_subapertures"].get<std::size_t>());
+  }
+  EXPECT_LE(j["design"]["objective"]["final"].get<double>(), j["design"]["objective"]["raster"].get<double>());
+  // The design loads in a scene and simulates.
+  std::ofstream(Path("designed.json")) << Scene({{"type", "design"}, {"file", "design.json"}}).dump(2);
+  r = RunCli("simulate " + Path("designed.json") + " --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["strehl"].size(), 3u);
+}
+
+TEST_F(DesignCliTest, ActuatorDesignLoadsInSimulateAndJsonOutputParses) {
+  const std::string design = Path("act.json");
+  CliRun r = RunCli("design " + Path("scene.json") +
+                    " --param actuators --realisations 0 --starts 1 --iterations 2 --threads 1 --json -o " + design);
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["parameterisation"], "actuators");
+  EXPECT_EQ(j["design"]["frames"][0]["actuators_nm"].size(), 241u);  // the 17 x 17 DM's active actuators
+  std::ofstream(Path("designed.json")) << Scene({{"type", "design"}, {"file", "act.json"}}).dump(2);
+  r = RunCli("simulate " + Path("designed.json") + " --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+}
+
+TEST_F(DesignCliTest, BadArgumentsAreClearErrors) {
+  CliRun r = RunCli("design " + Path("scene.json") + " --param nonsense");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("--param"));
+  r = RunCli("design " + Path("scene.json") + " --param tiptilt --rms-max 10 --realisations 0");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("rms_max_m"));
+  r = RunCli("design " + Path("missing.json"));
+  EXPECT_EQ(r.status, 1) << r.out;
+}
+
+}  // namespace
