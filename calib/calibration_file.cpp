@@ -136,8 +136,12 @@ Calibration LoadCalibration(const std::string& path) {
   return c;
 }
 
-DmOffset ApplyCalibration(const DmOffset& design, const Calibration& cal, std::vector<std::string>* notes) {
-  DmOffset out = design;
+namespace {
+
+// Scales each calibrated Zernike term (and the tip/tilt shift, made with Z2/Z3) by 1/g (command from design)
+// or by g (what the DM applies for a command). Notes list what is left unscaled or beyond the linear range.
+DmOffset ScaleByGains(const DmOffset& offset, const Calibration& cal, bool divide, std::vector<std::string>* notes) {
+  DmOffset out = offset;
   auto note = [notes](const std::string& s) {
     if (notes) notes->push_back(s);
   };
@@ -148,19 +152,30 @@ DmOffset ApplyCalibration(const DmOffset& design, const Calibration& cal, std::v
       note(what + ": Z" + std::to_string(j) + " is not in the calibration; left unscaled");
       return;
     }
-    *value /= g->gain;
+    *value = divide ? *value / g->gain : *value * g->gain;
   };
   scale(2, &out.shift_x_px, "shift_x_px");
   scale(3, &out.shift_y_px, "shift_y_px");
   for (DmOffset::Term& t : out.zernike) {
+    const double commanded = divide ? t.rms_m / (cal.FindNoll(t.noll) ? cal.FindNoll(t.noll)->gain : 1.0) : t.rms_m;
     scale(t.noll, &t.rms_m, "zernike term");
     const ModeGain* g = cal.FindNoll(t.noll);
-    if (g && g->linear_max_m > 0 && std::abs(t.rms_m) > g->linear_max_m)
-      note("Z" + std::to_string(t.noll) + ": commanded " + ToString(std::abs(t.rms_m) * 1e9) +
+    if (g && g->linear_max_m > 0 && std::abs(commanded) > g->linear_max_m)
+      note("Z" + std::to_string(t.noll) + ": commanded " + ToString(std::abs(commanded) * 1e9) +
            " nm exceeds the measured linear range " + ToString(g->linear_max_m * 1e9) + " nm");
   }
   if (!out.actuators_m.empty()) note("actuator commands are left unscaled (the calibration is modal)");
   return out;
+}
+
+}  // namespace
+
+DmOffset ApplyCalibration(const DmOffset& design, const Calibration& cal, std::vector<std::string>* notes) {
+  return ScaleByGains(design, cal, true, notes);
+}
+
+DmOffset DmResponse(const DmOffset& command, const Calibration& cal, std::vector<std::string>* notes) {
+  return ScaleByGains(command, cal, false, notes);
 }
 
 }  // namespace aosr

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/scene/scene_spec.hpp"
 #include "aosr/solvers/design_file.hpp"
@@ -34,6 +35,7 @@ struct DesignArgs {
   int threads = 2;
   std::uint64_t seed = 1;
   bool json = false;
+  std::string calibration;
 };
 
 void RunDesign(const DesignArgs& a) {
@@ -68,7 +70,18 @@ void RunDesign(const DesignArgs& a) {
   const DesignResult result = OptimizeDesign(objective, parameterisation, opt);
   const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds);
   const std::string name = scene.name + "-" + a.param;
-  const nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
+  nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
+  if (!a.calibration.empty()) {
+    // The frames become the commands that make a DM with the calibrated gains apply the design; the designed
+    // (applied) offsets stay in the provenance.
+    const Calibration cal = LoadCalibration(a.calibration);
+    std::vector<std::string> notes;
+    nlohmann::json designed = file["frames"];
+    for (std::size_t i = 0; i < result.offsets.size(); ++i)
+      file["frames"][i] = DmOffsetToJson(ApplyCalibration(result.offsets[i], cal, &notes));
+    file["design"]["calibration"] = {{"file", a.calibration}, {"applied_frames", designed}, {"notes", notes}};
+    for (const std::string& n : notes) progress.Step("calibration: " + n);
+  }
   if (!a.output.empty()) WriteDesignFile(a.output, file);
   const DesignSummary& s = result.summary;
 
@@ -125,6 +138,9 @@ void RegisterDesign(CLI::App& app) {
       "\"offsets\": {\"type\": \"design\", \"file\": ...}.");
   cmd->add_option("scene", a->scene, "scene file (.json)")->required();
   cmd->add_option("-o,--output", a->output, "write the design file (JSON) here");
+  cmd->add_option("--calibration", a->calibration,
+                  "calibration.json (aosr calibrate): write the commands that make the calibrated DM apply the design")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--param", a->param, "parameterisation: raster (evaluate only), tiptilt, zernike or actuators")
       ->check(CLI::IsMember({"raster", "tiptilt", "zernike", "actuators"}))
       ->capture_default_str();

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/scene/dataset.hpp"
@@ -24,6 +25,7 @@ struct SimulateArgs {
   std::vector<std::string> sets;
   bool plan = false;
   bool json = false;
+  std::string calibration;
 };
 
 // Applies one "--set a.b.c=VALUE" to the scene's JSON. VALUE is JSON if it parses as JSON (numbers, true,
@@ -82,7 +84,17 @@ void RunSimulate(const SimulateArgs& args) {
   // The scene parses (and every file it names is checked) before anything is computed.
   nlohmann::json scene_json = ReadJsonFile(args.scene);
   for (const std::string& s : args.sets) ApplySet(s, &scene_json);
-  const ScenePipeline pipeline(ParseScene(scene_json, args.scene));
+  SceneSpec parsed = ParseScene(scene_json, args.scene);
+  if (!args.calibration.empty()) {
+    // Simulate the real DM: it applies each commanded mode times its calibrated gain.
+    const Calibration cal = LoadCalibration(args.calibration);
+    std::vector<std::string> notes;
+    for (DmOffset& o : parsed.offsets.frames) o = DmResponse(o, cal, &notes);
+    for (const std::string& n : notes) progress.Step("calibration: " + n);
+    scene_json["comment_calibration"] = "offsets applied through the DM gains of " + args.calibration +
+                                        " (the manifest's offsets are the applied ones)";
+  }
+  const ScenePipeline pipeline(std::move(parsed));
   const SceneSpec& scene = pipeline.scene();
 
   if (args.plan) {
@@ -147,6 +159,10 @@ void RegisterSimulate(CLI::App& app) {
   CLI::Option* plan = cmd->add_flag("--plan", args->plan, "print the compiled pipeline and its cost estimate; run nothing");
   plan->excludes(out);
   cmd->add_flag("--json", args->json, "print the plan or the run's summary as JSON (no progress messages)");
+  cmd->add_option("--calibration", args->calibration,
+                  "calibration.json (aosr calibrate): the simulated DM applies each commanded mode times its "
+                  "calibrated gain (pair with aosr design --calibration, which writes the compensating commands)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--set", args->sets,
                   "override a scene field before parsing, KEY=VALUE with a dotted KEY and a JSON (or plain string) "
                   "VALUE, e.g. --set r=4 --set detector.noise=none; repeatable")

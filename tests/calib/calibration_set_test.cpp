@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -161,6 +162,12 @@ TEST(CalibrationFile, JsonRoundTripAndApplyCalibration) {
   ASSERT_EQ(notes.size(), 2u);
   EXPECT_NE(notes[0].find("shift_x_px"), std::string::npos);
   EXPECT_NE(notes[1].find("Z5"), std::string::npos);
+  // The DM with the calibrated gains applies the design for those commands (aosr simulate --calibration).
+  const DmOffset applied = DmResponse(cmd, c);
+  for (std::size_t i = 0; i < design.zernike.size(); ++i)
+    EXPECT_NEAR(applied.zernike[i].rms_m, design.zernike[i].rms_m, 1e-12 * std::abs(design.zernike[i].rms_m));
+  EXPECT_DOUBLE_EQ(applied.shift_x_px, design.shift_x_px);
+  EXPECT_DOUBLE_EQ(DmResponse(design, c).zernike[0].rms_m, 40e-9 * c.FindNoll(4)->gain);
 }
 
 }  // namespace

@@ -93,4 +93,30 @@ TEST_F(DesignCliTest, BadArgumentsAreClearErrors) {
   EXPECT_EQ(r.status, 1) << r.out;
 }
 
+// --calibration: the file's frames are the commands (design / gain); the designed offsets stay in the
+// provenance, and simulating the commands through the calibrated DM applies the design again.
+TEST_F(DesignCliTest, CalibrationWritesCompensatedCommands) {
+  std::ofstream(Path("calibration.json"))
+      << nlohmann::json({{"format", "aosr-calibration-v1"},
+                         {"modes", {{{"mode", 2}, {"gain", 0.5}}, {{"mode", 3}, {"gain", 2.0}},
+                                    {{"mode", 4}, {"gain", 0.8}}}}})
+             .dump();
+  const std::string design = Path("design.json");
+  CliRun r = RunCli("design " + Path("scene.json") + " --param tiptilt --realisations 0 --starts 1 --iterations 2 "
+                    "--threads 1 -o " + design + " --calibration " + Path("calibration.json"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json d = nlohmann::json::parse(std::ifstream(design));
+  ASSERT_TRUE(d["design"].contains("calibration")) << d.dump(2);
+  const nlohmann::json& applied = d["design"]["calibration"]["applied_frames"];
+  ASSERT_EQ(applied.size(), d["frames"].size());
+  int compared = 0;
+  for (std::size_t i = 0; i < applied.size(); ++i) {
+    if (!applied[i].contains("shift_px")) continue;
+    ++compared;
+    EXPECT_NEAR(d["frames"][i]["shift_px"][0].get<double>(), applied[i]["shift_px"][0].get<double>() / 2.0, 1e-12);
+    EXPECT_NEAR(d["frames"][i]["shift_px"][1].get<double>(), applied[i]["shift_px"][1].get<double>() / 0.5, 1e-12);
+  }
+  EXPECT_GT(compared, 0);
+}
+
 }  // namespace

@@ -133,3 +133,29 @@ TEST_F(SimulateCliTest, BadSceneOrOutputExitsOneNamingTheProblem) {
 }
 
 }  // namespace
+
+// --calibration: the simulated DM applies each commanded mode times its calibrated gain, so a raster made of
+// Z2/Z3 shifts is applied at g times its size; the manifest records the applied offsets.
+TEST_F(SimulateCliTest, CalibrationScalesWhatTheDmApplies) {
+  std::ofstream(dir_ / "calibration.json")
+      << nlohmann::json({{"format", "aosr-calibration-v1"},
+                         {"modes", {{{"mode", 2}, {"gain", 0.5}}, {{"mode", 3}, {"gain", 0.8}}}}})
+             .dump();
+  const std::string out = (dir_ / "out").string();
+  CliRun r = RunCli("simulate " + ScenePath() + " -o " + out + " --calibration " + (dir_ / "calibration.json").string());
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json m = nlohmann::json::parse(std::ifstream(dir_ / "out" / "manifest.json"));
+  const std::string plain = (dir_ / "plain").string();
+  r = RunCli("simulate " + ScenePath() + " -o " + plain);
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json p = nlohmann::json::parse(std::ifstream(dir_ / "plain" / "manifest.json"));
+  ASSERT_EQ(m["offsets"].size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    const double py = p["offsets"][i]["shift_px"][0], px = p["offsets"][i]["shift_px"][1];
+    EXPECT_NEAR(m["offsets"][i]["shift_px"][0].get<double>(), 0.8 * py, 1e-12);  // y shift: Z3
+    EXPECT_NEAR(m["offsets"][i]["shift_px"][1].get<double>(), 0.5 * px, 1e-12);  // x shift: Z2
+  }
+  r = RunCli("simulate " + ScenePath() + " --calibration " + (dir_ / "nope.json").string());
+  EXPECT_NE(r.status, 0) << r.out;  // CLI11's own validation error
+  EXPECT_THAT(r.out, HasSubstr("nope.json"));
+}

@@ -52,4 +52,9 @@ Calibration LoadCalibration(const std::string& path);
 // null) receives one line per term left unscaled or outside its linear range.
 DmOffset ApplyCalibration(const DmOffset& design, const Calibration& calibration, std::vector<std::string>* notes = nullptr);
 
+// The inverse: the offset a DM with the calibrated gains applies for `command` (b_j -> g_j b_j, shifts by g_2,
+// g_3). DmResponse(ApplyCalibration(d)) == d for every calibrated term. `aosr simulate --calibration` uses it
+// to simulate the real DM; `aosr design --calibration` writes ApplyCalibration's commands.
+DmOffset DmResponse(const DmOffset& command, const Calibration& calibration, std::vector<std::string>* notes = nullptr);
+
 }  // namespace aosr
