@@ -526,20 +526,31 @@ double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, doubl
   const int steps = int(std::lround(options.gcv_decades * options.gcv_steps_per_decade));
   double best = std::numeric_limits<double>::infinity(), lambda = sys.lambda0();
   int best_k = steps;
-  for (int k = 0; k <= steps; ++k) {
-    const double lam =
-        sys.lambda0() * std::pow(10.0, -options.gcv_decades + double(k) / options.gcv_steps_per_decade);
-    const FourierSystem::Fit f = sys.Evaluate(lam, true);
+  auto at = [&](int k) {
+    return sys.lambda0() * std::pow(10.0, -options.gcv_decades + double(k) / options.gcv_steps_per_decade);
+  };
+  int evaluated = 0;
+  auto visit = [&](int k) {
+    const FourierSystem::Fit f = sys.Evaluate(at(k), true);
+    ++evaluated;
     const double g = n_data * f.residual2 / (f.dof * f.dof);
-    if (g < best) best = g, lambda = lam, best_k = k;
-  }
+    if (g < best) best = g, lambda = at(k), best_k = k;
+  };
+  for (int k = 0; k <= steps; ++k) visit(k);
+  // A minimum at the top of the grid means the data want more smoothing than λ₀ (weak data: strong blur,
+  // N < r², faint object): walk on upwards, up to gcv_decades more, until the score turns. (A minimum at the
+  // bottom is GCV's known undersmoothing failure; walking down would only deepen it, so it is reported.)
+  int top = steps;
+  while (best_k == top && top < 2 * steps) visit(++top);
   *score = best;
-  *evaluations = steps + 1;
+  *evaluations = evaluated;
   if (edge) {
     edge->clear();
-    if (steps > 0 && (best_k == 0 || best_k == steps))
+    if (steps > 0 && (best_k == 0 || best_k == top))
       *edge = std::string("; GCV minimum at the ") + (best_k == 0 ? "smallest" : "largest") +
-              " lambda of its grid (lambda0 x 10^[-gcv_decades, 0]): a bound, not a minimiser";
+              " lambda searched (lambda0 x 10^[-gcv_decades, " + (best_k == 0 ? "0" : "gcv_decades") +
+              "]): a bound, not a minimiser" +
+              (best_k == 0 ? " (GCV undersmooths here: prefer the discrepancy rule or a fixed lambda)" : "");
   }
   return lambda;
 }

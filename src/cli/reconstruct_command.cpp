@@ -33,7 +33,8 @@ struct ReconstructArgs {
   std::string offsets = "auto";
   std::string model_psfs;
   // Tikhonov
-  double lambda = -1;  // < 0: GCV
+  double lambda = -1;  // < 0: by the rule
+  std::string lambda_rule = "gcv";
   std::string prior = "gradient";
   std::string boundary = "periodic";
   bool std_map = false;
@@ -82,6 +83,11 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (a.lambda >= 0) {
     o.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
     o.tikhonov.lambda = a.lambda;
+  } else if (a.lambda_rule == "discrepancy") {
+    // With inverse-variance weights (the default for simulated datasets) a weight-1 pixel has σ = 1.
+    o.tikhonov.lambda_rule = TikhonovLambdaRule::kDiscrepancy;
+  } else if (a.lambda_rule != "gcv") {
+    throw InvalidArgument("aosr reconstruct", "--lambda-rule", a.lambda_rule, "gcv | discrepancy");
   }
   if (a.boundary == "padded") {
     o.tikhonov.boundary = TikhonovBoundary::kZeroPadded;
@@ -209,6 +215,10 @@ void RegisterReconstruct(CLI::App& app) {
                   "PSFs the reconstructor uses instead of the dataset's: a FITS cube (HR sampling, centred), or `nominal` for "
                   "the dataset's nominal_psfs (closed-loop simulations: the analytic-AO model)");
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
+  cmd->add_option("--lambda-rule", a->lambda_rule,
+                  "Tikhonov (and the TV/MAP pilot) lambda without --lambda: gcv | discrepancy (Morozov, residual = "
+                  "noise; uses --noise-sigma, 1 for inverse-variance weights)")
+      ->capture_default_str();
   cmd->add_option("--prior", a->prior, "Tikhonov prior: identity | gradient | laplacian | power-spectrum")
       ->capture_default_str();
   cmd->add_option("--boundary", a->boundary, "Tikhonov boundary: periodic | padded")->capture_default_str();

@@ -388,5 +388,24 @@ TEST(TikhonovTest, NoStdMapWhenThePosteriorIsImproper) {
   EXPECT_NE(res.summary.message.find("improper"), std::string::npos) << res.summary.message;
 }
 
+// Frames of pure noise: the best estimate is the prior's (λ → ∞), so GCV's score keeps falling past the top of
+// its initial grid. The search walks on upwards (gcv_decades more) instead of stopping at λ₀, and says the
+// result is a bound.
+TEST(TikhonovTest, GcvWalksUpwardsPastTheTopOfItsGrid) {
+  const Shape hr{24, 24};
+  const MultiFrameModel m = RasterModel(hr, 2, {{0, 0}, {1, 1}}, 1.0);
+  ReconstructionProblem p;
+  p.model = std::make_shared<const MultiFrameModel>(m);
+  p.frames = test::AddNoise(m.Render(Image::Zero(24, 24)), 1.0, 3);
+  TikhonovOptions o;
+  o.lambda_rule = TikhonovLambdaRule::kGcv;
+  o.gcv_decades = 2;
+  o.gcv_steps_per_decade = 2;
+  const TikhonovResult r = ReconstructTikhonov(p, o);
+  EXPECT_GT(r.summary.lambda_evaluations, 5) << r.summary.message;  // more than the initial 5 grid points
+  EXPECT_NE(r.summary.message.find("largest"), std::string::npos) << r.summary.message;
+  EXPECT_TRUE(AllFinite(r.image));
+}
+
 }  // namespace
 }  // namespace aosr

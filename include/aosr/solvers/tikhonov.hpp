@@ -154,7 +154,8 @@ struct TikhonovOptions {
   // Regularisation weight λ >= 0 for kFixed, in the units of (1) (weight x frame units squared per prior
   // unit squared). 0 gives the (minimum-norm) least-squares solution.
   double lambda = 1e-2;
-  // kGcv searches λ = λ₀·10^t on a grid of t in [-gcv_decades, 0] with gcv_steps_per_decade points per
+  // kGcv searches λ = λ₀·10^t on a grid of t in [-gcv_decades, 0] (walking on up to +gcv_decades while the
+  // minimum sits at the top) with gcv_steps_per_decade points per
   // decade, where λ₀ = w₀ Σ_u tr(A(u)ᴴA(u)) / Σ_u tr P(u) is the scale at which data and prior weigh
   // alike. Each grid point costs one pass of per-bin solves. Defaults: 8 decades, 4 per decade.
   double gcv_decades = 8.0;
