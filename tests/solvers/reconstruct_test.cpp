@@ -130,6 +130,19 @@ TEST(DatasetProblemTest, BadRequestsNameTheOption) {
   EXPECT_THAT(test::ErrorOf([&] { ProblemFromDataset(d, o); }), HasSubstr("nominal_psfs"));
   EXPECT_THAT(test::ErrorOf([] { ParseReconstructionMethod("wiener"); }), HasSubstr("shift-add | "));
   EXPECT_THAT(test::ErrorOf([] { ParseDatasetOffsets("x"); }), HasSubstr("auto | dm | centroids"));
+  EXPECT_THAT(test::ErrorOf([] { ParseDatasetWeights("x"); }), HasSubstr("auto | dataset | mask"));
+  EXPECT_THAT(test::ErrorOf([] { KernelCentroid(Image::Zero(4, 4)); }), HasSubstr("kernel sum"));
+  // Options are validated by Reconstruct, naming the method's options.
+  d.weights = ImageStack(d.frames.size(), Image::Ones(8, 8));
+  const ReconstructionProblem p = ProblemFromDataset(d).problem;
+  ReconstructOptions bad;
+  bad.method = ReconstructionMethod::kTotalVariation;
+  bad.auto_regularisation = false;
+  bad.tv.mu = -1;
+  EXPECT_THAT(test::ErrorOf([&] { Reconstruct(p, bad); }), HasSubstr("options.tv"));
+  bad.method = ReconstructionMethod::kDrizzle;
+  bad.drizzle.pixfrac = 2;
+  EXPECT_THAT(test::ErrorOf([&] { Reconstruct(p, bad); }), HasSubstr("options.drizzle"));
 }
 
 // Replacing the model PSFs (PSF mismatch) is reported and changes the model.
