@@ -9,19 +9,12 @@
 
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/problem.hpp"
+#include "solvers/tikhonov_fixture.hpp"
 
 namespace aosr::map_test {
 
-// A unit-sum, centred, sampled Gaussian PSF of n x n pixels.
-inline Image GaussianKernel(Index n, double sigma) {
-  Image k(n, n);
-  for (Index y = 0; y < n; ++y)
-    for (Index x = 0; x < n; ++x) {
-      const double dy = double(y - n / 2), dx = double(x - n / 2);
-      k(y, x) = std::exp(-0.5 * (dy * dy + dx * dx) / (sigma * sigma));
-    }
-  return k / k.sum();
-}
+using test::GaussianKernel;  // unit-sum, centred, sampled Gaussian PSF
+
 
 // N frames: one Gaussian PSF moved by the given HR-pixel offsets (a tip/tilt raster).
 inline std::shared_ptr<const MultiFrameModel> RasterModel(

@@ -14,6 +14,7 @@
 #include "aosr/core/forward_model.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "solvers/total_variation_fixture.hpp"  // Blocks, and test::GaussianKernel
 
 namespace aosr::stability_test {
 
@@ -26,21 +27,11 @@ inline const std::vector<ReconstructionMethod>& AllMethods() {
   return m;
 }
 
-// A centred, unit-sum Gaussian kernel of side n (odd), width sigma in HR pixels.
-inline Image Gaussian(Index n, double sigma) {
-  Image k(n, n);
-  for (Index y = 0; y < n; ++y)
-    for (Index x = 0; x < n; ++x) {
-      const double dy = double(y - n / 2), dx = double(x - n / 2);
-      k(y, x) = std::exp(-0.5 * (dy * dy + dx * dx) / (sigma * sigma));
-    }
-  return k / k.sum();
-}
 
 // N frames of one Gaussian PSF (sigma HR px) moved by the given HR-pixel shifts: a tip/tilt dither.
 inline std::shared_ptr<const MultiFrameModel> Model(Shape hr, int r, const std::vector<Shift>& shifts,
                                                     double sigma) {
-  const ComplexImage h = TransferFunction(hr, Gaussian(11, sigma));  // grids of >= 11 HR px
+  const ComplexImage h = TransferFunction(hr, test::GaussianKernel(11, sigma));  // grids of >= 11 HR px
   std::vector<ComplexImage> otfs;
   for (auto [dy, dx] : shifts) otfs.push_back(h * ShiftTransfer(hr, dy, dx));
   return std::make_shared<const MultiFrameModel>(hr, r, otfs);
@@ -77,17 +68,7 @@ inline Image SmoothObject(Shape s) {
 }
 
 // Piecewise-constant: two rectangles and a dark disc on a pedestal (edges for TV).
-inline Image Blocks(Shape s) {
-  Image x = Image::Constant(s.rows, s.cols, 0.2);
-  for (Index y = 0; y < s.rows; ++y)
-    for (Index c = 0; c < s.cols; ++c) {
-      if (y >= s.rows / 8 && y < s.rows / 2 && c >= s.cols / 8 && c < s.cols / 2) x(y, c) = 1.0;
-      if (y >= s.rows / 3 && y < 5 * s.rows / 6 && c >= 5 * s.cols / 8 && c < 7 * s.cols / 8) x(y, c) = 0.6;
-      const double dy = y - 0.7 * s.rows, dx = c - 0.3 * s.cols;
-      if (dy * dy + dx * dx < std::pow(s.rows / 7.0, 2)) x(y, c) = 0.0;
-    }
-  return x;
-}
+using tv_test::Blocks;
 
 // HR frequencies where the pixel box B vanishes (forward_model.hpp): f_a a non-zero multiple of m_a on
 // either axis. No dither and no PSF can make them visible.

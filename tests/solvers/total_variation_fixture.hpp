@@ -13,23 +13,15 @@
 #include "aosr/core/forward_model.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/problem.hpp"
+#include "solvers/tikhonov_fixture.hpp"  // test::GaussianKernel
 
 namespace aosr::tv_test {
 
-inline Image Gaussian(Index n, double sigma) {
-  Image k(n, n);
-  for (Index y = 0; y < n; ++y)
-    for (Index x = 0; x < n; ++x) {
-      const double dy = y - n / 2, dx = x - n / 2;
-      k(y, x) = std::exp(-0.5 * (dy * dy + dx * dx) / (sigma * sigma));
-    }
-  return k / k.sum();
-}
 
 // N frames: one Gaussian PSF moved by the given HR-pixel offsets (a tip/tilt raster).
 inline std::shared_ptr<const MultiFrameModel> RasterModel(
     Shape hr, int r, const std::vector<std::pair<double, double>>& shifts, double sigma) {
-  const ComplexImage h = TransferFunction(hr, Gaussian(11, sigma));
+  const ComplexImage h = TransferFunction(hr, test::GaussianKernel(11, sigma));
   std::vector<ComplexImage> otfs;
   for (auto [dy, dx] : shifts) otfs.push_back(h * ShiftTransfer(hr, dy, dx));
   return std::make_shared<const MultiFrameModel>(hr, r, otfs);
