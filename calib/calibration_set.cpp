@@ -304,14 +304,25 @@ bool SyntheticCalibrationOptions::IsValid(std::string* why) const {
   if (pupil_px < 16 || pupil_px > 512) return fail("pupil_px = " + ToString(pupil_px) + "; allowed: 16..512");
   if (window.rows < 8 || window.cols < 8 || window.rows > 1024 || window.cols > 1024)
     return fail("window = " + ToString(window) + "; allowed: sides in [8, 1024]");
-  if (modes.empty()) return fail("modes: none; allowed: at least one Noll index >= 2");
+  if (modes.empty() && patterns.empty())
+    return fail("modes: none; allowed: at least one Noll index >= 2 or actuator pattern");
   std::set<int> seen;
   for (int j : modes) {
     if (j < 2 || j > 1000) return fail("modes: " + ToString(j) + "; allowed: Noll indices in 2..1000");
     if (!seen.insert(j).second) return fail("modes: " + ToString(j) + " twice; allowed: distinct modes");
   }
-  if (!gains.empty() && gains.size() != modes.size())
-    return fail("gains: " + ToString(gains.size()) + " values; allowed: one per mode (" + ToString(modes.size()) + ") or none");
+  std::set<std::string> names;
+  for (const CalibrationMode& m : patterns) {
+    if (m.noll != 0 || m.name.empty() || m.actuator_pattern.empty())
+      return fail("patterns: '" + m.name + "'; allowed: noll 0, a name and a non-empty actuator pattern");
+    if (m.name[0] == 'Z' || !names.insert(m.name).second)
+      return fail("patterns: name '" + m.name + "'; allowed: distinct names not starting with 'Z'");
+    for (double v : m.actuator_pattern)
+      if (!std::isfinite(v)) return fail("patterns: " + m.name + " has a non-finite command");
+  }
+  const std::size_t all_modes = modes.size() + patterns.size();
+  if (!gains.empty() && gains.size() != all_modes)
+    return fail("gains: " + ToString(gains.size()) + " values; allowed: one per mode and pattern (" + ToString(all_modes) + ") or none");
   for (double g : gains)
     if (!(std::isfinite(g) && g > 0)) return fail("gains: " + ToString(g) + "; allowed: > 0");
   if (amplitudes_m.empty()) return fail("amplitudes: none; allowed: at least one level > 0");
@@ -416,14 +427,19 @@ CalibrationSet SynthesizeCalibrationSet(const SyntheticCalibrationOptions& o) {
       set.frames.push_back(std::move(f));
     }
   }
-  for (std::size_t m = 0; m < o.modes.size(); ++m) {
+  for (int j : o.modes) {
     CalibrationMode mode;
-    mode.noll = o.modes[m];
-    mode.name = "Z" + std::to_string(mode.noll);
+    mode.noll = j;
+    mode.name = "Z" + std::to_string(j);
     set.modes.push_back(mode);
+  }
+  set.modes.insert(set.modes.end(), o.patterns.begin(), o.patterns.end());
+  for (std::size_t m = 0; m < set.modes.size(); ++m) {
+    const CalibrationMode& mode = set.modes[m];
     const double g = o.gains.empty() ? 1.0 : o.gains[m];
-    const ModalImageModel model(set.optics, Zernike(mode.noll, o.pupil_px, set.optics.obstruction), o.static_modes,
-                                o.window, o.padding_px, o.oversampling);
+    // The mode's OPD per unit amplitude as the fit will model it (Zernike, or the pattern through the DM).
+    const ModalImageModel model(set.optics, set.ModeShape(int(m)), o.static_modes, o.window, o.padding_px,
+                                o.oversampling);
     for (int r = 0; r < o.references_per_mode; ++r) {
       CalibrationFrame f = record(model, 0.0, int(m));
       f.reference = true;
@@ -436,7 +452,7 @@ CalibrationSet SynthesizeCalibrationSet(const SyntheticCalibrationOptions& o) {
         f.amplitude_m = commanded;
         set.frames.push_back(std::move(f));
       }
-    truth_modes.push_back({{"mode", mode.noll}, {"gain", g}});
+    truth_modes.push_back({{"mode", mode.noll ? nlohmann::json(mode.noll) : nlohmann::json(mode.name)}, {"gain", g}});
   }
   nlohmann::json statics = nlohmann::json::object();
   for (std::size_t k = 0; k < o.static_modes.size(); ++k) statics[std::to_string(o.static_modes[k])] = o.static_m[k] * 1e9;
@@ -486,7 +502,16 @@ SyntheticCalibrationOptions LoadSyntheticCalibrationSpec(const std::string& name
   }
   if (c.Has("modes")) {
     o.modes.clear();
-    for (double j : c.Numbers("modes", 2, 1000, 1, 1000)) o.modes.push_back(int(j));
+    for (double j : c.Numbers("modes", 2, 1000, 0, 1000)) o.modes.push_back(int(j));
+  }
+  if (c.Has("patterns")) {
+    for (const ConfigNode& m : c.Array("patterns")) {
+      CalibrationMode mode;
+      mode.name = m.String("name");
+      mode.actuator_pattern = m.Numbers("actuators", -1e6, 1e6, 1, 100000);
+      m.CheckNoOtherFields();
+      o.patterns.push_back(std::move(mode));
+    }
   }
   if (c.Has("gains")) o.gains = c.Numbers("gains", 1e-6, 1e6, 1, 1000);
   if (c.Has("amplitudes_nm")) {

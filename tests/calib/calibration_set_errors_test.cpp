@@ -109,6 +109,15 @@ TEST(CalibrationSetErrors, FitArgumentsAndOptions) {
   SyntheticCalibrationOptions so = Small();
   so.gains = {1.0};
   EXPECT_THAT(ErrorOf([&] { SynthesizeCalibrationSet(so); }), HasSubstr("gains"));
+  // Actuator-pattern modes: a name clashing with another, a pattern of the wrong length for the DM, no modes.
+  so = Small();
+  so.patterns = {CalibrationMode{0, "p", {1.0}}, CalibrationMode{0, "p", {1.0}}};
+  EXPECT_THAT(ErrorOf([&] { SynthesizeCalibrationSet(so); }), HasSubstr("distinct names"));
+  so.patterns.pop_back();
+  EXPECT_THAT(ErrorOf([&] { SynthesizeCalibrationSet(so); }), HasSubstr("actuator pattern size"));
+  so.patterns.clear();
+  so.modes.clear();
+  EXPECT_THAT(ErrorOf([&] { SynthesizeCalibrationSet(so); }), HasSubstr("at least one"));
 }
 
 class ManifestErrors : public ::testing::Test {

@@ -98,8 +98,12 @@ struct SyntheticCalibrationOptions {
   double pixel_lambda_over_d = 0.3115;
   Index pupil_px = 64;                     // model pupil grid (as the fit's default)
   Shape window{48, 48};                    // frame size [camera px]; 48 px = 15 λ/D on the bench
-  std::vector<int> modes{2, 3, 4, 5, 6, 7, 8, 9, 10, 11};  // Noll indices >= 2, distinct
-  std::vector<double> gains;               // true gain per mode (> 0); empty: all 1
+  std::vector<int> modes{2, 3, 4, 5, 6, 7, 8, 9, 10, 11};  // Noll indices >= 2, distinct (may be empty)
+  // Actuator-pattern modes poked after the Zernike ones: name (distinct, not "Z<j>") and commands per unit
+  // amplitude, one per active actuator of the telescope's DM (CalibrationMode with noll = 0). At least one
+  // mode in all.
+  std::vector<CalibrationMode> patterns;
+  std::vector<double> gains;               // true gain per mode, Zernike modes then patterns (> 0); empty: all 1
   // Commanded amplitude levels [m RMS OPD], each > 0 and poked at + and −; increasing.
   std::vector<double> amplitudes_m{20e-9, 40e-9, 60e-9, 80e-9, 100e-9};
   int references_per_mode = 1;             // flat frames per mode's sequence, >= 0 (0 needs shared_references)
