@@ -13,6 +13,7 @@
 #include "aosr/core/error.hpp"
 #include "aosr/optics/pupil.hpp"
 #include "aosr/optics/zernike.hpp"
+#include "aosr/solvers/ceres_termination.hpp"
 
 namespace aosr {
 namespace {
@@ -326,17 +327,6 @@ Image VarianceFrom(const Image& signal, const NoiseModelParameters& noise) {
   return (signal.max(0.0) / g + rn * rn).max(1.0 / (g * g));
 }
 
-Termination FromCeres(ceres::TerminationType t) {
-  switch (t) {
-    case ceres::CONVERGENCE:
-      return Termination::kConverged;
-    case ceres::NO_CONVERGENCE:
-      return Termination::kMaxIterations;
-    default:
-      return Termination::kFailed;
-  }
-}
-
 }  // namespace
 
 ModalFitResult FitModalImages(const CalibrationOptics& optics, const Image& mode_shape,
@@ -507,7 +497,7 @@ ModalFitResult FitModalImages(const CalibrationOptics& optics, const Image& mode
 
   // Outcome, residuals and χ².
   result.iterations = iterations;
-  result.termination = FromCeres(summary.termination_type);
+  result.termination = TerminationOf(summary.termination_type);
   result.message = summary.BriefReport();
   result.final_cost = summary.final_cost;
   bool finite = std::isfinite(gain) && std::isfinite(position[0]) && std::isfinite(position[1]) && std::isfinite(variance);

@@ -12,6 +12,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/operators.hpp"
+#include "aosr/solvers/ceres_termination.hpp"
 
 namespace aosr {
 
@@ -470,18 +471,7 @@ MapResult MapReconstruct(const ReconstructionProblem& problem, const MapOptions&
   s.cost_evaluations = tracker.cost_evaluations;
   s.gradient_evaluations = tracker.gradient_evaluations;
   s.message = ceres_summary.BriefReport() + "; " + ceres_summary.message;
-  switch (ceres_summary.termination_type) {
-    case ceres::CONVERGENCE:
-    case ceres::USER_SUCCESS:
-      s.termination = Termination::kConverged;
-      break;
-    case ceres::NO_CONVERGENCE:
-      s.termination = Termination::kMaxIterations;
-      break;
-    default:
-      s.termination = Termination::kFailed;
-      break;
-  }
+  s.termination = TerminationOf(ceres_summary.termination_type);
   if (tracker.non_finite) {
     s.termination = Termination::kFailed;
     s.message =
