@@ -1,10 +1,13 @@
 #include "aosr/solvers/design_file.hpp"
 
+#include <cmath>
 #include <fstream>
 
 #include "aosr/ao/shack_hartmann.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/io/atomic_file.hpp"
+#include "aosr/solvers/design_empirical.hpp"
+#include "aosr/solvers/design_objective.hpp"
 
 namespace aosr {
 namespace {
@@ -42,7 +45,7 @@ std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const Desi
 }
 
 nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, const DesignResult& result,
-                              const DesignObjective& objective, const std::vector<DesignFrameReport>& frames) {
+                              const DesignCriterion& objective, const std::vector<DesignFrameReport>& frames) {
   CheckArgument(frames.size() == result.offsets.size(), "DesignFileJson", "frames count", frames.size(),
                 std::to_string(result.offsets.size()) + " (one report per offset)");
   nlohmann::json j;
@@ -51,21 +54,36 @@ nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, c
   for (const DmOffset& o : result.offsets) list.push_back(DmOffsetToJson(o));
   j["frames"] = list;
   const DesignSummary& s = result.summary;
-  const DesignObjectiveOptions& oo = objective.options();
   nlohmann::json d;
-  d["method"] = "expected-mse";
-  d["comment"] = "objective A: closed-form expected MSE of the Tikhonov/Wiener reconstructor, averaged over AO PSF "
-                 "realisations (solvers/design_objective.hpp)";
+  d["method"] = objective.method();
   d["parameterisation"] = s.parameterisation;
   d["scene"] = scene.source;
   d["frames_n"] = scene.frames;
   d["r"] = scene.r;
-  d["reconstructor"] = {{"prior", ToString(oo.reconstructor.prior)},
-                        {"lambda", oo.reconstructor.lambda},
-                        {"noise_sigma", oo.noise_sigma},
-                        {"object_spectrum", oo.object_power_spectrum.size() ? "given" : "wiener-consistent"}};
+  if (const auto* a = dynamic_cast<const DesignObjective*>(&objective)) {
+    const DesignObjectiveOptions& oo = a->options();
+    d["comment"] = "objective A: closed-form expected MSE of the Tikhonov/Wiener reconstructor, averaged over AO PSF "
+                   "realisations (solvers/design_objective.hpp)";
+    d["reconstructor"] = {{"prior", ToString(oo.reconstructor.prior)},
+                          {"lambda", oo.reconstructor.lambda},
+                          {"noise_sigma", oo.noise_sigma},
+                          {"object_spectrum", oo.object_power_spectrum.size() ? "given" : "wiener-consistent"}};
+    d["screens_per_exposure"] = oo.screens;
+  } else if (const auto* b = dynamic_cast<const EmpiricalDesignObjective*>(&objective)) {
+    const EmpiricalDesignOptions& ob = b->options();
+    d["comment"] = "objective B: mean loss of the MAP reconstructor over training scenes x AO PSF realisations, "
+                   "gradient by implicit differentiation (solvers/design_empirical.hpp)";
+    d["reconstructor"] = {{"method", "map"},
+                          {"prior", ToString(ob.map.prior)},
+                          {"lambda", ob.map.lambda},
+                          {"epsilon", ob.map.epsilon},
+                          {"noise_sigma", ob.noise_sigma},
+                          {"loss", ToString(ob.loss)},
+                          {"loss_epsilon", ob.loss_epsilon},
+                          {"training_scenes", ob.training_scenes.size()}};
+    d["screens_per_exposure"] = ob.screens;
+  }
   d["realisations"] = objective.realisations();
-  d["screens_per_exposure"] = oo.screens;
   d["grid_hr_px"] = objective.optics().grid;
   d["ao_model"] = objective.optics().ao ? "analytic" : "none";
   d["objective"] = {{"raster", s.raster_objective},
@@ -73,7 +91,10 @@ nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, c
                     {"final", s.final_objective},
                     {"invisible_floor", s.invisible_floor},
                     {"relative_to_raster", s.raster_objective > 0 ? s.final_objective / s.raster_objective : 1.0},
-                    {"units", "expected squared error per HR pixel, object units"}};
+                    {"units", std::string(objective.method()) == "expected-mse"
+                                  ? "expected squared error per HR pixel, object units"
+                                  : "mean loss per HR pixel over the training scenes, object units"}};
+  if (!std::isfinite(s.invisible_floor)) d["objective"]["invisible_floor"] = nullptr;
   d["summary"] = s.FullReport();
   d["iterations"] = s.iterations;
   d["evaluations"] = s.evaluations;

@@ -37,6 +37,15 @@ bool DesignOptimizerOptions::IsValid(std::string* why) const {
 std::string DesignSummary::FullReport() const {
   char buf[640];
   const double rel = raster_objective > 0 ? 100.0 * (final_objective / raster_objective - 1.0) : 0.0;
+  if (!std::isfinite(invisible_floor)) {  // objective B: no floor to measure the excess against
+    std::snprintf(buf, sizeof buf,
+                  "%s (%d parameters): J %.6g -> %.6g (%+.4f %% vs raster %.6g) in %zu starts, %d iterations, %d "
+                  "evaluations, %.2f s; best start %d (%s)%s",
+                  parameterisation.c_str(), parameters, initial_objective, final_objective, rel, raster_objective,
+                  start_objectives.size(), iterations, evaluations, seconds, best_start, ToString(termination),
+                  improved ? "" : "; no start improved on the raster: the raster is returned");
+    return buf;
+  }
   const double excess = raster_objective - invisible_floor;
   const double rel_excess = excess > 0 ? 100.0 * (final_objective - raster_objective) / excess : 0.0;
   std::snprintf(buf, sizeof buf,
@@ -54,7 +63,7 @@ namespace {
 // J(θ = scale z) for Ceres, counting evaluations and keeping the best point seen.
 class CeresDesignFunction : public ceres::FirstOrderFunction {
  public:
-  CeresDesignFunction(const DesignObjective& f, const DesignParameterisation& p, double scale, int* evaluations,
+  CeresDesignFunction(const DesignCriterion& f, const DesignParameterisation& p, double scale, int* evaluations,
                       double* best, Vector* best_theta)
       : f_(f), p_(p), scale_(scale), evaluations_(evaluations), best_(best), best_theta_(best_theta) {}
   bool Evaluate(const double* z, double* cost, double* gradient) const override {
@@ -83,7 +92,7 @@ class CeresDesignFunction : public ceres::FirstOrderFunction {
   int NumParameters() const override { return p_.parameters(); }
 
  private:
-  const DesignObjective& f_;
+  const DesignCriterion& f_;
   const DesignParameterisation& p_;
   double scale_;
   int* evaluations_;
@@ -123,7 +132,7 @@ Termination FromCeres(ceres::TerminationType t) {
 
 }  // namespace
 
-DesignResult OptimizeDesign(const DesignObjective& objective, const DesignParameterisation& p,
+DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParameterisation& p,
                             const DesignOptimizerOptions& options) {
   const char* fn = "OptimizeDesign";
   std::string why;
@@ -139,6 +148,7 @@ DesignResult OptimizeDesign(const DesignObjective& objective, const DesignParame
   s.parameters = p.parameters();
   s.raster_objective = objective.Evaluate(p.RasterOpds());
   s.invisible_floor = objective.invisible_floor();
+  s.objective = objective.method();
   s.evaluations = 1;
   Vector best_theta = p.RasterParameters();
   double best = objective.Evaluate(p.Opds(best_theta));
@@ -177,7 +187,15 @@ DesignResult OptimizeDesign(const DesignObjective& objective, const DesignParame
       // Gradient tolerance relative to the start's gradient (Ceres' is absolute).
       {
         std::vector<Image> g;
-        objective.Evaluate(p.Opds(theta), &g);
+        try {
+          objective.Evaluate(p.Opds(theta), &g);
+        } catch (const NumericalError& e) {  // objective B could not be trusted here: skip this start
+          ++s.evaluations;
+          s.start_objectives.push_back(std::numeric_limits<double>::infinity());
+          messages.push_back("start " + std::to_string(k) + ": not run, " + e.what());
+          if (options.progress) options.progress(messages.back());
+          continue;
+        }
         ++s.evaluations;
         const double g0 = (p.PullBack(theta, g) * scale).lpNorm<Eigen::Infinity>();
         co.gradient_tolerance = std::max(1e-300, options.gradient_tolerance * g0);

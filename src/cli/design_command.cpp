@@ -1,14 +1,18 @@
 // `aosr design SCENE`: the N per-exposure DM offsets that minimise the expected reconstruction MSE (objective A,
-// solvers/design_objective.hpp) for the scene's telescope, AO system, camera, r and N, written as a design file
+// solvers/design_objective.hpp) or the mean MAP reconstruction loss over training scenes (objective B,
+// solvers/design_empirical.hpp) for the scene's telescope, AO system, camera, r and N, written as a design file
 // (solvers/design_file.hpp) that a scene loads with "offsets": {"type": "design", "file": ...}.
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/scene/scene_spec.hpp"
+#include "aosr/solvers/design_empirical.hpp"
 #include "aosr/solvers/design_file.hpp"
 #include "aosr/solvers/design_objective.hpp"
 #include "aosr/solvers/design_optimizer.hpp"
@@ -36,9 +40,28 @@ struct DesignArgs {
   std::uint64_t seed = 1;
   bool json = false;
   std::string calibration;
+  // Objective B (--objective B only).
+  std::string objective = "A";
+  std::string loss = "l1";
+  int training_scenes = 3;
+  std::vector<std::string> training;
+  double training_zoom = 1.0;
+  double noise_sigma = 0.04;
+  double map_lambda = 1.0;
+  double epsilon = 1e-2;
+  std::string map_prior = "charbonnier-tv";
+  // Options given on the command line that belong to one objective only (checked in RunDesign).
+  std::vector<std::pair<CLI::Option*, char>> objective_only;
 };
 
 void RunDesign(const DesignArgs& a) {
+  for (const auto& [option, objective] : a.objective_only)
+    if (option->count() > 0 && a.objective[0] != objective)
+      throw InvalidArgument("aosr design", option->get_name(), "given with --objective " + a.objective,
+                            std::string("only with --objective ") + objective);
+  if (a.objective == "B" && !a.training.empty() && a.objective_only[0].first->count() > 0)
+    throw InvalidArgument("aosr design", "--training-scenes", std::to_string(a.training_scenes),
+                          "not with --training (the files are the training scenes)");
   const Progress progress(!a.json);
   Stopwatch clock;
   if (!a.output.empty()) CheckWritableFile(a.output);
@@ -65,7 +88,35 @@ void RunDesign(const DesignArgs& a) {
   progress.Step("building the design model of " + scene.name + ": N = " + std::to_string(scene.frames) +
                 ", r = " + std::to_string(scene.r));
   const DesignOptics optics = DesignOpticsFromScene(scene);
-  const DesignObjective objective(optics, scene.frames, oo);
+  std::unique_ptr<DesignCriterion> criterion;
+  const EmpiricalDesignObjective* empirical = nullptr;
+  if (a.objective == "A") {
+    criterion = std::make_unique<DesignObjective>(optics, scene.frames, oo);
+  } else {
+    EmpiricalDesignOptions eo;
+    const Shape hr{optics.grid, optics.grid};
+    eo.training_scenes = a.training.empty() ? DefaultTrainingScenes(hr, a.training_scenes, a.seed)
+                                            : TrainingScenesFromFiles(a.training, hr, a.training_zoom);
+    eo.noise_sigma = a.noise_sigma;
+    eo.noise_seed = a.seed;
+    eo.loss = ParseDesignLoss(a.loss);
+    eo.map.prior = ParseMapPrior(a.map_prior);
+    eo.map.lambda = a.map_lambda;
+    eo.map.epsilon = a.epsilon;
+    eo.realisations = a.realisations;
+    eo.screens = a.screens;
+    eo.seed = a.seed;
+    eo.threads = a.threads;
+    std::string why;
+    if (!eo.IsValid(&why)) throw InvalidArgument("aosr design: objective B: " + why);
+    progress.Step("objective B: " + std::to_string(eo.training_scenes.size()) + " training scene(s) of " +
+                  ToString(hr) + (a.training.empty() ? " (dead leaves)" : " (files)") + ", loss " + a.loss +
+                  ", MAP " + a.map_prior + " lambda " + ToString(a.map_lambda));
+    auto b = std::make_unique<EmpiricalDesignObjective>(optics, scene.frames, eo);
+    empirical = b.get();
+    criterion = std::move(b);
+  }
+  const DesignCriterion& objective = *criterion;
   const DesignParameterisation parameterisation(DesignPupilFromScene(scene), scene.frames, scene.r, po);
   const DesignResult result = OptimizeDesign(objective, parameterisation, opt);
   const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds);
@@ -93,6 +144,9 @@ void RunDesign(const DesignArgs& a) {
     j["frames"] = scene.frames;
     j["r"] = scene.r;
     j["ao_model"] = optics.ao ? "analytic" : "none";
+    j["objective"] = a.objective;
+    j["method"] = objective.method();
+    if (empirical) j["last_evaluation"] = empirical->last_evaluation().BriefReport();
     j["realisations"] = objective.realisations();
     j["objective_raster"] = s.raster_objective;
     j["objective_start"] = s.initial_objective;
@@ -114,7 +168,9 @@ void RunDesign(const DesignArgs& a) {
               "grid %lld HR px\n",
               scene.name.c_str(), scene.frames, scene.r, s.parameterisation.c_str(), optics.ao ? "analytic" : "none",
               objective.realisations(), oo.screens, static_cast<long long>(optics.grid));
-  std::printf("%s\n%s\n", s.FullReport().c_str(), s.message.c_str());
+  std::printf("objective %s (%s)\n%s\n%s\n", a.objective.c_str(), objective.method(), s.FullReport().c_str(),
+              s.message.c_str());
+  if (empirical) std::printf("last evaluation: %s\n", empirical->last_evaluation().BriefReport().c_str());
   std::printf("%-6s %10s %10s %9s %9s %10s\n", "frame", "dy [px]", "dx [px]", "rms [nm]", "Strehl", "zernikes");
   for (std::size_t i = 0; i < result.offsets.size(); ++i) {
     const DmOffset& o = result.offsets[i];
@@ -133,8 +189,8 @@ void RegisterDesign(CLI::App& app) {
       "design",
       "Design the N per-exposure DM offsets of a scene (telescope, AO, camera, r, N) that minimise the expected "
       "MSE of the Tikhonov/Wiener reconstruction (objective A: closed form per frequency, averaged over AO PSF "
-      "realisations, with the PSF mismatch of the reconstructor's nominal model counted), by L-BFGS from the "
-      "classic raster and perturbed starts. -o writes a design file that scenes load with "
+      "realisations, with the PSF mismatch of the reconstructor's nominal model counted) or the mean loss of the "
+      "MAP reconstruction of training scenes (objective B), by L-BFGS from the classic raster and perturbed starts. -o writes a design file that scenes load with "
       "\"offsets\": {\"type\": \"design\", \"file\": ...}.");
   cmd->add_option("scene", a->scene, "scene file (.json)")->required();
   cmd->add_option("-o,--output", a->output, "write the design file (JSON) here");
@@ -168,6 +224,53 @@ void RegisterDesign(CLI::App& app) {
   cmd->add_option("--threads", a->threads, "threads for the PSFs and their gradients")->check(CLI::Range(1, 64))->capture_default_str();
   cmd->add_option("--seed", a->seed, "seed of the residual screens and the perturbed starts")->capture_default_str();
   cmd->add_flag("--json", a->json, "print the summary and the design as JSON (no progress messages)");
+  cmd->add_option("--objective", a->objective,
+                  "A: closed-form expected Tikhonov MSE; B: mean MAP reconstruction loss over training scenes "
+                  "(implicit gradient; slower, to confirm or refine A)")
+      ->check(CLI::IsMember({"A", "B"}))
+      ->capture_default_str();
+  // Objective B only (the first entry is --training-scenes, checked against --training).
+  a->objective_only.push_back(
+      {cmd->add_option("--training-scenes", a->training_scenes, "objective B: dead-leaves training scenes K")
+           ->check(CLI::Range(1, 64))
+           ->capture_default_str(),
+       'B'});
+  a->objective_only.push_back(
+      {cmd->add_option("--training", a->training, "objective B: training scenes from image files (PNG/TIFF/FITS)")
+           ->check(CLI::ExistingFile),
+       'B'});
+  a->objective_only.push_back(
+      {cmd->add_option("--training-zoom", a->training_zoom,
+                       "objective B: source pixels per HR pixel of the --training crops")
+           ->check(CLI::PositiveNumber)
+           ->capture_default_str(),
+       'B'});
+  a->objective_only.push_back({cmd->add_option("--loss", a->loss, "objective B: loss, l1 (smoothed) or l2")
+                                   ->check(CLI::IsMember({"l1", "l2"}))
+                                   ->capture_default_str(),
+                               'B'});
+  a->objective_only.push_back(
+      {cmd->add_option("--noise-sigma", a->noise_sigma, "objective B: noise sigma per LR pixel (scenes of peak 1)")
+           ->check(CLI::PositiveNumber)
+           ->capture_default_str(),
+       'B'});
+  a->objective_only.push_back(
+      {cmd->add_option("--map-prior", a->map_prior, "objective B: MAP prior, charbonnier-tv or tikhonov")
+           ->check(CLI::IsMember({"charbonnier-tv", "tikhonov"}))
+           ->capture_default_str(),
+       'B'});
+  a->objective_only.push_back(
+      {cmd->add_option("--map-lambda", a->map_lambda, "objective B: MAP lambda (weights 1/sigma^2)")
+           ->check(NonNegativeFinite())
+           ->capture_default_str(),
+       'B'});
+  a->objective_only.push_back(
+      {cmd->add_option("--epsilon", a->epsilon, "objective B: Charbonnier epsilon of the MAP prior")
+           ->check(CLI::PositiveNumber)
+           ->capture_default_str(),
+       'B'});
+  // Objective A only.
+  for (CLI::Option* o : {cmd->get_option("--lambda"), cmd->get_option("--prior")}) a->objective_only.push_back({o, 'A'});
   cmd->callback([a] { RunDesign(*a); });
 }
 

@@ -93,6 +93,34 @@ TEST_F(DesignCliTest, BadArgumentsAreClearErrors) {
   EXPECT_EQ(r.status, 1) << r.out;
 }
 
+// Objective B evaluates the raster on dead-leaves training scenes and writes its provenance; options of one
+// objective given with the other are clear errors.
+TEST_F(DesignCliTest, ObjectiveBEvaluatesAndRejectsOptionsOfTheOtherObjective) {
+  const std::string design = Path("b.json");
+  CliRun r = RunCli("design " + Path("scene.json") +
+                    " --param raster --objective B --training-scenes 1 --loss l2 --realisations 0 --threads 1 -o " +
+                    design);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("objective B (empirical-map-loss)"));
+  EXPECT_THAT(r.out, HasSubstr("last evaluation: J = "));
+  std::ifstream in(design);
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j["design"]["method"], "empirical-map-loss");
+  EXPECT_EQ(j["design"]["reconstructor"]["loss"], "l2");
+  EXPECT_GT(j["design"]["objective"]["final"].get<double>(), 0.0);
+  EXPECT_TRUE(j["design"]["objective"]["invisible_floor"].is_null());
+  r = RunCli("design " + Path("scene.json") + " --param raster --loss l2");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("only with --objective B"));
+  r = RunCli("design " + Path("scene.json") + " --param raster --objective B --lambda 0.1");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("only with --objective A"));
+  r = RunCli("design " + Path("scene.json") + " --param raster --objective B --training " + Path("scene.json") +
+             " --training-scenes 2");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("not with --training"));
+}
+
 // --calibration: the file's frames are the commands (design / gain); the designed offsets stay in the
 // provenance, and simulating the commands through the calibrated DM applies the design again.
 TEST_F(DesignCliTest, CalibrationWritesCompensatedCommands) {

@@ -5,7 +5,8 @@
 //     "name": "paper-sim-r2-zernike",
 //     "frames": [ {"shift_px": [dy, dx], "zernike": [{"noll": j, "rms_nm": a}, ...], "actuators_nm": [...]}, ... ],
 //     "design": {                                  (provenance; LoadDesignFile keeps it, unchecked)
-//       "method": "expected-mse", "parameterisation": "zernike", "scene": "...", "reconstructor": {...},
+//       "method": "expected-mse" (objective A) | "empirical-map-loss" (objective B),
+//       "parameterisation": "zernike", "scene": "...", "reconstructor": {...},
 //       "objective": {"raster": J_r, "start": J_0, "final": J, "units": "..."}, "summary": "...",
 //       "wfs": {"model": "shack-hartmann-geometric", "lenslets_across": M, "valid_subapertures": V,
 //               "slope_order": "...", "units": "rad"},
@@ -45,7 +46,7 @@ std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const Desi
 
 // The whole design file as JSON (format above). `scene` names the scene file; `frames` the per-exposure reports.
 nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, const DesignResult& result,
-                              const DesignObjective& objective, const std::vector<DesignFrameReport>& frames);
+                              const DesignCriterion& objective, const std::vector<DesignFrameReport>& frames);
 
 // Writes the JSON atomically (write then rename). IoError naming the path if it cannot be written.
 void WriteDesignFile(const std::string& path, const nlohmann::json& design);

@@ -1,6 +1,7 @@
 // Phase design, part 2: objective A, the closed-form expected reconstruction MSE of the linear (Tikhonov /
 // Wiener) reconstructor, as a function of the N DM offsets w_dm,i, with its analytic gradient. No Ceres here:
-// design_optimizer.hpp minimises it.
+// design_optimizer.hpp minimises it (as a DesignCriterion). The PSFs and the pull-back from the transfer
+// functions to the DM offsets are design_psf.hpp's, shared with objective B (design_empirical.hpp).
 //
 // ## The model (DESIGN.md §1, forward_model.hpp, tikhonov.hpp)
 //
@@ -43,8 +44,8 @@
 //     Γ_R  = 2 (F S Aᴴ + (σ²/r²) R),   Z = G⁻¹ Γ_R,
 //     Γ_A0 = (I − A0 R) Zᴴ − A0 Z Rᴴ,                   (through R = G⁻¹A0ᴴ and G)
 // (with A = A0 the two add). Then Γ_H(f_k) = conj(B(f_k)/r²) Γ_A[i,k] for every HR frequency (each belongs to
-// exactly one bin), Γ_Hdiff = T Γ_H0; through the DFT, ∂J/∂h = M² Re IDFT(Γ_H) (shifted back to the centred
-// window); through the normalisation, ∂J/∂p = (∂J/∂h − ⟨∂J/∂h, h⟩) / Σp; through p = |Y|², Y = MFT(E),
+// exactly one bin), and DesignPsfModel::PullBack (design_psf.hpp) does the rest: Γ_Hdiff = T Γ_H0; through
+// the DFT, ∂J/∂h = M² Re IDFT(Γ_H) (shifted back to the centred window); through the normalisation, ∂J/∂p = (∂J/∂h − ⟨∂J/∂h, h⟩) / Σp; through p = |Y|², Y = MFT(E),
 // Γ_E = 2 MFT^H(∂J/∂p ⊙ Y) (mft.hpp's exact adjoint); and through E = A exp(i k w), k = 2π/λ,
 //     ∂J/∂w = k Im(Γ_E conj(E)),
 // summed over the L screens and every realisation. design_parameterisation.hpp continues to θ. Taylor tests
@@ -63,31 +64,12 @@
 #include <string>
 #include <vector>
 
-#include "aosr/ao/analytic_ao.hpp"
 #include "aosr/core/forward_model.hpp"
 #include "aosr/core/image.hpp"
-#include "aosr/optics/mft.hpp"
-#include "aosr/scene/scene_spec.hpp"
+#include "aosr/solvers/design_psf.hpp"
 #include "aosr/solvers/tikhonov.hpp"
 
 namespace aosr {
-
-// The instrument objective A sees.
-struct DesignOptics {
-  Image amplitude;             // n x n pupil amplitude (pupil.hpp), spanning diameter_m
-  double diameter_m = 0.0;
-  double wavelength_m = 0.0;   // science wavelength
-  double hr_pixel_rad = 0.0;   // θ_hr = camera pixel / r; at most λ/D (the PSF must fit its samples)
-  int r = 1;
-  Index grid = 0;              // M: HR grid side, even and a multiple of r (the PSF window)
-  Image static_opd_m;          // w_static (science path), n x n; empty: none
-  std::optional<AnalyticAoOptions> ao;  // the AO residual model; none: diffraction only (and R is ignored)
-};
-
-// The optics of a scene: its pupil, wavelength, r, PSF window (rounded up to a multiple of 2r), static
-// aberrations, and the analytic AO model of its telescope when the scene has AO (analytic or closed-loop)
-// and the preset has an atmosphere and an AO system.
-DesignOptics DesignOpticsFromScene(const SceneSpec& scene);
 
 struct DesignObjectiveOptions {
   // The reconstructor whose MSE is minimised: prior (and its spectrum parameters) and λ > 0 (the λ of
@@ -111,14 +93,14 @@ struct DesignObjectiveOptions {
   bool IsValid(std::string* why) const;
 };
 
-class DesignObjective {
+class DesignObjective : public DesignCriterion {
  public:
   // frames N >= 1. Throws InvalidArgument naming the bad argument, optics field or option.
   DesignObjective(const DesignOptics& optics, int frames, const DesignObjectiveOptions& options);
 
-  // J of (A) for the DM offsets w_dm,i (N images, n x n, metres; finite where the pupil transmits), and if
-  // `grad` is non-null ∂J/∂w_dm,i (N images n x n, zero outside the pupil).
-  double Evaluate(const std::vector<Image>& dm_opds, std::vector<Image>* grad = nullptr) const;
+  // Evaluate(dm_opds, grad) (DesignCriterion): J of (A) for the DM offsets w_dm,i (N images, n x n, metres;
+  // finite where the pupil transmits), and if `grad` is non-null ∂J/∂w_dm,i (N images n x n, zero outside
+  // the pupil).
 
   // The systems behind J: the nominal model (H0, what the reconstructor uses) and one model per realisation
   // (the realised OTFs; none when R = 0), on the M x M grid.
@@ -129,34 +111,27 @@ class DesignObjective {
   // T(f) (all ones without AO).
   const Image& object_spectrum() const { return s_; }
   const Image& prior_symbol() const { return p_; }
-  const Image& ao_factor() const { return t_; }
+  const Image& ao_factor() const { return psf_.ao_factor(); }
   // The part of J no design can change: (1/M²) Σ s(f) over the HR frequencies no exposure sees, beyond the
   // pupil's cutoff (|λ f| ≥ D) or on the pixel box's zeros (the alias lattice). J − floor is what the design
   // works on (approximately: the window lets a little light leak past the cutoff).
-  double invisible_floor() const { return floor_; }
-  int frames() const { return frames_; }
-  int realisations() const { return int(screens_.size()); }
-  // True when the PSFs are the exact periodic ones (below), false on the windowed MFT path.
-  bool periodic() const { return period_ > 0; }
-  const DesignOptics& optics() const { return optics_; }
+  double invisible_floor() const override { return floor_; }
+  int frames() const override { return psf_.frames(); }
+  int realisations() const override { return psf_.realisations(); }
+  const char* method() const override { return "expected-mse"; }
+  // True when the PSFs are the exact periodic ones (design_psf.hpp), false on the windowed MFT path.
+  bool periodic() const { return psf_.periodic(); }
+  const DesignOptics& optics() const override { return psf_.optics(); }
   const DesignObjectiveOptions& options() const { return options_; }
+  const DesignPsfModel& psf_model() const { return psf_; }
 
  private:
-  struct Psf;  // one exposure's PSF with what its gradient needs
-  Psf ComputePsf(const Image& opd, const std::vector<const Image*>& screens) const;
-  Psf ComputePeriodicPsf(const Image& opd, const std::vector<const Image*>& screens) const;
-  void PsfPullBack(const Psf& psf, const ComplexImage& gamma_h, Image* grad) const;
+  double EvaluateImpl(const std::vector<Image>& dm_opds, std::vector<Image>* grad) const override;
 
-  DesignOptics optics_;
-  int frames_;
   DesignObjectiveOptions options_;
-  Index n_;
-  MatrixFourierTransform mft_;
-  std::vector<Index> lit_;
-  Index period_ = 0;  // Q of the periodic path (0: the windowed MFT path)
-  Image s_, p_, t_;
+  DesignPsfModel psf_;
+  Image s_, p_;
   double floor_ = 0;
-  std::vector<std::vector<std::vector<Image>>> screens_;  // [ρ][i][l] OPD [m]
 };
 
 // Objective (A) for given models: the nominal one the reconstructor uses and the true ones (empty: the

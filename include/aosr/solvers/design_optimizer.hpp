@@ -1,5 +1,5 @@
-// Phase design, part 3: minimising an objective (objective A of design_objective.hpp; objective B later)
-// over a parameterisation (design_parameterisation.hpp) with Ceres' GradientProblemSolver (L-BFGS, Wolfe
+// Phase design, part 3: minimising an objective (a DesignCriterion, design_psf.hpp: objective A of
+// design_objective.hpp or objective B of design_empirical.hpp) over a parameterisation (design_parameterisation.hpp) with Ceres' GradientProblemSolver (L-BFGS, Wolfe
 // line search), from several starts.
 //
 //     θ* = argmin_θ J(w(θ)),     w(θ) = the N DM offsets of parameters θ (bounds built in, so unconstrained).
@@ -12,7 +12,9 @@
 // The kRaster kind has no parameters: the raster is evaluated, not optimised.
 //
 // Outcomes are data: DesignSummary reports J at the raster, at the start and at the end, iterations, evaluations,
-// time and Ceres' termination; non-convergence within max_iterations is kMaxIterations, not an exception.
+// time and Ceres' termination; non-convergence within max_iterations is kMaxIterations, not an exception. An
+// evaluation that throws NumericalError (objective B: a MAP or adjoint solve missed its tolerance) is a failed
+// step for Ceres (its line search contracts), never a value.
 #pragma once
 
 #include <cstdint>
@@ -20,7 +22,7 @@
 #include <string>
 #include <vector>
 
-#include "aosr/solvers/design_objective.hpp"
+#include "aosr/solvers/design_psf.hpp"
 #include "aosr/solvers/design_parameterisation.hpp"
 #include "aosr/solvers/summary.hpp"
 
@@ -56,7 +58,9 @@ struct DesignSummary : SolverSummary {
   double raster_objective = 0.0;   // J of the exact classic raster (tip/tilt)
   double initial_objective = 0.0;  // J at start 0 (the raster in this parameterisation)
   double final_objective = 0.0;    // J of the returned design
-  double invisible_floor = 0.0;    // DesignObjective::invisible_floor(): the part of J no design changes
+  double invisible_floor = 0.0;    // DesignCriterion::invisible_floor(): the part of J no design changes (NaN:
+                                   // none known, objective B)
+  std::string objective = "expected-mse";  // DesignCriterion::method()
   std::vector<double> start_objectives;  // final J of every start
   int best_start = 0;
   int evaluations = 0;             // objective (+gradient) evaluations over all starts
@@ -77,7 +81,7 @@ struct DesignResult {
 
 // Minimises J over `parameterisation` (whose frame count must match the objective's, and pupil grid its
 // optics'). Validates first; throws InvalidArgument naming the argument or option.
-DesignResult OptimizeDesign(const DesignObjective& objective, const DesignParameterisation& parameterisation,
+DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParameterisation& parameterisation,
                             const DesignOptimizerOptions& options);
 
 }  // namespace aosr
