@@ -8,23 +8,13 @@
 #include "aosr/core/forward_model.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/drizzle.hpp"
+#include "drizzle_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
 using aosr::test::RandomImage;
-
-ReconstructionProblem MakeProblem(Shape hr, int r, ImageStack frames, std::vector<FrameOffset> offsets,
-                                  ImageStack weights = {}) {
-  ReconstructionProblem p;
-  p.model = std::make_shared<const MultiFrameModel>(
-      MultiFrameModel::FromKernels(hr, r, ImageStack(frames.size(), Image::Ones(1, 1))));
-  p.frames = std::move(frames);
-  p.offsets = std::move(offsets);
-  p.weights = std::move(weights);
-  return p;
-}
 
 // The complete r x r raster of whole-HR-pixel offsets k = (ky, kx), ky, kx in 0 .. r-1, rendered through
 // the forward model (scene moved by +k, optional PSF, r x r box pixels).
@@ -67,7 +57,7 @@ TEST(DrizzlePhysicsTest, SquareTurboAndPointConserveTheWeightedFlux) {
   }
   double expected = 0;
   for (int i = 0; i < 5; ++i) expected += (weights[i] * frames[i]).sum() / double(r * r);
-  const ReconstructionProblem p = MakeProblem(hr, r, frames, offsets, weights);
+  const ReconstructionProblem p = test::RegistrationProblem(hr, r, frames, offsets, weights);
   for (DrizzleKernel k : {DrizzleKernel::kSquare, DrizzleKernel::kTurbo, DrizzleKernel::kPoint}) {
     for (double pixfrac : {1.0, 0.6, 0.25}) {
       DrizzleOptions o;
@@ -164,7 +154,7 @@ TEST(DrizzlePhysicsTest, UniformCoverageConservesTheImageFlux) {
   for (DrizzleKernel k : {DrizzleKernel::kSquare, DrizzleKernel::kTurbo}) {
     DrizzleOptions o;
     o.kernel = k;
-    const DrizzleResult d = Drizzle(MakeProblem(hr, r, frames, offsets, weights), o);
+    const DrizzleResult d = Drizzle(test::RegistrationProblem(hr, r, frames, offsets, weights), o);
     EXPECT_LT((d.weight - den / 9.0).abs().maxCoeff(), 1e-12);  // uniform
     EXPECT_NEAR(d.image.sum() / (num / den), 1.0, 1e-9) << ToString(k) << " seed " << seed;
   }
@@ -180,7 +170,7 @@ TEST(DrizzlePhysicsTest, UniformCoverageConservesTheImageFlux) {
     }
   DrizzleOptions o;
   o.kernel = DrizzleKernel::kPoint;
-  const DrizzleResult d = Drizzle(MakeProblem(hr, r, rframes, raster), o);
+  const DrizzleResult d = Drizzle(test::RegistrationProblem(hr, r, rframes, raster), o);
   EXPECT_LT((d.weight - 1.0).abs().maxCoeff(), 1e-15);
   EXPECT_NEAR(d.image.sum() / flux, 1.0, 1e-9);
 }
@@ -195,7 +185,7 @@ TEST(DrizzlePhysicsTest, EveryKernelReproducesAFlatField) {
   for (DrizzleKernel k : kAllKernels) {
     DrizzleOptions o;
     o.kernel = k;
-    const DrizzleResult d = Drizzle(MakeProblem({16, 12}, r, frames, offsets), o);
+    const DrizzleResult d = Drizzle(test::RegistrationProblem({16, 12}, r, frames, offsets), o);
     if (k != DrizzleKernel::kPoint) {
       ASSERT_EQ(d.summary.filled_pixels, 0) << ToString(k);
       EXPECT_NEAR(d.image.sum() / (48 * c), 1.0, 1e-9) << ToString(k);
@@ -216,7 +206,7 @@ TEST(DrizzlePhysicsTest, EveryKernelReproducesAFlatField) {
 //  Lanczos3: s = 2, support |Δ| < 6: Δ in ±{0.5 .. 5.5}; sum (Σ_Δ L3(Δ/2))², about s² = 4.
 TEST(DrizzlePhysicsTest, GaussianAndLanczosDoNotConserveTheWeightedFlux) {
   const ReconstructionProblem p =
-      MakeProblem({16, 16}, 2, {RandomImage({8, 8}, 5, false) + 1.0}, {{0.0, 0.0}});
+      test::RegistrationProblem({16, 16}, 2, {RandomImage({8, 8}, 5, false) + 1.0}, {{0.0, 0.0}});
   const double sigma = 2.0 / (2.0 * std::sqrt(2.0 * std::log(2.0)));
   double g = 0, l = 0;
   for (double a : {0.5, 1.5, 2.5})
@@ -323,7 +313,7 @@ TEST(DrizzlePhysicsTest, CentredEvenRasterInterlacesArbitraryFrames) {
     }
   DrizzleOptions o;
   o.pixfrac = 1.0 / r;
-  const DrizzleResult d = Drizzle(MakeProblem(hr, r, frames, offsets), o);
+  const DrizzleResult d = Drizzle(test::RegistrationProblem(hr, r, frames, offsets), o);
   for (int ky = 0; ky < r; ++ky)
     for (int kx = 0; kx < r; ++kx)
       for (Index Y = 0; Y < lr.rows; ++Y)

@@ -8,24 +8,13 @@
 
 #include "aosr/core/forward_model.hpp"
 #include "aosr/solvers/shift_and_add.hpp"
+#include "drizzle_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {
 namespace {
 
 using aosr::test::RandomImage;
-
-// A problem whose model only supplies r and the HR grid (identity PSFs): drizzle reads nothing else.
-ReconstructionProblem MakeProblem(Shape hr, int r, ImageStack frames, std::vector<FrameOffset> offsets,
-                                  ImageStack weights = {}) {
-  ReconstructionProblem p;
-  p.model = std::make_shared<const MultiFrameModel>(
-      MultiFrameModel::FromKernels(hr, r, ImageStack(frames.size(), Image::Ones(1, 1))));
-  p.frames = std::move(frames);
-  p.offsets = std::move(offsets);
-  p.weights = std::move(weights);
-  return p;
-}
 
 bool BitIdentical(const Image& a, const Image& b) {
   return ShapeOf(a) == ShapeOf(b) && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
@@ -61,7 +50,7 @@ TEST(DrizzleTest, TwoFrameSquareKernelMatchesHandComputedOverlaps) {
   Image y0 = Image::Constant(3, 3, 8.0), y1 = Image::Constant(3, 3, 4.0);
   y0(1, 1) = 16.0;
   y1(1, 1) = 12.0;
-  const ReconstructionProblem p = MakeProblem({6, 6}, 2, {y0, y1}, {{0.0, 0.0}, {0.5, -0.25}},
+  const ReconstructionProblem p = test::RegistrationProblem({6, 6}, 2, {y0, y1}, {{0.0, 0.0}, {0.5, -0.25}},
                                               {Image::Ones(3, 3), Image::Constant(3, 3, 3.0)});
   DrizzleOptions o;
   o.pixfrac = 0.5;
@@ -106,7 +95,7 @@ TEST(DrizzleTest, PixfracOneWithWholePixelOffsetsIsShiftAndAdd) {
   ImageStack frames;
   for (int i = 0; i < 4; ++i) frames.push_back(RandomImage({6, 5}, 100 + i));
   const std::vector<FrameOffset> offsets = {{0, 0}, {1, 2}, {-4, 1}, {2, -1}};
-  const DrizzleResult d = Drizzle(MakeProblem(hr, r, frames, offsets));
+  const DrizzleResult d = Drizzle(test::RegistrationProblem(hr, r, frames, offsets));
   const Image sa = ShiftAndAdd(frames, offsets, r, Combine::kMean);
   EXPECT_LT((d.image - sa).abs().maxCoeff(), 1e-12);
   EXPECT_LT((d.weight - 4.0 / 9.0).abs().maxCoeff(), 1e-14);
@@ -120,7 +109,7 @@ TEST(DrizzleTest, ASingleDropLandsAtTheMappedCentre) {
   const int r = 3;
   Image y = Image::Zero(4, 4);
   y(2, 1) = 9.0;
-  const ReconstructionProblem p = MakeProblem({12, 12}, r, {y}, {{0.4, -1.3}});
+  const ReconstructionProblem p = test::RegistrationProblem({12, 12}, r, {y}, {{0.4, -1.3}});
   const DrizzleResult d = Drizzle(p);
   const double cy = 3 * 2 + 1 - 0.4, cx = 3 * 1 + 1 + 1.3;  // (6.6, 5.3)
   double sum = 0, my = 0, mx = 0;
@@ -157,11 +146,11 @@ TEST(DrizzleTest, AZeroWeightPixelNeverChangesTheOutput) {
     o.kernel = k;
     o.pixfrac = 0.7;
     frames[1](2, 3) = 0.0;
-    const DrizzleResult base = Drizzle(MakeProblem({10, 12}, r, frames, offsets, weights), o);
+    const DrizzleResult base = Drizzle(test::RegistrationProblem({10, 12}, r, frames, offsets, weights), o);
     for (double bad :
          {std::numeric_limits<double>::quiet_NaN(), 1e30, std::numeric_limits<double>::infinity()}) {
       frames[1](2, 3) = bad;
-      const DrizzleResult d = Drizzle(MakeProblem({10, 12}, r, frames, offsets, weights), o);
+      const DrizzleResult d = Drizzle(test::RegistrationProblem({10, 12}, r, frames, offsets, weights), o);
       EXPECT_TRUE(BitIdentical(d.image, base.image)) << ToString(k) << " value " << bad;
       EXPECT_TRUE(BitIdentical(d.weight, base.weight)) << ToString(k) << " value " << bad;
       ASSERT_EQ(d.context.size(), 1u);
@@ -185,7 +174,7 @@ TEST(DrizzleTest, PixfracAndDithersSetTheCoverage) {
     o.pixfrac = pixfrac;
     o.fill_value = -7.0;
     ImageStack frames(offsets.size(), Image::Constant(4, 4, 9.0));
-    return Drizzle(MakeProblem(hr, r, frames, offsets), o);
+    return Drizzle(test::RegistrationProblem(hr, r, frames, offsets), o);
   };
   const DrizzleResult a = run(0.3, {{0, 0}});
   EXPECT_EQ(a.summary.covered_pixels, 16);
@@ -222,7 +211,7 @@ TEST(DrizzleTest, ContextPlanesRecordEveryFrame) {
     offsets.push_back({0.0, double(i % 8)});  // frame i covers columns shifted by i%8
   DrizzleOptions o;
   o.kernel = DrizzleKernel::kPoint;
-  const DrizzleResult d = Drizzle(MakeProblem({8, 8}, r, frames, offsets), o);
+  const DrizzleResult d = Drizzle(test::RegistrationProblem({8, 8}, r, frames, offsets), o);
   ASSERT_EQ(d.context.size(), 2u);
   // Point drops of frame i sit at (2Y + 1, 2X + 1 - i%8) (0.5 - i%8 rounds up): odd rows only.
   for (int i = 0; i < n; ++i) {
@@ -236,7 +225,7 @@ TEST(DrizzleTest, ContextPlanesRecordEveryFrame) {
   EXPECT_EQ(d.context[1](1, 1), 0x55u);        // frames 32, 34, 36, 38 are bits 0, 2, 4, 6 of plane 1
   DrizzleOptions no_ctx = o;
   no_ctx.compute_context = false;
-  EXPECT_TRUE(Drizzle(MakeProblem({8, 8}, r, frames, offsets), no_ctx).context.empty());
+  EXPECT_TRUE(Drizzle(test::RegistrationProblem({8, 8}, r, frames, offsets), no_ctx).context.empty());
 }
 
 // kClip is cdrizzle's boundary: the part of a drop off the grid is lost. One frame moved half an LR
@@ -245,7 +234,7 @@ TEST(DrizzleTest, ContextPlanesRecordEveryFrame) {
 // loses it (and column 7 is reached by nobody), periodic wraps it onto column 7.
 TEST(DrizzleTest, ClipLosesWhatPeriodicWraps) {
   const Image y = RandomImage({4, 4}, 3);
-  const ReconstructionProblem p = MakeProblem({8, 8}, 2, {y}, {{0.0, 1.0}});
+  const ReconstructionProblem p = test::RegistrationProblem({8, 8}, 2, {y}, {{0.0, 1.0}});
   DrizzleOptions o;
   const DrizzleResult wrap = Drizzle(p, o);
   o.boundary = DrizzleBoundary::kClip;
@@ -265,21 +254,21 @@ TEST(DrizzleTest, ClipLosesWhatPeriodicWraps) {
   // A frame moved off the grid altogether: every input misses and nothing is covered.
   DrizzleOptions far = o;
   far.fill_value = -1.0;
-  const DrizzleResult gone = Drizzle(MakeProblem({8, 8}, 2, {y}, {{0.0, 1e6}}), far);
+  const DrizzleResult gone = Drizzle(test::RegistrationProblem({8, 8}, 2, {y}, {{0.0, 1e6}}), far);
   EXPECT_EQ(gone.summary.missed_inputs, 16);
   EXPECT_EQ(gone.summary.covered_pixels, 0);
   EXPECT_EQ(gone.summary.termination, Termination::kFailed);
   EXPECT_LT((gone.image + 1.0).abs().maxCoeff(), 1e-15);
   // Periodic: the same offset is a whole number of grid periods plus 0, so it lands like offset 0.
-  const DrizzleResult back = Drizzle(MakeProblem({8, 8}, 2, {y}, {{0.0, 1e6}}));
-  EXPECT_LT((back.image - Drizzle(MakeProblem({8, 8}, 2, {y}, {{0.0, 0.0}})).image).abs().maxCoeff(), 1e-12);
+  const DrizzleResult back = Drizzle(test::RegistrationProblem({8, 8}, 2, {y}, {{0.0, 1e6}}));
+  EXPECT_LT((back.image - Drizzle(test::RegistrationProblem({8, 8}, 2, {y}, {{0.0, 0.0}})).image).abs().maxCoeff(), 1e-12);
 }
 
 TEST(DrizzleTest, AllInputsMaskedReportsFailureNotAnException) {
   DrizzleOptions o;
   o.fill_value = std::numeric_limits<double>::quiet_NaN();  // explicitly asked for: INDEF
   const DrizzleResult d =
-      Drizzle(MakeProblem({4, 4}, 2, {Image::Ones(2, 2)}, {{0, 0}}, {Image::Zero(2, 2)}), o);
+      Drizzle(test::RegistrationProblem({4, 4}, 2, {Image::Ones(2, 2)}, {{0, 0}}, {Image::Zero(2, 2)}), o);
   EXPECT_EQ(d.summary.termination, Termination::kFailed);
   EXPECT_NE(d.summary.message.find("no HR pixel"), std::string::npos);
   EXPECT_TRUE(d.image.isNaN().all());
