@@ -12,6 +12,7 @@
 #include <random>
 
 #include "aosr/core/error.hpp"
+#include "aosr/solvers/ceres_termination.hpp"
 
 namespace aosr {
 
@@ -118,18 +119,6 @@ class ProgressCallback : public ceres::IterationCallback {
   int start_;
 };
 
-Termination FromCeres(ceres::TerminationType t) {
-  switch (t) {
-    case ceres::CONVERGENCE:
-    case ceres::USER_SUCCESS:
-      return Termination::kConverged;
-    case ceres::NO_CONVERGENCE:
-      return Termination::kMaxIterations;
-    default:
-      return Termination::kFailed;
-  }
-}
-
 }  // namespace
 
 DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParameterisation& p,
@@ -218,7 +207,7 @@ DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParame
         best = start_best;
         best_theta = start_theta;
         s.best_start = k;
-        s.termination = FromCeres(cs.termination_type);
+        s.termination = TerminationOf(cs.termination_type);
         s.improved = true;
       }
     }

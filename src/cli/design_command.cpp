@@ -17,6 +17,7 @@
 #include "aosr/solvers/design_objective.hpp"
 #include "aosr/solvers/design_optimizer.hpp"
 #include "aosr/solvers/design_parameterisation.hpp"
+#include "aosr/solvers/power_spectrum_fit.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
 
@@ -47,6 +48,8 @@ struct DesignArgs {
   std::vector<std::string> training;
   double training_zoom = 1.0;
   double noise_sigma = 0.04;
+  int validation_realisations = 4;
+  CLI::Option* noise_sigma_option = nullptr;
   double map_lambda = 1.0;
   double epsilon = 1e-2;
   std::string map_prior = "charbonnier-tv";
@@ -62,6 +65,10 @@ void RunDesign(const DesignArgs& a) {
   if (a.objective == "B" && !a.training.empty() && a.objective_only[0].first->count() > 0)
     throw InvalidArgument("aosr design", "--training-scenes", std::to_string(a.training_scenes),
                           "not with --training (the files are the training scenes)");
+  if (a.objective == "A" && a.training.empty() && a.noise_sigma_option->count() > 0)
+    throw InvalidArgument("aosr design", "--noise-sigma", ToString(a.noise_sigma),
+                          "with --objective B, or with --training (objective A's Wiener design); without a fitted "
+                          "spectrum objective A's design does not depend on the noise");
   const Progress progress(!a.json);
   Stopwatch clock;
   if (!a.output.empty()) CheckWritableFile(a.output);
@@ -90,7 +97,24 @@ void RunDesign(const DesignArgs& a) {
   const DesignOptics optics = DesignOpticsFromScene(scene);
   std::unique_ptr<DesignCriterion> criterion;
   const EmpiricalDesignObjective* empirical = nullptr;
+  nlohmann::json spectrum_record;  // objective A with --training: the fitted spectrum, for the file and --json
   if (a.objective == "A") {
+    if (!a.training.empty()) {
+      // The Wiener variant: the object spectrum fitted to the training images (peak 1, their pixels as HR
+      // pixels) and the Tikhonov power-spectrum prior that is its Wiener reconstructor for this noise.
+      PowerSpectrumFitOptions fo;
+      fo.grid = optics.grid;
+      fo.scaling = TrainingScaling::kPeak;
+      fo.scale_value = 1.0;
+      const PowerSpectrumFit fit = FitPowerSpectrum(LoadTrainingImages(a.training), fo);
+      oo.reconstructor = WienerPriorOptions(fit.model, a.noise_sigma, {optics.grid, optics.grid});
+      oo.noise_sigma = a.noise_sigma;
+      progress.Step("objective A, Wiener: spectrum of " + std::to_string(a.training.size()) + " training image(s): " +
+                    fit.BriefReport());
+      spectrum_record = {{"files", a.training},     {"amplitude", fit.model.amplitude}, {"corner", fit.model.corner},
+                         {"slope", fit.model.slope}, {"residual_rms", fit.residual_rms},  {"patches", fit.patches},
+                         {"noise_sigma", a.noise_sigma}, {"lambda", oo.reconstructor.lambda}};
+    }
     criterion = std::make_unique<DesignObjective>(optics, scene.frames, oo);
   } else {
     EmpiricalDesignOptions eo;
@@ -118,10 +142,39 @@ void RunDesign(const DesignArgs& a) {
   }
   const DesignCriterion& objective = *criterion;
   const DesignParameterisation parameterisation(DesignPupilFromScene(scene), scene.frames, scene.r, po);
-  const DesignResult result = OptimizeDesign(objective, parameterisation, opt);
+  DesignResult result = OptimizeDesign(objective, parameterisation, opt);
+  // The optimiser only sees the R realisations it was built with (a sample average): a design can fit their
+  // particular speckle. Objective A re-judges the design and the raster on fresh realisations and keeps the
+  // raster unless the design also wins there (objective B is too slow to evaluate twice more).
+  nlohmann::json validation;
+  if (a.objective == "A" && a.validation_realisations > 0 && oo.realisations > 0 && result.summary.improved) {
+    DesignObjectiveOptions vo = oo;
+    vo.realisations = a.validation_realisations;
+    vo.seed = a.seed + 1000003;
+    const DesignObjective check(optics, scene.frames, vo);
+    const Vector raster_theta = parameterisation.RasterParameters();
+    const double j_raster = check.Evaluate(parameterisation.Opds(raster_theta));
+    const double j_design = check.Evaluate(result.opds);
+    const bool keep = j_design < j_raster;
+    validation = {{"realisations", vo.realisations}, {"seed", vo.seed}, {"objective_raster", j_raster},
+                  {"objective_design", j_design}, {"kept", keep ? "design" : "raster"}};
+    progress.Step("validation on " + std::to_string(vo.realisations) + " fresh realisation(s): J raster " +
+                  ToString(j_raster) + ", design " + ToString(j_design) + (keep ? ": design kept" : ": raster kept"));
+    if (!keep) {
+      result.parameters = raster_theta;
+      result.coefficients = parameterisation.Coefficients(raster_theta);
+      result.offsets = parameterisation.Offsets(raster_theta);
+      result.opds = parameterisation.Opds(raster_theta);
+      result.summary.final_objective = result.summary.final_cost = result.summary.initial_objective;
+      result.summary.improved = false;
+      result.summary.message += "; the design did not beat the raster on fresh realisations: raster kept";
+    }
+  }
   const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds);
   const std::string name = scene.name + "-" + a.param;
   nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
+  if (!validation.is_null()) file["design"]["validation"] = validation;
+  if (!spectrum_record.is_null()) file["design"]["object_spectrum"] = spectrum_record;
   if (!a.calibration.empty()) {
     // The frames become the commands that make a DM with the calibrated gains apply the design; the designed
     // (applied) offsets stay in the provenance.
@@ -152,6 +205,8 @@ void RunDesign(const DesignArgs& a) {
     j["objective_start"] = s.initial_objective;
     j["objective_final"] = s.final_objective;
     j["improved"] = s.improved;
+    j["validation"] = validation;
+    j["object_spectrum"] = spectrum_record;
     j["starts"] = s.start_objectives;
     j["iterations"] = s.iterations;
     j["evaluations"] = s.evaluations;
@@ -235,10 +290,11 @@ void RegisterDesign(CLI::App& app) {
            ->check(CLI::Range(1, 64))
            ->capture_default_str(),
        'B'});
-  a->objective_only.push_back(
-      {cmd->add_option("--training", a->training, "objective B: training scenes from image files (PNG/TIFF/FITS)")
-           ->check(CLI::ExistingFile),
-       'B'});
+  cmd->add_option("--training", a->training,
+                  "training images (PNG/TIFF/FITS; pixels taken as HR pixels, scaled to peak 1). Objective A: fit "
+                  "their power spectrum and design for the matching Wiener reconstructor; objective B: the "
+                  "training scenes")
+      ->check(CLI::ExistingFile);
   a->objective_only.push_back(
       {cmd->add_option("--training-zoom", a->training_zoom,
                        "objective B: source pixels per HR pixel of the --training crops")
@@ -249,11 +305,15 @@ void RegisterDesign(CLI::App& app) {
                                    ->check(CLI::IsMember({"l1", "l2"}))
                                    ->capture_default_str(),
                                'B'});
-  a->objective_only.push_back(
-      {cmd->add_option("--noise-sigma", a->noise_sigma, "objective B: noise sigma per LR pixel (scenes of peak 1)")
-           ->check(CLI::PositiveNumber)
-           ->capture_default_str(),
-       'B'});
+  a->noise_sigma_option = cmd->add_option("--noise-sigma", a->noise_sigma,
+                  "noise sigma per LR pixel for scenes of peak 1 (objective B; objective A with --training)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--validation-realisations", a->validation_realisations,
+                  "objective A: AO PSF realisations (fresh seed) on which the design must beat the raster, else "
+                  "the raster is kept; 0: no check")
+      ->check(CLI::Range(0, 64))
+      ->capture_default_str();
   a->objective_only.push_back(
       {cmd->add_option("--map-prior", a->map_prior, "objective B: MAP prior, charbonnier-tv or tikhonov")
            ->check(CLI::IsMember({"charbonnier-tv", "tikhonov"}))

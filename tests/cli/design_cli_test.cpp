@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "aosr/io/fits.hpp"
+#include "aosr/solvers/power_spectrum_fit.hpp"
 #include "support/testing.hpp"
 
 namespace {
@@ -119,6 +121,35 @@ TEST_F(DesignCliTest, ObjectiveBEvaluatesAndRejectsOptionsOfTheOtherObjective) {
              " --training-scenes 2");
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_THAT(r.out, HasSubstr("not with --training"));
+}
+
+// Objective A with --training: the power spectrum of the training image is fitted (a Gaussian random field of
+// known slope here), the design is for the matching Wiener reconstructor, and the design is re-judged against
+// the raster on fresh AO realisations. --noise-sigma without a spectrum is refused (A would ignore it).
+TEST_F(DesignCliTest, ObjectiveAWithTrainingFitsTheSpectrumAndValidates) {
+  aosr::PowerSpectrumModel m;
+  m.amplitude = 1e-3;
+  m.corner = 0.02;
+  m.slope = 2.5;
+  aosr::WriteFits(Path("train.fits"), aosr::GaussianRandomField({192, 192}, m, 7));
+  CliRun r = RunCli("design " + Path("scene.json") + " --param tiptilt --training " + Path("train.fits") +
+                    " --noise-sigma 0.05 --realisations 1 --screens 1 --starts 1 --iterations 3 --threads 1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(j["object_spectrum"]["slope"].get<double>(), 2.5, 0.3);
+  EXPECT_EQ(j["object_spectrum"]["noise_sigma"].get<double>(), 0.05);
+  EXPECT_EQ(j["design"]["design"]["reconstructor"]["prior"], "power-spectrum");
+  EXPECT_LE(j["objective_final"].get<double>(), j["objective_start"].get<double>());
+  if (j["improved"].get<bool>() || !j["validation"].is_null()) {
+    ASSERT_FALSE(j["validation"].is_null());
+    const bool kept_design = j["validation"]["kept"] == "design";
+    EXPECT_EQ(kept_design, j["validation"]["objective_design"].get<double>() <
+                               j["validation"]["objective_raster"].get<double>());
+    EXPECT_EQ(kept_design, j["improved"].get<bool>());
+  }
+  r = RunCli("design " + Path("scene.json") + " --param raster --noise-sigma 0.05");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("--noise-sigma"));
 }
 
 // --calibration: the file's frames are the commands (design / gain); the designed offsets stay in the
