@@ -51,9 +51,11 @@
 // summed over the L screens and every realisation. design_parameterisation.hpp continues to θ. Taylor tests
 // check each parameterisation through the whole chain (remainder falls 4x per halving of h).
 //
-// Cost per evaluation: N (1 + R L) MFTs and as many adjoints of the n-pixel pupil onto M x M, N (1 + R L)
-// FFT pairs of M x M, and m² small solves of r² x r². Paper's system (n = 128, M = 64, N = 4, r = 2): ~2 ms
-// per MFT pair, so ~10 ms for R = 0 and ~0.15 s for R = 2, L = 8 (bench: design_bench).
+// Cost per evaluation with gradient: N (1 + R L) field propagations and as many adjoints (on the paper's
+// system the periodic path: Q x Q FFTs, Q = 256 at r = 2, 512 at r = 4; else MFTs of the n-pixel pupil onto
+// M x M), N (1 + R) FFT pairs of M x M for the OTFs and their adjoints (one per PSF, not per screen), and m²
+// small solves of r² x r². Measured (bench/results/design.md, one thread, loaded machine): paper system r = 2
+// 48 ms for R = 0 and 0.12 s for R = 2, L = 4 (2.4x its FFT floor); r = 4 0.2 s and 1.0 s.
 //
 // API rules: constructors validate their inputs and options (InvalidArgument naming the field); Evaluate
 // validates the OPDs. Immutable after construction; Evaluate is const and thread-safe.
