@@ -98,6 +98,7 @@ void RunDesign(const DesignArgs& a) {
   std::unique_ptr<DesignCriterion> criterion;
   const EmpiricalDesignObjective* empirical = nullptr;
   nlohmann::json spectrum_record;  // objective A with --training: the fitted spectrum, for the file and --json
+  EmpiricalDesignOptions eo;       // objective B's options (also its validation's)
   if (a.objective == "A") {
     if (!a.training.empty()) {
       // The Wiener variant: the object spectrum fitted to the training images (peak 1, their pixels as HR
@@ -117,7 +118,6 @@ void RunDesign(const DesignArgs& a) {
     }
     criterion = std::make_unique<DesignObjective>(optics, scene.frames, oo);
   } else {
-    EmpiricalDesignOptions eo;
     const Shape hr{optics.grid, optics.grid};
     eo.training_scenes = a.training.empty() ? DefaultTrainingScenes(hr, a.training_scenes, a.seed)
                                             : TrainingScenesFromFiles(a.training, hr, a.training_zoom);
@@ -143,23 +143,38 @@ void RunDesign(const DesignArgs& a) {
   const DesignCriterion& objective = *criterion;
   const DesignParameterisation parameterisation(DesignPupilFromScene(scene), scene.frames, scene.r, po);
   DesignResult result = OptimizeDesign(objective, parameterisation, opt);
-  // The optimiser only sees the R realisations it was built with (a sample average): a design can fit their
-  // particular speckle. Objective A re-judges the design and the raster on fresh realisations and keeps the
-  // raster unless the design also wins there (objective B is too slow to evaluate twice more).
+  // The optimiser only sees the sample it was built with (R realisations; for objective B also K scenes and
+  // one noise draw each): a design can fit that sample's particulars. The design and the raster are re-judged
+  // on a fresh sample (objective A: fresh realisations; B: also fresh noise and three fresh dead-leaves scenes)
+  // and the raster is kept unless the design wins there too.
   nlohmann::json validation;
-  if (a.objective == "A" && a.validation_realisations > 0 && oo.realisations > 0 && result.summary.improved) {
-    DesignObjectiveOptions vo = oo;
-    vo.realisations = a.validation_realisations;
-    vo.seed = a.seed + 1000003;
-    const DesignObjective check(optics, scene.frames, vo);
+  const bool validate = a.validation_realisations > 0 && result.summary.improved &&
+                        (a.objective == "B" || oo.realisations > 0);
+  if (validate) {
+    const std::uint64_t fresh = a.seed + 1000003;
+    std::unique_ptr<DesignCriterion> check;
+    if (a.objective == "A") {
+      DesignObjectiveOptions vo = oo;
+      vo.realisations = a.validation_realisations;
+      vo.seed = fresh;
+      check = std::make_unique<DesignObjective>(optics, scene.frames, vo);
+    } else {
+      EmpiricalDesignOptions ve = eo;
+      ve.training_scenes = DefaultTrainingScenes({optics.grid, optics.grid}, 3, fresh);
+      ve.noise_seed = fresh;
+      ve.seed = fresh;
+      if (ve.realisations > 0) ve.realisations = a.validation_realisations;
+      check = std::make_unique<EmpiricalDesignObjective>(optics, scene.frames, ve);
+    }
     const Vector raster_theta = parameterisation.RasterParameters();
-    const double j_raster = check.Evaluate(parameterisation.Opds(raster_theta));
-    const double j_design = check.Evaluate(result.opds);
+    const double j_raster = check->Evaluate(parameterisation.Opds(raster_theta));
+    const double j_design = check->Evaluate(result.opds);
     const bool keep = j_design < j_raster;
-    validation = {{"realisations", vo.realisations}, {"seed", vo.seed}, {"objective_raster", j_raster},
+    validation = {{"realisations", check->realisations()}, {"seed", fresh}, {"objective_raster", j_raster},
                   {"objective_design", j_design}, {"kept", keep ? "design" : "raster"}};
-    progress.Step("validation on " + std::to_string(vo.realisations) + " fresh realisation(s): J raster " +
-                  ToString(j_raster) + ", design " + ToString(j_design) + (keep ? ": design kept" : ": raster kept"));
+    if (a.objective == "B") validation["scenes"] = "3 dead-leaves scenes (fresh seed), fresh noise";
+    progress.Step("validation on a fresh sample: J raster " + ToString(j_raster) + ", design " +
+                  ToString(j_design) + (keep ? ": design kept" : ": raster kept"));
     if (!keep) {
       result.parameters = raster_theta;
       result.coefficients = parameterisation.Coefficients(raster_theta);
@@ -310,8 +325,8 @@ void RegisterDesign(CLI::App& app) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_option("--validation-realisations", a->validation_realisations,
-                  "objective A: AO PSF realisations (fresh seed) on which the design must beat the raster, else "
-                  "the raster is kept; 0: no check")
+                  "AO PSF realisations (fresh seed) on which the design must beat the raster, else the raster "
+                  "is kept (objective B: also fresh noise and 3 fresh dead-leaves scenes); 0: no check")
       ->check(CLI::Range(0, 64))
       ->capture_default_str();
   a->objective_only.push_back(

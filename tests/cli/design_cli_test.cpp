@@ -152,6 +152,25 @@ TEST_F(DesignCliTest, ObjectiveAWithTrainingFitsTheSpectrumAndValidates) {
   EXPECT_THAT(r.out, HasSubstr("--noise-sigma"));
 }
 
+// Objective B's optimised design is re-judged on fresh dead-leaves scenes and noise; the file records the
+// verdict, and the returned design is the one that won there.
+TEST_F(DesignCliTest, ObjectiveBDesignIsValidatedOnFreshScenes) {
+  CliRun r = RunCli("design " + Path("scene.json") +
+                    " --param tiptilt --objective B --training-scenes 1 --loss l2 --realisations 0 --starts 1 "
+                    "--iterations 3 --threads 1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(j["improved"].get<bool>() || !j["validation"].is_null()) << "3 iterations improve the training loss";
+  if (!j["validation"].is_null()) {
+    EXPECT_EQ(j["validation"]["scenes"], "3 dead-leaves scenes (fresh seed), fresh noise");
+    const bool kept_design = j["validation"]["kept"] == "design";
+    EXPECT_EQ(kept_design, j["validation"]["objective_design"].get<double>() <
+                               j["validation"]["objective_raster"].get<double>());
+    EXPECT_EQ(kept_design, j["improved"].get<bool>());
+    EXPECT_EQ(j["design"]["design"]["validation"], j["validation"]);
+  }
+}
+
 // --calibration: the file's frames are the commands (design / gain); the designed offsets stay in the
 // provenance, and simulating the commands through the calibrated DM applies the design again.
 TEST_F(DesignCliTest, CalibrationWritesCompensatedCommands) {
