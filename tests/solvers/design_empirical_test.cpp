@@ -22,7 +22,7 @@ namespace {
 
 using design_test::SmallOptics;
 using design_test::SmallPupil;
-using design_test::TaylorRatios;
+using design_test::TaylorAwayFromRaster;
 using ::testing::HasSubstr;
 
 // Small, smooth settings: 2 dead-leaves scenes of 16 x 16, σ = 0.04, λ = 1, ε = 0.05, η = 0.02.
@@ -38,15 +38,6 @@ EmpiricalDesignOptions SmallOptions(const DesignOptics& optics, int realisations
   o.map_tolerance = 1e-13;
   o.adjoint.tolerance = 1e-12;
   return o;
-}
-
-std::function<double(const Vector&, Vector*)> ThroughParameters(const DesignCriterion& f, const DesignParameterisation& p) {
-  return [&f, &p](const Vector& theta, Vector* g) {
-    std::vector<Image> grad;
-    const double v = f.Evaluate(p.Opds(theta), g ? &grad : nullptr);
-    if (g) *g = p.PullBack(theta, grad);
-    return v;
-  };
 }
 
 struct Case {
@@ -74,14 +65,8 @@ TEST(EmpiricalDesignObjectiveTest, TaylorTestThroughEveryParameterisationWithAnd
     po.kind = c.kind;
     po.zernike_modes = 6;
     const DesignParameterisation p(SmallPupil(optics), 3, 2, po);
-    std::mt19937_64 rng(seed++);
-    std::normal_distribution<double> n01;
-    const Vector theta0 = p.RasterParameters();
-    const double scale = theta0.cwiseAbs().maxCoeff();
-    Vector theta = theta0, d(theta0.size());
-    for (Index k = 0; k < theta.size(); ++k) theta[k] += 0.3 * scale * n01(rng), d[k] = scale * n01(rng);
     std::vector<double> rem;
-    const std::vector<double> ratios = TaylorRatios(ThroughParameters(f, p), theta, d, 0.05, 8, &rem);
+    const std::vector<double> ratios = TaylorAwayFromRaster(f, p, seed++, &rem);
     const std::string what = std::string(ToString(c.kind)) + (c.ao ? " ao" : "") + " R=" +
                              std::to_string(c.realisations) + " " + ToString(c.loss) + " " + ToString(c.prior);
     std::string all;

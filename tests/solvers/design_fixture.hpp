@@ -5,7 +5,9 @@
 #include <cmath>
 #include <functional>
 #include <memory>
+#include <random>
 #include <string>
+#include <vector>
 
 #include "aosr/optics/pupil.hpp"
 #include "aosr/solvers/design_objective.hpp"
@@ -61,6 +63,30 @@ inline std::vector<double> TaylorRatios(const std::function<double(const Vector&
   for (std::size_t k = 1; k < rem.size(); ++k) ratios.push_back(rem[k - 1] / rem[k]);
   if (remainders) *remainders = rem;
   return ratios;
+}
+
+// J(θ) of a design objective through a parameterisation, with ∂J/∂θ (the chain every Taylor test checks).
+inline std::function<double(const Vector&, Vector*)> ThroughParameters(const DesignCriterion& f,
+                                                                       const DesignParameterisation& p) {
+  return [&f, &p](const Vector& theta, Vector* g) {
+    std::vector<Image> grad;
+    const double v = f.Evaluate(p.Opds(theta), g ? &grad : nullptr);
+    if (g) *g = p.PullBack(theta, grad);
+    return v;
+  };
+}
+
+// Taylor ratios (TaylorRatios, h0 = 0.05, 8 halvings) at a point away from the raster (so every squash is in
+// its curved range: θ = θ_raster + 0.3·scale·noise) along a random direction, both seeded.
+inline std::vector<double> TaylorAwayFromRaster(const DesignCriterion& f, const DesignParameterisation& p,
+                                                std::uint64_t seed, std::vector<double>* remainders) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> n01;
+  const Vector theta0 = p.RasterParameters();
+  const double scale = theta0.cwiseAbs().maxCoeff();
+  Vector theta = theta0, d(theta0.size());
+  for (Index k = 0; k < theta.size(); ++k) theta[k] += 0.3 * scale * n01(rng), d[k] = scale * n01(rng);
+  return TaylorRatios(ThroughParameters(f, p), theta, d, 0.05, 8, remainders);
 }
 
 }  // namespace aosr::design_test

@@ -17,18 +17,9 @@ namespace {
 
 using design_test::SmallOptics;
 using design_test::SmallPupil;
-using design_test::TaylorRatios;
+using design_test::TaylorAwayFromRaster;
 
 // Objective A as a function of θ, through the parameterisation.
-std::function<double(const Vector&, Vector*)> ThroughParameters(const DesignObjective& f, const DesignParameterisation& p) {
-  return [&f, &p](const Vector& theta, Vector* g) {
-    std::vector<Image> grad;
-    const double v = f.Evaluate(p.Opds(theta), g ? &grad : nullptr);
-    if (g) *g = p.PullBack(theta, grad);
-    return v;
-  };
-}
-
 void ExpectQuadraticRemainders(const std::vector<double>& ratios, const std::vector<double>& rem, const std::string& what) {
   ASSERT_FALSE(ratios.empty());
   std::string all;
@@ -74,15 +65,8 @@ TEST(DesignObjectiveTest, TaylorTestThroughEveryParameterisation) {
     po.rms_max_m = c.rms_max_m;
     po.strehl_min = c.strehl_min;
     const DesignParameterisation p(SmallPupil(optics), 3, 2, po);
-    // A point away from the raster (so every squash is in its curved range) and a random direction.
-    std::mt19937_64 rng(seed++);
-    std::normal_distribution<double> n01;
-    const Vector theta0 = p.RasterParameters();
-    const double scale = theta0.cwiseAbs().maxCoeff();
-    Vector theta = theta0, d(theta0.size());
-    for (Index k = 0; k < theta.size(); ++k) theta[k] += 0.3 * scale * n01(rng), d[k] = scale * n01(rng);
     std::vector<double> rem;
-    const std::vector<double> ratios = TaylorRatios(ThroughParameters(f, p), theta, d, 0.05, 8, &rem);
+    const std::vector<double> ratios = TaylorAwayFromRaster(f, p, seed++, &rem);
     ExpectQuadraticRemainders(ratios, rem, std::string(ToString(c.kind)) + (c.ao ? " ao" : ""));
   }
 }
