@@ -80,6 +80,13 @@ def design_args(extra, r):
         k = base.index("--iterations")
         del base[k:k + 2]
     args = base + extra + ["--noise-sigma", repr(noise_sigma(r))]
+    if "B" in extra:
+        # The MAP that objective B differentiates gets the weights `aosr reconstruct -m map` chooses for these
+        # frames: λ = 2μ, μ = 0.5 ρ √w̄ with whitened residuals (ρ ≈ 1, w̄ = 1/σ_e²), i.e. λ = 1/σ in peak-1
+        # units, and ε = 1e-3 × the contrast (1 here). B's defaults (λ = 1, ε = 1e-2) are ~30x weaker and
+        # designed for a different reconstructor: the first full run's B row, made with them, won on its own
+        # loss and lost 0.1-0.4 dB on the held-out scenes.
+        args += ["--map-lambda", repr(1.0 / noise_sigma(r)), "--epsilon", "1e-3"]
     return args + ["--training"] + [os.path.join(ROOT, "build", "heldout", t) for t in TRAINING]
 METHODS = [("drizzle", "Drizzle", []), ("tikhonov", "Tikhonov (GCV)", []),
            ("tv", "TV", ["--iterations", "100"]), ("map", "MAP", ["--iterations", "100"])]
@@ -320,7 +327,8 @@ def write_tables(results, designs):
           "skimage's moon and coins images at peak 1 — never the held-out camera.png — and the noise per LR pixel "
           "in those units, 1 %% of a peak LR pixel of r² HR pixels); the design is then re-judged against the "
           "raster on 4 fresh AO realisations and the raster kept unless the design wins there (`validation` "
-          "below). Objective-B row (N = 4, r = 2 and 4): `--objective B --loss l1 --iterations 10` with the same "
+          "below). Objective-B row (N = 4, r = 2 and 4): `--objective B --loss l1 --iterations 10 --map-lambda "
+          "1/σ --epsilon 1e-3` (the weights `aosr reconstruct -m map` chooses for such frames) with the same "
           "training images as scenes. The instrument scene holds a USAF object only because a scene needs one "
           "(the design ignores objects)." % " ".join(DESIGN_ARGS),
           "- reconstruction: `aosr reconstruct DATASET -m M` with defaults (inverse-variance weights, Tikhonov λ by "
