@@ -50,8 +50,8 @@ struct DesignArgs {
   double noise_sigma = 0.04;
   int validation_realisations = 4;
   CLI::Option* noise_sigma_option = nullptr;
-  double map_lambda = 1.0;
-  double epsilon = 1e-2;
+  double map_lambda = -1.0;  // < 0: automatic (below)
+  double epsilon = 1e-3;
   std::string map_prior = "charbonnier-tv";
   // Options given on the command line that belong to one objective only (checked in RunDesign).
   std::vector<std::pair<CLI::Option*, char>> objective_only;
@@ -125,7 +125,13 @@ void RunDesign(const DesignArgs& a) {
     eo.noise_seed = a.seed;
     eo.loss = ParseDesignLoss(a.loss);
     eo.map.prior = ParseMapPrior(a.map_prior);
-    eo.map.lambda = a.map_lambda;
+    // Automatic λ: the weight `aosr reconstruct -m map` chooses for such frames (reconstruct.hpp: λ = 2μ,
+    // μ = 0.5 ρ √w̄ with whitened residuals ρ ≈ 1 and w̄ = 1/σ²) is 1/σ for the TV prior in these peak-1 units
+    // (TV is 1-homogeneous), so the design is made for the reconstructor that will be run. (λ = 1, the
+    // library's default, is ~30x weaker at the paper's noise; a design made for it lost 0.1-0.4 dB on held-out
+    // scenes under the automatic weights: bench/results/design_tables.md.) The Tikhonov prior keeps λ = 1.
+    eo.map.lambda = a.map_lambda >= 0 ? a.map_lambda
+                                      : (ParseMapPrior(a.map_prior) == MapPrior::kCharbonnierTv ? 1.0 / a.noise_sigma : 1.0);
     eo.map.epsilon = a.epsilon;
     eo.realisations = a.realisations;
     eo.screens = a.screens;
@@ -135,7 +141,7 @@ void RunDesign(const DesignArgs& a) {
     if (!eo.IsValid(&why)) throw InvalidArgument("aosr design: objective B: " + why);
     progress.Step("objective B: " + std::to_string(eo.training_scenes.size()) + " training scene(s) of " +
                   ToString(hr) + (a.training.empty() ? " (dead leaves)" : " (files)") + ", loss " + a.loss +
-                  ", MAP " + a.map_prior + " lambda " + ToString(a.map_lambda));
+                  ", MAP " + a.map_prior + " lambda " + ToString(eo.map.lambda));
     auto b = std::make_unique<EmpiricalDesignObjective>(optics, scene.frames, eo);
     empirical = b.get();
     criterion = std::move(b);
@@ -335,12 +341,13 @@ void RegisterDesign(CLI::App& app) {
            ->capture_default_str(),
        'B'});
   a->objective_only.push_back(
-      {cmd->add_option("--map-lambda", a->map_lambda, "objective B: MAP lambda (weights 1/sigma^2)")
-           ->check(NonNegativeFinite())
-           ->capture_default_str(),
+      {cmd->add_option("--map-lambda", a->map_lambda,
+                       "objective B: MAP lambda (weights 1/sigma^2); default: 1/sigma for the TV prior (the weight "
+                       "aosr reconstruct -m map chooses), 1 for tikhonov")
+           ->check(NonNegativeFinite()),
        'B'});
   a->objective_only.push_back(
-      {cmd->add_option("--epsilon", a->epsilon, "objective B: Charbonnier epsilon of the MAP prior")
+      {cmd->add_option("--epsilon", a->epsilon, "objective B: Charbonnier epsilon of the MAP prior (1e-3: aosr reconstruct's 1e-3 x contrast at peak 1)")
            ->check(CLI::PositiveNumber)
            ->capture_default_str(),
        'B'});

@@ -156,7 +156,7 @@ TEST_F(DesignCliTest, ObjectiveAWithTrainingFitsTheSpectrumAndValidates) {
 // verdict, and the returned design is the one that won there.
 TEST_F(DesignCliTest, ObjectiveBDesignIsValidatedOnFreshScenes) {
   CliRun r = RunCli("design " + Path("scene.json") +
-                    " --param tiptilt --objective B --training-scenes 1 --loss l2 --realisations 0 --starts 1 "
+                    " --param tiptilt --objective B --training-scenes 1 --loss l2 --realisations 0 --starts 1 --map-lambda 1 --epsilon 1e-2 "
                     "--iterations 3 --threads 1 --json");
   ASSERT_EQ(r.status, 0) << r.out;
   const nlohmann::json j = nlohmann::json::parse(r.out);
