@@ -38,6 +38,14 @@ Image Shift(const Image& img, double dy, double dx) {
   return FftC2R(X, img.cols());
 }
 
+// The median of v (reordered; non-empty): the middle value, or the mean of the two middle values.
+double Median(std::vector<double>& v) {
+  const std::size_t h = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + h, v.end());
+  const double upper = v[h];
+  return v.size() % 2 ? upper : 0.5 * (upper + *std::max_element(v.begin(), v.begin() + h));
+}
+
 }  // namespace
 
 Image ShiftAndAdd(const ImageStack& frames, const std::vector<FrameOffset>& offsets, int r, Combine combine,
@@ -63,11 +71,7 @@ Image ShiftAndAdd(const ImageStack& frames, const std::vector<FrameOffset>& offs
     std::vector<double> v(registered.size());
     for (Index p = 0; p < out.size(); ++p) {
       for (std::size_t i = 0; i < registered.size(); ++i) v[i] = registered[i].data()[p];
-      const std::size_t h = v.size() / 2;
-      std::nth_element(v.begin(), v.begin() + h, v.end());
-      double med = v[h];
-      if (v.size() % 2 == 0) med = 0.5 * (med + *std::max_element(v.begin(), v.begin() + h));
-      out.data()[p] = med;
+      out.data()[p] = Median(v);
     }
   }
   if (summary) {
@@ -120,11 +124,7 @@ Image ShiftAndAdd(const ReconstructionProblem& problem, Combine combine, SolverS
         ++holes;
         continue;
       }
-      const std::size_t h = v.size() / 2;
-      std::nth_element(v.begin(), v.begin() + h, v.end());
-      double med = v[h];
-      if (v.size() % 2 == 0) med = 0.5 * (med + *std::max_element(v.begin(), v.begin() + h));
-      out.data()[p] = med;
+      out.data()[p] = Median(v);
     }
   }
   if (summary) {
