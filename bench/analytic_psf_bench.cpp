@@ -29,6 +29,7 @@
 
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/core/fft.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/optics/mft.hpp"
 #include "aosr/optics/psf.hpp"
 #include "aosr/optics/pupil.hpp"
@@ -118,7 +119,7 @@ int main(int argc, char** argv) {
   std::printf(
       "# %s | hardware threads: %u | FFT threads %d | paper system, K band, PSF %ldx%ld at "
       "lambda/(2D), median (min) of %d PSFs; times in ms; load-sensitive\n",
-      command.c_str(), std::thread::hardware_concurrency(), GetFftSettings().threads,
+      command.c_str(), std::thread::hardware_concurrency(), DefaultThreads(),
       static_cast<long>(kPsfSize), static_cast<long>(kPsfSize), reps);
   std::printf("%7s %11s %11s %10s %9s %11s %12s %9s %9s %8s\n", "pupil_n", "build cold", "build warm",
               "PSF med", "PSF min", "FFT(2n)^2", "2 FFT floor", "MFT", "floor", "Strehl");

@@ -29,8 +29,7 @@ nlohmann::json FitJson(const ModalFitResult& r, std::size_t frames) {
           {"iterations", r.iterations},
           {"termination", ToString(r.termination)},
           {"message", r.message},
-          {"frames", frames},
-          {"seconds", r.seconds}};
+          {"frames", frames}};
 }
 
 }  // namespace
@@ -90,9 +89,7 @@ nlohmann::json CalibrationToJson(const CalibrationSet& set, const CalibrationRes
   }
   j["static_aberration_nm"] = StaticJson(result.static_modes, result.static_m, result.static_sigma_m);
   j["fit_quality"] = {{"worst_reduced_chi2", worst_chi2},
-                      {"all_converged", all_converged},
-                      {"seconds", result.seconds},
-                      {"threads", result.threads}};
+                      {"all_converged", all_converged}};
   if (!set.truth.is_null()) j["truth"] = set.truth;
   return j;
 }

@@ -1,7 +1,9 @@
 #include "aosr/solvers/conjugate_gradient.hpp"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "aosr/core/error.hpp"
 
@@ -45,12 +47,26 @@ SolverSummary Solve(const char* function, const LinearOperator& normal, const Li
   Vector p = z, q(b.size());
   double rz = r.dot(z);
   double rnorm = r.norm();
+  // Stagnation: in double precision the residual of the computed x cannot fall below about
+  // ε(||b|| + ||N||·||x||) (rounding of b − Nx). ||N|| is estimated from below by the largest Rayleigh
+  // quotient p'Np/p'p seen. Once the residual reaches kFloorFactor times that floor without meeting the
+  // tolerance, further iterations only stir rounding: stop and say so (Termination::kStagnated).
+  constexpr double kFloorFactor = 16.0;
+  const double eps = std::numeric_limits<double>::epsilon();
+  double n_norm = 0;
+  auto floor = [&] { return kFloorFactor * eps * (bnorm + n_norm * x->norm()); };
   s.termination = Termination::kMaxIterations;
   if (bnorm == 0 || rnorm <= options.tolerance * bnorm) s.termination = Termination::kConverged;
   while (s.termination == Termination::kMaxIterations && s.iterations < options.max_iterations) {
-    if (!(rz > 0)) {  // r != 0 here, so rᵀM⁻¹r <= 0 means M⁻¹ is not positive definite
-      s.termination = Termination::kFailed;
-      s.message = "preconditioner not positive definite: r'M^-1 r = " + ToString(rz);
+    if (!(rz > 0)) {
+      // r != 0 here, so rᵀM⁻¹r <= 0 means M⁻¹ is not positive definite, or that r is rounding noise.
+      if (rnorm <= floor()) {
+        s.termination = Termination::kStagnated;
+        s.message = "residual at the rounding floor (r'M^-1 r = " + ToString(rz) + ")";
+      } else {
+        s.termination = Termination::kFailed;
+        s.message = "preconditioner not positive definite: r'M^-1 r = " + ToString(rz);
+      }
       break;
     }
     normal.Apply(p, q);
@@ -60,6 +76,7 @@ SolverSummary Solve(const char* function, const LinearOperator& normal, const Li
       s.message = "stopped on non-positive curvature p'Np = " + ToString(pq);
       break;
     }
+    n_norm = std::max(n_norm, pq / p.squaredNorm());
     const double alpha = rz / pq;
     x->noalias() += alpha * p;
     r.noalias() -= alpha * q;
@@ -74,6 +91,13 @@ SolverSummary Solve(const char* function, const LinearOperator& normal, const Li
     rnorm = rnorm_new;
     if (rnorm <= options.tolerance * bnorm) {
       s.termination = Termination::kConverged;
+      break;
+    }
+    if (rnorm <= floor()) {
+      s.termination = Termination::kStagnated;
+      s.message = "residual " + ToString(rnorm / bnorm) + " (relative) reached the rounding floor " +
+                  ToString(floor() / bnorm) + " = 16 eps (||b|| + ||N|| ||x||) / ||b|| before the tolerance " +
+                  ToString(options.tolerance);
       break;
     }
     if (preconditioner) {

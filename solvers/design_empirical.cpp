@@ -20,7 +20,6 @@
 
 namespace aosr {
 
-using design_internal::ParallelFor;
 using tikhonov_internal::FourierInverseOperator;
 using tikhonov_internal::FourierSystem;
 using tikhonov_internal::PriorSymbolImage;

@@ -3,12 +3,10 @@
 
 #include <algorithm>
 #include <complex>
-#include <exception>
-#include <mutex>
-#include <thread>
 #include <vector>
 
 #include "aosr/core/image.hpp"
+#include "aosr/core/parallel.hpp"
 
 namespace aosr::design_internal {
 
@@ -23,30 +21,6 @@ inline std::vector<Complex> BoxTransfer(Index n, int r) {
     b[f] = s;
   }
   return b;
-}
-
-// Runs fn(0..count-1) on up to `threads` threads; rethrows the first exception.
-template <typename F>
-void ParallelFor(int count, int threads, F fn) {
-  threads = std::max(1, std::min(threads, count));
-  if (threads == 1) {
-    for (int k = 0; k < count; ++k) fn(k);
-    return;
-  }
-  std::vector<std::thread> pool;
-  std::exception_ptr error;
-  std::mutex m;
-  for (int t = 0; t < threads; ++t)
-    pool.emplace_back([&, t] {
-      try {
-        for (int k = t; k < count; k += threads) fn(k);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(m);
-        if (!error) error = std::current_exception();
-      }
-    });
-  for (std::thread& th : pool) th.join();
-  if (error) std::rethrow_exception(error);
 }
 
 }  // namespace aosr::design_internal

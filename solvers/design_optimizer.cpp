@@ -35,15 +35,17 @@ bool DesignOptimizerOptions::IsValid(std::string* why) const {
   return true;
 }
 
-std::string DesignSummary::FullReport() const {
+std::string DesignSummary::FullReport(bool include_time) const {
   char buf[640];
+  char time[32] = "";
+  if (include_time) std::snprintf(time, sizeof time, ", %.2f s", seconds);
   const double rel = raster_objective > 0 ? 100.0 * (final_objective / raster_objective - 1.0) : 0.0;
   if (!std::isfinite(invisible_floor)) {  // objective B: no floor to measure the excess against
     std::snprintf(buf, sizeof buf,
                   "%s (%d parameters): J %.6g -> %.6g (%+.4f %% vs raster %.6g) in %zu starts, %d iterations, %d "
-                  "evaluations, %.2f s; best start %d (%s)%s",
+                  "evaluations%s; best start %d (%s)%s",
                   parameterisation.c_str(), parameters, initial_objective, final_objective, rel, raster_objective,
-                  start_objectives.size(), iterations, evaluations, seconds, best_start, ToString(termination),
+                  start_objectives.size(), iterations, evaluations, time, best_start, ToString(termination),
                   improved ? "" : "; no start improved on the raster: the raster is returned");
     return buf;
   }
@@ -51,10 +53,10 @@ std::string DesignSummary::FullReport() const {
   const double rel_excess = excess > 0 ? 100.0 * (final_objective - raster_objective) / excess : 0.0;
   std::snprintf(buf, sizeof buf,
                 "%s (%d parameters): J %.6g -> %.6g (%+.4f %% vs raster %.6g; %+.3f %% of its excess over the "
-                "invisible floor %.6g) in %zu starts, %d iterations, %d evaluations, %.2f s; best start %d (%s)%s",
+                "invisible floor %.6g) in %zu starts, %d iterations, %d evaluations%s; best start %d (%s)%s",
                 parameterisation.c_str(), parameters, initial_objective, final_objective, rel, raster_objective,
                 rel_excess, invisible_floor,
-                start_objectives.size(), iterations, evaluations, seconds, best_start, ToString(termination),
+                start_objectives.size(), iterations, evaluations, time, best_start, ToString(termination),
                 improved ? "" : "; no start improved on the raster: the raster is returned");
   return buf;
 }

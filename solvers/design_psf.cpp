@@ -12,7 +12,6 @@
 namespace aosr {
 
 using design_internal::kTwoPi;
-using design_internal::ParallelFor;
 
 DesignOptics DesignOpticsFromScene(const SceneSpec& scene) {
   DesignOptics o;

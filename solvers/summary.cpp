@@ -8,6 +8,7 @@ const char* ToString(Termination t) {
   switch (t) {
     case Termination::kConverged: return "converged";
     case Termination::kMaxIterations: return "max-iterations";
+    case Termination::kStagnated: return "stagnated";
     case Termination::kFailed: return "failed";
   }
   return "unknown";

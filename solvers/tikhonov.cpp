@@ -478,6 +478,7 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
   while ((gb < 0) == (ga < 0)) {
     if (out.evaluations >= max_evaluations) {
       out.note = "no bracket within the evaluation limit";
+      out.termination = Termination::kMaxIterations;
       return out;
     }
     if (tb == (dir > 0 ? kTMax : kTMin)) {
@@ -485,6 +486,7 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
                      ? "even the largest lambda leaves a residual below the target (sigma overestimated?)"
                      : "even the smallest lambda leaves a residual above the target (model misfit or sigma "
                        "underestimated?)";
+      out.termination = Termination::kFailed;
       return out;
     }
     ta = tb;
@@ -497,7 +499,9 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
   int side = 0;
   while (out.evaluations < max_evaluations) {
     if (std::abs(tb - ta) < 1e-12) {
-      out.note = "the residual jumps across the target";
+      out.note = "the bracket shrank to rounding level (1e-12 decades) with the residual " +
+                 ToString(out.residual / target) + " x the target: it is flat or jumps there";
+      out.termination = Termination::kStagnated;
       return out;
     }
     const double tc = (ta * gb - tb * ga) / (gb - ga);
@@ -516,6 +520,7 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
     }
   }
   out.note = "evaluation limit reached";
+  out.termination = Termination::kMaxIterations;
   return out;
 }
 
@@ -615,7 +620,7 @@ TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovO
     s.lambda_evaluations = d.evaluations;
     note = " (discrepancy";
     if (!d.met) {
-      s.termination = Termination::kFailed;
+      s.termination = d.termination;
       note += " not met: " + d.note;
     }
     note += ")";

@@ -3,15 +3,99 @@
 // problem on the same grid.
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
 #include "aosr/solvers/padded_model.hpp"
 #include "tikhonov_internal.hpp"
 
 namespace aosr::tikhonov_internal {
+
+namespace {
+
+// The λ → ∞ end of (4), in closed form. Write x = z + u, z in the prior's null space (the constant image for
+// the gradient and Laplacian priors; {0} for the identity and power-spectrum priors), u orthogonal to it.
+// Expanding (AᵀWA + λΓᵀΓ) x = AᵀWy in 1/λ:
+//   order 1:    z₀ = c₀·1,  c₀ = aᵀWy / aᵀWa,  a = A·1 (the frames of a flat unit object): the weighted
+//               fit of the data by the null space;
+//   order 1/λ:  ΓᵀΓ u₁ = AᵀW(y − A z₀)  (its right-hand side has no null component, by the order-1 equation),
+//               z₁ = −(aᵀW A u₁ / aᵀWa)·1,
+// so x = z₀ + (u₁ + z₁)/λ + O(λ⁻²). The neglected term is smaller than the kept one by a factor
+// ρ⁻¹ = ||AᵀWA|| / (λ γ_min), γ_min the smallest positive prior symbol, and ||AᵀWA|| <= w_max·N·r² (unit-sum
+// PSFs, box pixels summing r² HR pixels). Where ρ >= 1e8 the truncation (ρ⁻² <= 1e-16 relative) is below
+// double precision, while PCG on (4) there would have to resolve a system whose two halves differ in scale
+// by more than 1/ε: its inner products lose every digit, and whether it stops depends on rounding. So the
+// solver takes this expansion there: exact to rounding, at any λ up to the largest double, in 2 FFTs and
+// three applications of A or Aᵀ.
+class LargeLambdaExpansion {
+ public:
+  LargeLambdaExpansion(const MultiFrameModel& model, const Image& w_stack, const Vector& y, const Image& symbol)
+      : model_(model), hr_(model.hr_shape()), w_(AsVector(w_stack)), y_(y), symbol_(symbol) {
+    gamma_min_ = std::numeric_limits<double>::infinity();
+    bool null_elsewhere = false;
+    for (Index fy = 0; fy < symbol.rows(); ++fy)
+      for (Index fx = 0; fx < symbol.cols(); ++fx) {
+        const double g = symbol(fy, fx);
+        if (g > 0)
+          gamma_min_ = std::min(gamma_min_, g);
+        else if (fy != 0 || fx != 0)
+          null_elsewhere = true;
+      }
+    // Only a null space of constants (or none) has the closed form above; otherwise PCG stays in charge.
+    usable_ = !null_elsewhere && std::isfinite(gamma_min_);
+    has_null_ = symbol(0, 0) <= 0;
+    data_norm_ = w_.maxCoeff() * double(model.frames()) * double(model.r() * model.r());
+  }
+
+  // ρ = λ γ_min / (w_max N r²): how far the prior outweighs the data on its range.
+  double Ratio(double lambda) const { return data_norm_ > 0 ? lambda * gamma_min_ / data_norm_ : HUGE_VAL; }
+  bool Applies(double lambda) const { return usable_ && Ratio(lambda) >= kMinRatio; }
+
+  Vector Solve(double lambda) const {
+    const OperatorPtr& a = model_.Operator();
+    Vector z0 = Vector::Zero(hr_.size());
+    Vector a1;
+    double awa = 0;
+    if (has_null_) {
+      a1 = a->Apply(Vector::Ones(hr_.size()));
+      awa = a1.dot(w_.cwiseProduct(a1));
+      if (awa > 0) z0.setConstant(a1.dot(w_.cwiseProduct(y_)) / awa);
+    }
+    // u₁ = (ΓᵀΓ)⁺ AᵀW(y − A z₀), the pseudo-inverse applied per frequency (null frequency set to zero).
+    const Vector g = a->ApplyAdjoint(w_.cwiseProduct(y_ - a->Apply(z0)));
+    ComplexImage G = FftR2C(ToImage(g, hr_));
+    for (Index fy = 0; fy < G.rows(); ++fy)
+      for (Index fx = 0; fx < G.cols(); ++fx) {
+        const double s = symbol_(fy, fx);
+        G(fy, fx) = s > 0 ? G(fy, fx) / s : Complex(0);
+      }
+    Vector u1 = AsVector(FftC2R(G, hr_.cols));
+    if (has_null_ && awa > 0) u1.array() -= a1.dot(w_.cwiseProduct(a->Apply(u1))) / awa;  // + z₁
+    return z0 + u1 / lambda;
+  }
+
+  std::string Describe(double lambda) const {
+    return "lambda beyond the CG range (lambda*gamma_min/(w_max*N*r^2) = " + ToString(Ratio(lambda)) +
+           " >= 1e8): solved by the large-lambda expansion, null-space fit + first-order term, exact to "
+           "rounding";
+  }
+
+  static constexpr double kMinRatio = 1e8;
+
+ private:
+  const MultiFrameModel& model_;
+  Shape hr_;
+  Vector w_, y_;
+  Image symbol_;
+  double gamma_min_ = 0, data_norm_ = 0;
+  bool usable_ = false, has_null_ = false;
+};
+
+}  // namespace
 
 TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionProblem& problem,
                                      const TikhonovOptions& options,
@@ -57,8 +141,17 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   s.padding = padded ? padded->padding() : 0;
   Vector x = Vector::Zero(hr.size());
   SolverSummary last;
+  const LargeLambdaExpansion expansion(pm, w_stack, y, PriorSymbolImage(options, hr));
   // One solve at λ, warm-started from the previous x; returns Σ w (y − A x)².
   auto solve = [&](double lambda) {
+    if (expansion.Applies(lambda)) {
+      x = expansion.Solve(lambda);
+      last = SolverSummary();
+      last.method = "large-lambda-expansion";
+      last.message = expansion.Describe(lambda);
+      const Vector res = y - a->Apply(x);
+      return res.dot(AsVector(w_stack).cwiseProduct(res));
+    }
     const OperatorPtr normal = Sum({atwa, Scale(lambda, gtg)});
     if (options.precondition) {
       Index wb = 0;
@@ -94,7 +187,7 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
     s.lambda_evaluations = d.evaluations;
     note = " (discrepancy";
     if (!d.met) {
-      s.termination = Termination::kFailed;
+      s.termination = d.termination;
       note += " not met: " + d.note;
     }
     note += ")";
@@ -113,9 +206,12 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   s.rank_deficient_bins = sys.deficient_bins();
   s.unconstrained_frequencies = sys.unconstrained();
   FinishSummary(grid, x_grid, lambda, options, &s);
-  s.message = "lambda " + ToString(lambda) + note + "; " + (options.precondition ? "preconditioned " : "") +
-              "CG " + ToString(last.termination) + " after " + std::to_string(last.iterations) +
-              " iterations (" + std::to_string(s.iterations) + " in all): " + last.message;
+  if (last.method == "large-lambda-expansion")
+    s.message = "lambda " + ToString(lambda) + note + "; " + last.message;
+  else
+    s.message = "lambda " + ToString(lambda) + note + "; " + (options.precondition ? "preconditioned " : "") +
+                "CG " + ToString(last.termination) + " after " + std::to_string(last.iterations) +
+                " iterations (" + std::to_string(s.iterations) + " in all): " + last.message;
   if (padded)
     s.message +=
         "; zero-padded by " + std::to_string(s.padding) + " camera pixels to " + ToString(hr) + " HR";

@@ -85,6 +85,10 @@ struct LambdaSearch {
   double residual = 0;  // residual at that λ
   int evaluations = 0;
   bool met = false;
+  // When not met: kFailed (the target is out of reach), kMaxIterations (evaluation limit), or kStagnated
+  // (the bracket shrank to 1e-12 decades, the resolution of double precision, without the residual crossing
+  // the target within tolerance: the residual is flat at rounding level or jumps there).
+  Termination termination = Termination::kConverged;
   std::string note;
 };
 LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, double target, double lambda0,

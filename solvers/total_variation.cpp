@@ -362,6 +362,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   };
 
   s.termination = Termination::kMaxIterations;
+  int still_iterations = 0;  // consecutive iterations in which x did not move beyond rounding
   // Squared norms of the data-sized vectors must exist in double precision, or no residual is meaningful.
   bool failed = !std::isfinite(aty.squaredNorm());
   if (failed)
@@ -457,6 +458,17 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
       s.termination = Termination::kConverged;
       s.message = "relative change of x below change_tolerance";
       break;
+    }
+    // Stagnation: x has not moved beyond rounding (4ε relative) for 3 iterations while the residuals still
+    // exceed tolerances that double precision cannot resolve for this problem: stop and say so.
+    if ((x - x_prev).norm() <= 4 * std::numeric_limits<double>::epsilon() * x.norm()) {
+      if (++still_iterations >= 3) {
+        s.termination = Termination::kStagnated;
+        s.message = "x unchanged to rounding for 3 iterations with the residuals above tolerance";
+        break;
+      }
+    } else {
+      still_iterations = 0;
     }
 
     // Residual balancing on the tolerance-normalised residuals.

@@ -32,6 +32,7 @@ struct CalibrateArgs {
   double tolerance = 0.05;
   bool fixed_source = false;
   bool json = false;
+  ExecutionArgs exec;
 };
 
 void RunSynthesize(const CalibrateArgs& a) {
@@ -61,6 +62,9 @@ void RunSynthesize(const CalibrateArgs& a) {
 }
 
 void RunCalibrate(const CalibrateArgs& a) {
+  ExecutionArgs exec = a.exec;
+  exec.threads = a.threads;
+  ApplyExecution(exec);
   if (a.out_dir.empty()) throw InvalidArgument("aosr calibrate", "-o", "(missing)", "an output folder");
   if (!a.synthesize.empty()) {
     if (!a.set.empty())
@@ -139,6 +143,7 @@ void RegisterCalibrate(CLI::App& app) {
       ->check(CLI::Range(1e-6, 0.999));
   cmd->add_flag("--point-source", args->fixed_source, "do not fit the source size (a point source)");
   cmd->add_flag("--json", args->json, "print the calibration (or the synthetic set's summary) as JSON");
+  AddExecutionOptions(cmd, &args->exec, /*with_threads=*/false);
   cmd->callback([args] { RunCalibrate(*args); });
 }
 

@@ -2,11 +2,15 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <thread>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/fft.hpp"
+#include "aosr/core/parallel.hpp"
 
 namespace aosr::cli {
 
@@ -53,6 +57,29 @@ void CheckWritableFile(const std::string& path) {
 
 std::string JoinPath(const std::string& dir, const std::string& name) {
   return (std::filesystem::path(dir) / name).string();
+}
+
+void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads) {
+  if (with_threads)
+    cmd->add_option("--threads", args->threads,
+                    "threads (0: all hardware threads); results are the same bytes for any count")
+        ->capture_default_str()
+        ->check(CLI::Range(0, 256));
+  cmd->add_option("--fft-planner", args->fft_planner,
+                  "FFTW planning: estimate (reproducible, default) | measure | patient (may be faster; the last "
+                  "bits of results then vary from run to run)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"estimate", "measure", "patient"}));
+}
+
+void ApplyExecution(const ExecutionArgs& args) {
+  const int hw = int(std::max(1u, std::thread::hardware_concurrency()));
+  SetDefaultThreads(args.threads > 0 ? std::min(args.threads, 256) : std::min(hw, 256));
+  FftSettings fft;
+  fft.planner = args.fft_planner == "measure"   ? FftSettings::Planner::kMeasure
+                : args.fft_planner == "patient" ? FftSettings::Planner::kPatient
+                                                : FftSettings::Planner::kEstimate;
+  SetFftSettings(fft);
 }
 
 }  // namespace aosr::cli

@@ -37,6 +37,19 @@ void EnsureDirectory(const std::string& dir);
 // Checks before any computation that `path` can be written: its folder exists and it is not a folder.
 void CheckWritableFile(const std::string& path);
 
+// Execution settings every computing command takes (DESIGN.md §3: threads and planner rigour are settings,
+// not maths). Results are bit-identical for any --threads with the default planner; --fft-planner measure
+// may be faster on some shapes but makes the last bits of results depend on the run.
+struct ExecutionArgs {
+  int threads = 0;                     // 0: every hardware thread
+  std::string fft_planner = "estimate";  // estimate | measure | patient
+};
+// Adds --threads and --fft-planner to `cmd` (--threads only if `with_threads`: design and calibrate have
+// their own, which ApplyExecution is then given).
+void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads = true);
+// Sets aosr's default thread count and FFT planner from `args`.
+void ApplyExecution(const ExecutionArgs& args);
+
 // Joins a directory and a file name.
 std::string JoinPath(const std::string& dir, const std::string& name);
 

@@ -7,6 +7,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/core/metrics.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/io/image_io.hpp"
@@ -25,7 +26,7 @@ struct DemoArgs {
   std::string prior = "gradient";
   bool json = false;
   std::string out_dir;
-  int threads = 1;
+  ExecutionArgs exec;
 };
 
 struct MethodResult {
@@ -77,9 +78,7 @@ void WriteOutputs(const std::string& dir, const DemoScene& s, const std::vector<
 void RunDemo(const DemoArgs& args) {
   const Progress progress(!args.json);
   Stopwatch total;
-  FftSettings fft = GetFftSettings();
-  fft.threads = args.threads;
-  SetFftSettings(fft);
+  ApplyExecution(args.exec);
   TikhonovOptions tik;
   if (args.lambda >= 0) {
     tik.lambda = args.lambda;
@@ -186,7 +185,7 @@ void RegisterDemo(CLI::App& app) {
       ->check(NonNegativeFinite());
   cmd->add_option("--prior", args->prior, "Tikhonov prior")->capture_default_str()
       ->check(CLI::IsMember({"identity", "gradient", "laplacian"}));
-  cmd->add_option("--threads", args->threads, "FFT threads")->capture_default_str()->check(CLI::Range(1, 64));
+  AddExecutionOptions(cmd, &args->exec);
   cmd->add_flag("--json", args->json, "print the results as JSON (no progress messages)");
   cmd->add_option("-o,--output", args->out_dir,
                   "write truth.fits, frames.fits (cube), psfs.fits, one FITS per method and montage.png here");

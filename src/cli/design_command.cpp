@@ -55,9 +55,13 @@ struct DesignArgs {
   std::string map_prior = "charbonnier-tv";
   // Options given on the command line that belong to one objective only (checked in RunDesign).
   std::vector<std::pair<CLI::Option*, char>> objective_only;
+  ExecutionArgs exec;
 };
 
 void RunDesign(const DesignArgs& a) {
+  ExecutionArgs exec = a.exec;
+  exec.threads = a.threads;
+  ApplyExecution(exec);
   for (const auto& [option, objective] : a.objective_only)
     if (option->count() > 0 && a.objective[0] != objective)
       throw InvalidArgument("aosr design", option->get_name(), "given with --objective " + a.objective,
@@ -353,6 +357,7 @@ void RegisterDesign(CLI::App& app) {
        'B'});
   // Objective A only.
   for (CLI::Option* o : {cmd->get_option("--lambda"), cmd->get_option("--prior")}) a->objective_only.push_back({o, 'A'});
+  AddExecutionOptions(cmd, &a->exec, /*with_threads=*/false);
   cmd->callback([a] { RunDesign(*a); });
 }
 

@@ -26,9 +26,11 @@ struct EvaluateArgs {
   int stars = 20;
   double aperture = 3.0;
   bool json = false;
+  ExecutionArgs exec;
 };
 
 void RunEvaluate(const EvaluateArgs& a) {
+  ApplyExecution(a.exec);
   if (a.truth.empty() == a.manifest.empty())
     throw InvalidArgument("aosr evaluate", "--truth/--manifest", a.truth.empty() ? "(neither)" : "(both)",
                           "exactly one of --truth FILE and --manifest DIR");
@@ -104,6 +106,7 @@ void RegisterEvaluate(CLI::App& app) {
   cmd->add_option("--stars", args->stars, "number of brightest stars measured")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--aperture", args->aperture, "star aperture radius [HR px]")->capture_default_str()->check(CLI::Range(0.5, 1000.0));
   cmd->add_flag("--json", args->json, "print the results as JSON");
+  AddExecutionOptions(cmd, &args->exec);
   cmd->callback([args] { RunEvaluate(*args); });
 }
 

@@ -35,6 +35,7 @@ struct PsfArgs {
   double exposure_s = 0.5;
   double settling_s = 0.1;
   std::uint64_t seed = 1;
+  ExecutionArgs exec;
 };
 
 struct ZernikeOffset {
@@ -60,6 +61,7 @@ ZernikeOffset ParseOffset(const std::string& text) {
 }
 
 void RunPsf(const PsfArgs& args) {
+  ApplyExecution(args.exec);
   const Progress progress(!args.json);
   Stopwatch clock;
   std::vector<ZernikeOffset> offsets;
@@ -195,6 +197,7 @@ void RegisterPsf(CLI::App& app) {
   cmd->add_option("--settling", args->settling_s, "closed loop: unrecorded time first [s]")->capture_default_str()
       ->check(NonNegativeFinite());
   cmd->add_option("--seed", args->seed, "closed loop: atmosphere and noise seed")->capture_default_str();
+  AddExecutionOptions(cmd, &args->exec);
   cmd->callback([args] { RunPsf(*args); });
 }
 

@@ -49,6 +49,7 @@ struct ReconstructArgs {
   // Drizzle
   std::string kernel = "square";
   double pixfrac = 1.0;
+  ExecutionArgs exec;
 };
 
 // The dataset's files, resolved: the output must not be one of them.
@@ -72,6 +73,7 @@ std::string AuxPath(const std::string& out, const std::string& aux) {
 }
 
 void RunReconstruct(const ReconstructArgs& a) {
+  ApplyExecution(a.exec);
   const Progress progress(!a.json);
   ReconstructOptions o;
   o.method = ParseReconstructionMethod(a.method);
@@ -237,6 +239,7 @@ void RegisterReconstruct(CLI::App& app) {
   cmd->add_option("--kernel", a->kernel, "drizzle: square | turbo | point | gaussian | lanczos3")->capture_default_str();
   cmd->add_option("--pixfrac", a->pixfrac, "drizzle: drop size as a fraction of the camera pixel, (0, 1]")
       ->capture_default_str();
+  AddExecutionOptions(cmd, &a->exec);
   cmd->callback([a] { RunReconstruct(*a); });
 }
 

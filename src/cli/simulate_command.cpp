@@ -26,6 +26,7 @@ struct SimulateArgs {
   bool plan = false;
   bool json = false;
   std::string calibration;
+  ExecutionArgs exec;
 };
 
 // Applies one "--set a.b.c=VALUE" to the scene's JSON. VALUE is JSON if it parses as JSON (numbers, true,
@@ -79,6 +80,7 @@ nlohmann::json PlanJson(const ScenePipeline& p) {
 }
 
 void RunSimulate(const SimulateArgs& args) {
+  ApplyExecution(args.exec);
   const Progress progress(!args.json);
   Stopwatch clock;
   // The scene parses (and every file it names is checked) before anything is computed.
@@ -168,6 +170,7 @@ void RegisterSimulate(CLI::App& app) {
                   "VALUE, e.g. --set r=4 --set detector.noise=none; repeatable")
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  AddExecutionOptions(cmd, &args->exec);
   cmd->callback([args] { RunSimulate(*args); });
 }
 

@@ -181,10 +181,8 @@ OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline,
   for (const PipelineStage& st : pipeline.stages())
     plan.push_back({{"stage", st.name}, {"count", st.count}, {"estimated_s", st.estimated_s}, {"detail", st.detail}});
   s["plan"] = plan;
-  OrderedJson timings = OrderedJson::array();
-  for (const StageTiming& t : sim.timings) timings.push_back({{"stage", t.name}, {"seconds", t.seconds}});
-  s["timings_s"] = timings;
-  s["total_s"] = sim.seconds;
+  // No wall times here: the manifest is part of the dataset, whose bytes depend only on the scene and seed
+  // (the timings are in `aosr simulate --json`).
   const SimulationCounters& c = sim.counters;
   s["counters"] = {{"object_components", c.object_components}, {"psfs_computed", c.psfs_computed},
                    {"object_transforms", c.object_transforms}, {"frame_transforms", c.frame_transforms},

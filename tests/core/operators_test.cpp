@@ -98,38 +98,5 @@ TEST(OperatorsTest, LinearConvolutionDoesNotWrap) {
   EXPECT_GT(y(1, 1), 0.0);
 }
 
-TEST(FftTest, RoundTrips) {
-  for (Shape s : {Shape{8, 8}, Shape{7, 13}, Shape{64, 50}, Shape{1, 5}}) {
-    const Image x = RandomImage(s, 5);
-    const Image back = FftC2R(FftR2C(x), s.cols);
-    EXPECT_LT((back - x).abs().maxCoeff(), 1e-13) << ToString(s);
-    const ComplexImage xc = x.cast<Complex>();
-    EXPECT_LT((FftInverse(FftForward(xc)) - xc).abs().maxCoeff(), 1e-13) << ToString(s);
-    EXPECT_LT((ExpandHalfSpectrum(FftR2C(x), s.cols) - FftForward(xc)).abs().maxCoeff(), 1e-12);
-  }
-}
-
-TEST(FftTest, PlansAreCachedByShape) {
-  const Image x = RandomImage({20, 22}, 1);
-  FftR2C(x);
-  const std::size_t n = FftPlanCount();
-  for (int i = 0; i < 5; ++i) FftR2C(x);
-  EXPECT_EQ(FftPlanCount(), n);
-}
-
-// Threads and planner rigour are settings, not maths: results agree to rounding.
-TEST(FftTest, ThreadsAndPlannerDoNotChangeResults) {
-  const FftSettings saved = GetFftSettings();
-  const Image x = RandomImage({256, 192}, 21);
-  const ComplexImage reference = FftR2C(x);
-  FftSettings s;
-  s.threads = 2;
-  s.planner = FftSettings::Planner::kEstimate;
-  SetFftSettings(s);
-  const ComplexImage threaded = FftR2C(x);
-  SetFftSettings(saved);
-  EXPECT_LT((threaded - reference).abs().maxCoeff(), 1e-12 * reference.abs().maxCoeff());
-}
-
 }  // namespace
 }  // namespace aosr

@@ -43,6 +43,22 @@ TEST(ConjugateGradientTest, SolvesAnSpdSystem) {
   EXPECT_LE(s.iterations, 0.5 * std::sqrt(1e4) * std::log(2 / 1e-10));
 }
 
+// A tolerance below what double precision can deliver is reported as stagnation at the rounding floor,
+// not iterated on to the cap; the iterate returned is as accurate as the system allows.
+TEST(ConjugateGradientTest, ToleranceBelowRoundingStopsAsStagnated) {
+  const Eigen::MatrixXd a = IllConditioned(60, 3);
+  const Vector b = Vector::LinSpaced(60, -1, 2);
+  Vector x = Vector::Zero(60);
+  ConjugateGradientOptions o;
+  o.tolerance = 1e-19;  // below ε: unreachable
+  o.max_iterations = 5000;
+  const SolverSummary s = ConjugateGradient(DenseOp(a), b, &x, o);
+  EXPECT_EQ(s.termination, Termination::kStagnated) << s.BriefReport();
+  EXPECT_LT(s.iterations, 1000) << "stagnation must be detected, not run to the cap";
+  EXPECT_LT((a * x - b).norm(), 1e-12 * b.norm()) << "the stagnated iterate is still the solution to rounding";
+  EXPECT_NE(s.message.find("rounding floor"), std::string::npos) << s.message;
+}
+
 // The identity preconditioner is plain CG; the exact inverse converges in one step; a good approximate
 // inverse (the exact one of a rank-2 perturbation) in about three.
 TEST(ConjugateGradientTest, PreconditioningCutsIterations) {

@@ -6,10 +6,17 @@
 //  * Real transforms store the non-redundant half spectrum: R x (C/2 + 1), FFTW's layout.
 //
 // Execution (DESIGN.md §3, "execution is not maths"):
-//  * Plans are made once per (shape, kind, alignment, threads, planner) under a global lock, because
-//    only fftw_execute* is thread-safe; executing a cached plan on new arrays needs no lock.
-//  * Threads and planner rigour are settings (FftSettings), not code paths. Changing them affects
-//    plans made afterwards; results do not depend on them beyond rounding.
+//  * Plans are made once per (kind, length, batch, planner) under a global lock, because only
+//    fftw_execute* is thread-safe; executing a cached plan needs no lock.
+//  * A transform of at least 128 x 128 pixels is computed row-column: blocks of whole rows, then blocks of
+//    whole columns, each block one batched 1-D plan run on an aligned per-thread scratch copy. The blocks
+//    are the tasks of ParallelFor (parallel.hpp) on DefaultThreads() threads. Smaller transforms are one
+//    2-D plan on an aligned scratch copy. Either way every block of a given shape meets the same plan on
+//    a buffer of the same alignment, so
+//  * Reproducibility: with the default planner (kEstimate) the output bytes depend only on the input
+//    bytes: not on the run, the thread count, or the arrays' addresses (tested bit for bit). kMeasure and
+//    kPatient time candidate algorithms, so the chosen plan, and with it the last bits of every result,
+//    may change from run to run; they are opt-in for benchmarks (bench/results/fft.md measures the cost).
 #pragma once
 
 #include <cstddef>
@@ -20,17 +27,14 @@
 namespace aosr {
 
 struct FftSettings {
-  // How hard FFTW searches for a fast plan. kEstimate plans instantly; kMeasure times candidate
-  // algorithms once per shape (tens of ms for 512x512) and is the default because every shape is
-  // reused many times by the solvers; kPatient is for long benchmark runs.
+  // How hard FFTW searches for a fast plan. kEstimate picks by FFTW's deterministic heuristics: instant,
+  // and the same plan in every run, which is what makes outputs bit-reproducible (the default). kMeasure
+  // times candidates once per shape and kPatient more thoroughly: sometimes faster, never reproducible.
   enum class Planner { kEstimate, kMeasure, kPatient };
-  Planner planner = Planner::kMeasure;
-  // Threads per transform (>= 1). Transforms below ~128x128 are not worth splitting; the cache
-  // decides per shape and uses a single thread for small ones.
-  int threads = 1;
+  Planner planner = Planner::kEstimate;
 };
 
-// Global FFT settings. Thread-safe. Throws InvalidArgument for threads < 1.
+// Global FFT settings. Thread-safe. Changing them affects plans made afterwards.
 void SetFftSettings(const FftSettings& settings);
 FftSettings GetFftSettings();
 

@@ -8,8 +8,11 @@
 // tikhonov.hpp) leaves M⁻¹N = I + (a few outlying eigenvalues), which CG resolves in as many iterations.
 //
 // Both variants stop when the true-system residual ||b − N x|| ≤ tolerance · ||b|| (not the
-// preconditioned norm), so iteration counts of CG and PCG on one system are comparable, or at
-// max_iterations; the summary says which.
+// preconditioned norm), so iteration counts of CG and PCG on one system are comparable; at
+// max_iterations; or, with Termination::kStagnated, when the residual reaches the rounding floor
+// 16ε(||b|| + ||N||·||x||) (||N|| estimated by the largest Rayleigh quotient seen) before the tolerance: a
+// tolerance below what double precision can deliver for this system is reported, not iterated on.
+// The summary says which.
 #pragma once
 
 #include "aosr/core/linear_operator.hpp"

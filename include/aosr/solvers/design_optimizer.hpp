@@ -68,7 +68,8 @@ struct DesignSummary : SolverSummary {
 
   // "zernike (380 parameters): J 1.234e-2 -> 1.001e-2 (-18.9 % vs raster) in 3 starts, 212 iterations,
   // 240 evaluations, 41.2 s; best start 0 (converged)".
-  std::string FullReport() const;
+  // include_time = false leaves out the wall time (for files that must be byte-reproducible).
+  std::string FullReport(bool include_time = true) const;
 };
 
 struct DesignResult {

@@ -9,6 +9,8 @@ namespace aosr {
 enum class Termination {
   kConverged,        // met its stopping rule (or a direct solver finished)
   kMaxIterations,    // stopped at the iteration limit without meeting the stopping rule
+  kStagnated,        // stopped because progress fell to rounding level before the stopping rule was met: the
+                     // estimate is as good as double precision allows, the tolerance asked for more; see message
   kFailed,           // could not produce a trustworthy result; see message
 };
 

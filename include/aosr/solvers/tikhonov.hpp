@@ -49,6 +49,10 @@
 //    564 for padding 2, λ = 1e-2): every padded LR pixel is unobserved, and the slow modes are objects in
 //    the pad that only the prior constrains (eigenvalues λ|Γ̂|²/(|A|² + λ|Γ̂|²) of M⁻¹N, the spread of N's
 //    own). Keep the padding near the PSF's extent (the default) and expect more iterations at small λ.
+//    *Huge λ.* Where λ γ_min exceeds 1e8 · w_max N r² (γ_min the smallest positive prior symbol) the prior
+//    outweighs the data beyond double precision's reach and (4) cannot be solved by iteration; there the CG
+//    path returns the closed-form expansion x = z₀ + (u₁ + z₁)/λ + O(λ⁻²) (null-space fit plus first-order
+//    term; tikhonov_cg.cpp), which is exact to rounding at any λ up to the largest double.
 //
 // Priors Γ (periodic on the grid solved on, so Fourier-diagonal; |f|² in cycles per HR pixel squared,
 // f_a = SignedFrequency(k_a, M_a) / M_a):
@@ -196,7 +200,8 @@ struct TikhonovOptions {
 
 struct TikhonovSummary : SolverSummary {
   // Inherited: method ("tikhonov-fourier" | "tikhonov-cg"), termination (kFailed if the discrepancy target
-  // is unreachable or PCG failed; kMaxIterations if PCG hit its cap), iterations (PCG iterations summed over
+  // is unreachable or PCG failed; kMaxIterations if PCG or the discrepancy search hit its cap; kStagnated if
+  // either stopped at rounding level before its tolerance), iterations (PCG iterations summed over
   // every λ tried; 0 on the Fourier path), final_cost (objective (1) at x̂), frame_residual_rms (RMS of
   // y_i − A_i x̂ over each frame's weighted pixels, from WeightedDataMisfit).
   double lambda = 0.0;                  // the λ of (1) used (given, or chosen by the rule)
