@@ -152,7 +152,8 @@ nlohmann::json ReadJsonFile(const std::string& path) {
   buf << in.rdbuf();
   try {
     return nlohmann::json::parse(buf.str());
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {
+    // parse_error, and out_of_range 406 for a number beyond double's range ("1e999"): the parser throws both.
     throw InvalidArgument(path + ": malformed JSON: " + e.what());
   }
 }

@@ -155,7 +155,8 @@ TelescopePreset ParseTelescopePreset(const nlohmann::json& json, const std::stri
   if (tel.Has("mask_file")) {
     const std::filesystem::path f(tel.String("mask_file"));
     p.mask_file = (f.is_absolute() ? f : std::filesystem::path(source).parent_path() / f).string();
-    if (!std::filesystem::exists(p.mask_file)) tel.Fail("mask_file", "\"" + p.mask_file + "\"", "an existing image file");
+    std::error_code ec;  // the non-throwing form: a name too long for the OS is "not an existing file" too
+    if (!std::filesystem::exists(p.mask_file, ec)) tel.Fail("mask_file", "\"" + p.mask_file + "\"", "an existing image file");
   }
   tel.CheckNoOtherFields();
   std::string why;
@@ -191,9 +192,9 @@ TelescopePreset LoadTelescopePreset(const std::string& name_or_path) {
                                fs::path(name_or_path).extension() == ".json";
   if (!looks_like_path) {
     path = (fs::path(DataDirectory()) / "telescopes" / (name_or_path + ".json")).string();
-    if (!fs::exists(path)) {
+    std::error_code ec;  // the non-throwing form: a name too long for the OS is "no such preset" too
+    if (!fs::exists(path, ec)) {
       std::string names;
-      std::error_code ec;
       for (const auto& e : fs::directory_iterator(fs::path(DataDirectory()) / "telescopes", ec))
         if (e.path().extension() == ".json") names += (names.empty() ? "" : ", ") + e.path().stem().string();
       throw InvalidArgument("LoadTelescopePreset", "preset", name_or_path,

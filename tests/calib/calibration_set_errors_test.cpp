@@ -19,6 +19,7 @@
 namespace aosr {
 namespace {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using test::ErrorOf;
 namespace fs = std::filesystem;
@@ -158,6 +159,14 @@ TEST_F(ManifestErrors, EachBadFieldIsNamed) {
   WriteFits((dir_ / "dark.fits").string(), Image(Image::Zero(10, 10)));
   manifest_["dark"] = "dark.fits";
   EXPECT_THAT(Rewrite(), HasSubstr("dark is 10x10"));
+}
+
+// Found by fuzz_calibration_set (fuzz/regressions/calibration_set/): a telescope or set path longer than the
+// OS allows (NAME_MAX) made std::filesystem throw filesystem_error ("File name too long") out of the loader.
+TEST_F(ManifestErrors, NamesTooLongForTheOsAreMissingFiles) {
+  const std::string long_name(300, 'a');
+  manifest_["telescope"] = long_name;
+  EXPECT_THAT(Rewrite(), AllOf(HasSubstr("LoadTelescopePreset"), HasSubstr(long_name), HasSubstr("paper-bench")));
 }
 
 TEST(CalibrationFileErrors, BadGainsAreRefused) {

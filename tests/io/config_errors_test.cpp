@@ -10,6 +10,7 @@ namespace {
 
 using aosr::test::ErrorOf;
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 
 
@@ -38,6 +39,18 @@ TEST(ConfigErrorsTest, MissingAndMalformedFiles) {
   fputs("{\"a\": 1,,}", f);
   fclose(f);
   EXPECT_THAT(ErrorOf<Error>([&] { ReadJsonFile(path); }), HasSubstr("malformed JSON"));
+  std::remove(path.c_str());
+}
+
+// Found by fuzz_design (fuzz/regressions/design/number-overflow.json): nlohmann's parser throws out_of_range,
+// not parse_error, for a number beyond double's range; it escaped every JSON loader as a non-aosr exception.
+TEST(ConfigErrorsTest, NumberBeyondDoubleRangeIsMalformedJson) {
+  const std::string path = testing::TempDir() + "/aosr_overflow.json";
+  FILE* f = fopen(path.c_str(), "w");
+  fputs("{\"frames\": [{\"shift_px\": [1e937, 0]}]}", f);
+  fclose(f);
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { ReadJsonFile(path); }),
+              AllOf(HasSubstr(path), HasSubstr("malformed JSON"), HasSubstr("number overflow")));
   std::remove(path.c_str());
 }
 

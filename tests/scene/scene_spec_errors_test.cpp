@@ -156,6 +156,27 @@ TEST(SceneSpecErrorsTest, MissingImageFileIsResolvedAgainstTheSceneFolder) {
                     HasSubstr("an existing FITS/PNG/TIFF file")));
 }
 
+// Found by fuzz_scene (fuzz/regressions/scene/): a file name longer than the OS allows (NAME_MAX) made
+// std::filesystem throw filesystem_error ("File name too long") out of the parser instead of the field's error.
+TEST(SceneSpecErrorsTest, FileNamesTooLongForTheOsAreMissingFiles) {
+  const std::string long_name(300, 'a');
+  Json j = BaseScene();
+  j["objects"] = Json::array({Json{{"type", "image"}, {"path", long_name + ".png"}}});
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("objects[0].path = \""), HasSubstr("an existing FITS/PNG/TIFF file")));
+  j = BaseScene();
+  j["telescope"] = long_name;
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("LoadTelescopePreset"), HasSubstr(long_name), HasSubstr("paper-8m")));
+  j = BaseScene();
+  j["telescope"] = long_name + ".json";
+  EXPECT_THAT(ParseError(j), HasSubstr("a preset name or an existing .json file"));
+  j = BaseScene();
+  j["offsets"] = Json{{"type", "design"}, {"file", long_name}};
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("offsets.file"), HasSubstr("an existing design .json file")));
+  j = BaseScene();
+  j["detector"]["bad_pixels"] = Json{{"file", long_name}};
+  EXPECT_THAT(ParseError(j), HasSubstr("detector.bad_pixels.file"));
+}
+
 TEST(SceneSpecErrorsTest, ImageOptionsAreChoices) {
   testing_io::TempDir tmp;
   WriteFits(tmp.File("object.fits"), Image::Ones(8, 8));
