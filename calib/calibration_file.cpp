@@ -1,5 +1,6 @@
 #include "aosr/calib/calibration_file.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -43,9 +44,14 @@ nlohmann::json CalibrationToJson(const CalibrationSet& set, const CalibrationRes
   j["pixel_lambda_over_d"] = set.optics.pixel_lambda_over_d;
   j["frame_px"] = {set.shape().rows, set.shape().cols};
   j["masked_pixels"] = set.masked_pixels;
+  // The set's "truth" is free-form provenance (a manifest may hold anything there, and a synthetic set names its
+  // actuator-pattern modes by string): only {"mode": Noll integer, "gain": number} entries give a true gain.
   std::map<int, double> truth_gain;
-  if (set.truth.is_object() && set.truth.contains("modes"))
-    for (const auto& m : set.truth["modes"]) truth_gain[m["mode"].get<int>()] = m["gain"].get<double>();
+  if (set.truth.is_object() && set.truth.contains("modes") && set.truth.at("modes").is_array())
+    for (const auto& m : set.truth.at("modes"))
+      if (m.is_object() && m.contains("mode") && m.at("mode").is_number_integer() && m.contains("gain") &&
+          m.at("gain").is_number())
+        truth_gain[int(std::clamp<long long>(m.at("mode").get<long long>(), -1, 1 << 20))] = m.at("gain").get<double>();
   double worst_chi2 = 0;
   bool all_converged = true;
   j["modes"] = nlohmann::json::array();

@@ -1,6 +1,7 @@
 // Fuzz target: calibration-set manifests (calib/calibration_set.hpp LoadCalibrationSet: manifest, frames,
-// dark, mask, validation), then one step past loading: each mode's frame list and the first mode's shape on
-// the pupil grid (what the fit builds first).
+// dark, mask, validation), then one step past loading: each mode's frame list, the first mode's shape on the
+// pupil grid (what the fit builds first), and the calibration.json a fit of the set would write
+// (CalibrationToJson with an empty result: it copies the set's provenance and its "truth").
 //
 // Companion files, written once into the scratch folder's set/: a small synthetic set (SynthesizeCalibrationSet:
 // paper-bench, 16x16 frames, Z2 and Z4 at +-50 nm, one reference each), whose calibration-set.json is the
@@ -13,6 +14,8 @@
 #include <limits>
 #include <string>
 
+#include "aosr/calib/calibrate.hpp"
+#include "aosr/calib/calibration_file.hpp"
 #include "aosr/calib/calibration_set.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/io/image_io.hpp"
@@ -58,6 +61,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const aosr::CalibrationSet set = aosr::LoadCalibrationSet(dir);
     for (int m = 0; m < int(set.modes.size()); ++m) (void)set.FramesOfMode(m);
     if (!set.modes.empty()) (void)set.ModeShape(0);
+    (void)aosr::CalibrationToJson(set, aosr::CalibrationResult{}).dump();
   });
   return 0;
 }

@@ -1,6 +1,7 @@
 #include "aosr/io/config.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -146,6 +147,12 @@ void ConfigNode::CheckNoOtherFields() const {
 }
 
 nlohmann::json ReadJsonFile(const std::string& path) {
+  // Only regular files: a device or FIFO (/dev/zero) never ends, and reading it would fill the memory.
+  std::error_code ec;
+  const auto type = std::filesystem::status(path, ec).type();
+  if (type == std::filesystem::file_type::character || type == std::filesystem::file_type::block ||
+      type == std::filesystem::file_type::fifo || type == std::filesystem::file_type::socket)
+    throw IoError(path, "is not a regular file (a device, FIFO or socket)");
   std::ifstream in(path);
   if (!in) throw IoError(path, "cannot open for reading");
   std::stringstream buf;

@@ -12,6 +12,7 @@
 #include "aosr/calib/calibration_set.hpp"
 #include "aosr/calib/linearity.hpp"
 #include "aosr/calib/modal_fit.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/optics/zernike.hpp"
 #include "support/testing.hpp"
@@ -119,6 +120,15 @@ TEST(CalibrationSetErrors, FitArgumentsAndOptions) {
   so.patterns.clear();
   so.modes.clear();
   EXPECT_THAT(ErrorOf([&] { SynthesizeCalibrationSet(so); }), HasSubstr("at least one"));
+  // Every field within its range, the set past the memory limit: refused before any frame is rendered.
+  so = Small();
+  so.window = {1024, 1024};
+  so.references_per_mode = 1000;
+  SetMemoryLimitBytes(1024.0 * 1024 * 1024);
+  const std::string memory = ErrorOf<ResourceError>([&] { SynthesizeCalibrationSet(so); });
+  SetMemoryLimitBytes(0);
+  EXPECT_THAT(memory, HasSubstr("frames of 1024x1024 pixels needs about"));
+  EXPECT_THAT(memory, HasSubstr("more than the limit of 1 GiB"));
 }
 
 class ManifestErrors : public ::testing::Test {
@@ -167,6 +177,26 @@ TEST_F(ManifestErrors, NamesTooLongForTheOsAreMissingFiles) {
   const std::string long_name(300, 'a');
   manifest_["telescope"] = long_name;
   EXPECT_THAT(Rewrite(), AllOf(HasSubstr("LoadTelescopePreset"), HasSubstr(long_name), HasSubstr("paper-bench")));
+}
+
+// Found by fuzz_calibration_set (fuzz/regressions/calibration_set/truth-*.json): CalibrationToJson read the set's
+// free-form "truth" with get<int>() / get<double>(), so a manifest's truth of another shape, and a synthetic set's
+// own truth for an actuator-pattern mode (named by string), threw nlohmann type_error out of `aosr calibrate`.
+TEST_F(ManifestErrors, TruthOfAnyShapeIsProvenanceOnly) {
+  for (const char* truth : {R"({"modes": [{"gain": 0.9, "mode": 4}, 18446744073709551615]})",
+                            R"({"modes": [{"gain": {}, "mode": 4}]})", R"({"modes": [{"gain": 1.1, "mode": [4]}]})",
+                            R"({"modes": 3})", R"({"modes": [{"mode": "poke", "gain": 1.0}]})"}) {
+    manifest_["truth"] = nlohmann::json::parse(truth);
+    EXPECT_EQ(Rewrite(), "no exception") << truth;
+    const CalibrationSet set = LoadCalibrationSet(dir_.string());
+    EXPECT_EQ(ErrorOf<std::exception>([&] { CalibrationToJson(set, CalibrationResult{}); }), "no exception") << truth;
+  }
+  SyntheticCalibrationOptions so = Small();
+  so.modes = {4};
+  so.gains = {1.0, 0.8};
+  so.patterns = {CalibrationMode{0, "poke", std::vector<double>(101, 0.2)}};
+  const CalibrationSet synthetic = SynthesizeCalibrationSet(so);
+  EXPECT_EQ(ErrorOf<std::exception>([&] { CalibrationToJson(synthetic, CalibrationResult{}); }), "no exception");
 }
 
 TEST(CalibrationFileErrors, BadGainsAreRefused) {

@@ -54,5 +54,12 @@ TEST(ConfigErrorsTest, NumberBeyondDoubleRangeIsMalformedJson) {
   std::remove(path.c_str());
 }
 
+// Found by fuzz_calibration_set (a frame named /dev/zero hung the loader): a device never ends, so reading one
+// as a config would fill the memory.
+TEST(ConfigErrorsTest, DevicesAreNotConfigFiles) {
+  EXPECT_THAT(ErrorOf<IoError>([] { ReadJsonFile("/dev/zero"); }),
+              AllOf(HasSubstr("/dev/zero"), HasSubstr("not a regular file")));
+}
+
 }  // namespace
 }  // namespace aosr
