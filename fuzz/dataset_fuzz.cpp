@@ -1,6 +1,7 @@
 // Fuzz target: dataset manifests (dataset.hpp LoadDataset), then one step past loading: the dataset turned
 // into a reconstruction problem (solvers/dataset_problem.hpp ProblemFromDataset, default options, and with the
-// nominal PSFs when the dataset has them). Nothing is reconstructed.
+// nominal PSFs when the dataset has them), and for small problems (HR grid up to 64x64, up to 16 frames) two
+// fast reconstructions of it (reconstruct.hpp: shift-and-add, Tikhonov with GCV).
 //
 // The input is written as manifest.json in the scratch folder next to small FITS files it may name (written
 // once, below): consistent ones (4 frames of 8x8, r = 2, PSFs 4x4) and inconsistent ones (one plane, odd or
@@ -14,12 +15,14 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <stdexcept>
 #include <string>
 
 #include "aosr/core/image.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
+#include "aosr/solvers/reconstruct.hpp"
 #include "fuzz_common.hpp"
 
 namespace {
@@ -94,7 +97,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   aosr::fuzz::ExpectAosrErrors([&] {
     const aosr::Dataset dataset = aosr::LoadDataset(path);
     (void)dataset.FramesElectrons();
-    aosr::fuzz::ExpectAosrErrors([&] { (void)aosr::ProblemFromDataset(dataset); });
+    aosr::fuzz::ExpectAosrErrors([&] {
+      const aosr::DatasetProblem p = aosr::ProblemFromDataset(dataset);
+      if (dataset.hr_frame.rows * dataset.hr_frame.cols <= 64 * 64 && dataset.size() <= 16) {
+        for (aosr::ReconstructionMethod m : {aosr::ReconstructionMethod::kShiftAddMean, aosr::ReconstructionMethod::kTikhonov}) {
+          aosr::ReconstructOptions options;
+          options.method = m;
+          aosr::fuzz::ExpectAosrErrors([&] {
+            // reconstruct.hpp: never returns NaN (a non-finite estimate is reported as failed, zeroed).
+            if (!aosr::Reconstruct(p.problem, options).image.allFinite())
+              throw std::logic_error("fuzz_dataset: Reconstruct returned a non-finite image");
+          });
+        }
+      }
+    });
     if (!dataset.nominal_psfs.empty()) {
       aosr::DatasetProblemOptions options;
       options.nominal_psfs = true;
