@@ -238,7 +238,8 @@ void MutateJsonNode(nlohmann::json* root, Rng& rng, const Corpus& corpus) {
         const double v = n.get<double>();
         const double factors[] = {-1, 0.5, 2, 10, 1000, 1e6, 1e-6, 0};
         const double f = factors[rng.Below(std::size(factors))];
-        if (n.is_number_integer() && rng.OneIn(2)) n = n.get<long long>() + (rng.OneIn(2) ? 1 : -1);
+        if (n.is_number_integer() && rng.OneIn(2) && std::abs(v) < 9e18)  // ±1, without signed overflow
+          n = n.get<long long>() + (rng.OneIn(2) ? 1 : -1);
         else if (n.is_number_integer() && std::abs(v * f) < 9e18 && std::floor(v * f) == v * f) n = (long long)(v * f);
         else n = v * f;
       } else {
@@ -365,7 +366,7 @@ void MutateFits(Bytes* b, Rng& rng) {
       const size_t c = 1 + rng.Below(size_t(end - 1));
       b->erase(b->begin() + long(c * 80), b->begin() + long(c * 80 + 80));
       const std::string blank(80, ' ');
-      b->insert(b->begin() + long((end - 1) * 80 + 80), blank.begin(), blank.end());
+      b->insert(b->begin() + long((end - 1) * 80), blank.begin(), blank.end());  // END moved up to end - 1
       break;
     }
     case 4: {  // add a card before END
