@@ -54,8 +54,11 @@ unsigned PlannerFlags(FftSettings::Planner p) {
 class PlanCache {
  public:
   static PlanCache& Get() {
-    static PlanCache cache;
-    return cache;
+    // Never destroyed (as parallel.cpp's Pool): a pool worker may still execute a plan during static
+    // destruction, and the plans stay reachable from this pointer, so LeakSanitizer does not report them.
+    // A static object's destructor would free the map but not the plans (no fftw_destroy_plan).
+    static PlanCache* cache = new PlanCache;
+    return *cache;
   }
 
   fftw_plan Plan(const PlanKey& key) {

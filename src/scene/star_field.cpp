@@ -58,9 +58,13 @@ class HardCoreGrid {
 
  private:
   long Cell(double t, double t0) const { return static_cast<long>(std::floor((t - t0) / s_)); }
-  static long long Key(long cy, long cx) { return (static_cast<long long>(cy) << 32) ^ (cx & 0xffffffffLL); }
+  // Cell indices are negative left of (y0, x0), and shifting a negative signed value is undefined before
+  // C++20: pack the two's-complement bits as unsigned.
+  static std::uint64_t Key(long cy, long cx) {
+    return (static_cast<std::uint64_t>(cy) << 32) ^ (static_cast<std::uint64_t>(cx) & 0xffffffffULL);
+  }
   double y0_, x0_, s_;
-  std::unordered_map<long long, std::vector<std::size_t>> cells_;
+  std::unordered_map<std::uint64_t, std::vector<std::size_t>> cells_;
 };
 
 }  // namespace
