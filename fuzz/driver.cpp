@@ -173,6 +173,8 @@ void Watchdog(double timeout_s) {
     if (started != 0 && double(NowNs() - started) * 1e-9 > timeout_s) {
       DumpCurrentInput("FINDING: hang (input ran longer than --timeout)");
       std::fflush(nullptr);
+      std::error_code ec;  // _exit skips the atexit removal of the scratch folder
+      std::filesystem::remove_all(aosr::fuzz::ScratchDir(), ec);
       ::_exit(3);
     }
   }
