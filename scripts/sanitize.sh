@@ -1,0 +1,74 @@
+#!/usr/bin/env bash
+# ASan + UBSan run of the fast test suites (issue 14 item 4).
+#
+# Configures ./build-sanitize with -DAOSR_SANITIZE=ON (ASan + UBSan, UBSan findings abort), -O1 -g1 and
+# without NDEBUG, so Eigen's range assertions stay on; builds only the test executables it covers and runs
+# them with ctest. Any sanitizer report fails its test, and so this script.
+#
+# What it covers (COVERED below): the `unit`, `errors` and `stability` test executables of every layer
+# but cli, less solvers_unit_tests, plus every `fuzz_*` target when fuzz/ defines some (label `fuzz`). Left
+# out to fit CI's budget (the sanitizer build costs ~3x the Release build's CPU): the `physics` and `slow`
+# suites (long statistical oracles), the cli suites (they run the aosr executable on whole scenes) and
+# solvers_unit_tests (below). The measured time is in README.md.
+#
+# Usage: scripts/sanitize.sh [extra ctest arguments, e.g. -R Fft]
+# Environment: SANITIZE_FULL=1 (also solvers_unit_tests), JOBS (default nproc), BUILD_DIR (default
+# build-sanitize), FUZZ_SECONDS (default 30), SANITIZE_CXX_FLAGS (default "-O1 -g1").
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+build_dir=${BUILD_DIR:-build-sanitize}
+jobs=${JOBS:-$(nproc 2>/dev/null || echo 2)}
+
+# The test executables the run covers: the unit, errors and stability suites of every layer but cli, except
+# solvers_unit_tests, whose 12 files cost about a quarter of the whole sanitizer build (the solvers' code is
+# still run here by solvers_stability_tests, which drives every reconstructor through Reconstruct() on hard
+# inputs, by solvers_errors_tests, and by the fuzz dataset target). SANITIZE_FULL=1 adds it (local runs).
+COVERED=(core_unit_tests core_errors_tests io_unit_tests io_errors_tests optics_unit_tests optics_errors_tests
+         ao_unit_tests ao_errors_tests scene_unit_tests scene_errors_tests solvers_stability_tests
+         solvers_errors_tests calib_unit_tests calib_errors_tests)
+if [ "${SANITIZE_FULL:-0}" = 1 ]; then COVERED+=(solvers_unit_tests); fi
+COVERED_LABELS=(unit errors stability)
+# Wall-time cap of each fuzz target's mutation phase here (fuzz/CMakeLists.txt AOSR_FUZZ_MAX_SECONDS; the
+# corpus and regressions are always replayed in full): 8 targets x 30 s on 2 cores is 2 minutes.
+fuzz_seconds=${FUZZ_SECONDS:-30}
+
+# -O1: ASan's recommended level (2-3x slowdown instead of ~10x at -O0). -g1: line tables only, so reports
+# still give file:line for every frame, at ~25 % less compile time than -g (measured on src/ao and
+# src/optics files; the sanitizer build is most of this script's time). The build type is Debug only to keep
+# NDEBUG undefined (Eigen's eigen_assert checks every coefficient index); its flags are replaced, so
+# nothing else of Debug applies. SANITIZE_CXX_FLAGS overrides them (e.g. "-O1 -g" to debug a finding).
+cxx_flags=${SANITIZE_CXX_FLAGS:-"-O1 -g1"}
+cmake -S . -B "$build_dir" -DAOSR_SANITIZE=ON -DAOSR_BUILD_BENCH=OFF -DAOSR_BUILD_TESTS=ON \
+  -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="$cxx_flags" \
+  -DAOSR_FUZZ_MAX_SECONDS="$fuzz_seconds" > "$build_dir.configure.log" 2>&1 ||
+  { cat "$build_dir.configure.log"; exit 1; }
+rm -f "$build_dir.configure.log"
+
+# Targets: the covered executables that exist, plus the fuzz targets when fuzz/ is present and enabled.
+all_targets=$(cmake --build "$build_dir" --target help | sed -n 's/^\.\.\. \([^ ]*\).*/\1/p')
+targets=()
+for t in "${COVERED[@]}"; do
+  if grep -qx "$t" <<< "$all_targets"; then targets+=("$t"); fi
+done
+labels=$(IFS='|'; echo "${COVERED_LABELS[*]}")
+if fuzz_targets=$(grep -x 'fuzz_.*' <<< "$all_targets"); then
+  mapfile -t -O "${#targets[@]}" targets <<< "$fuzz_targets"
+  labels="$labels|fuzz"
+fi
+echo "sanitize: building ${targets[*]}"
+cmake --build "$build_dir" -j"$jobs" --target "${targets[@]}"
+
+# Sanitizer settings. ASan: report leaks at exit (LeakSanitizer), abort with a stack on the first error;
+# scripts/lsan.supp lists the third-party one-time allocations that are not our leaks, each with its reason.
+# UBSan: print the stack and stop at the first finding (the build also passes -fno-sanitize-recover).
+export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=1:detect_stack_use_after_return=1:strict_string_checks=1:check_initialization_order=1:detect_invalid_pointer_pairs=0"
+export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+
+# gtest_discover_tests leaves a *_NOT_BUILT placeholder for every executable of the project not built
+# here (physics, slow, cli, ...): exclude them; the labels select what was built.
+# Excluded by name: wall-time assertions, which measure the sanitizer's slowdown, not our code.
+#   DeformableMirrorTest.ApplyIsFast: asserts Apply/ApplyAdjoint < 1 ms each (17 s for its loop under ASan).
+exclude='_NOT_BUILT$|^DeformableMirrorTest\.ApplyIsFast$'
+ctest --test-dir "$build_dir" -L "^($labels)\$" -E "$exclude" --output-on-failure -j"$jobs" "$@"
