@@ -11,6 +11,7 @@
 
 #include "aosr/ao/random.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/io/atomic_file.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/io/fits.hpp"
@@ -127,9 +128,10 @@ Image ReadFrame(const fs::path& dir, const std::string& file) {
 
 CalibrationSet LoadCalibrationSet(const std::string& path) {
   fs::path manifest = path;
-  if (fs::is_directory(manifest)) manifest /= kCalibrationSetFileName;
+  std::error_code ec;  // non-throwing checks: a path the OS refuses (name too long) is "no set here" too
+  if (fs::is_directory(manifest, ec)) manifest /= kCalibrationSetFileName;
   const std::string src = manifest.string();
-  if (!fs::exists(manifest)) throw IoError(src, "no calibration set here (expected " + std::string(kCalibrationSetFileName) + ")");
+  if (!fs::exists(manifest, ec)) throw IoError(src, "no calibration set here (expected " + std::string(kCalibrationSetFileName) + ")");
   const nlohmann::json json = ReadJsonFile(src);
   const ConfigNode root(json, src);
   const fs::path dir = manifest.has_parent_path() ? manifest.parent_path() : fs::path(".");
@@ -140,7 +142,7 @@ CalibrationSet LoadCalibrationSet(const std::string& path) {
   set.source = src;
   set.telescope = root.String("telescope");
   std::string telescope_path = set.telescope;
-  if (set.telescope.find('/') != std::string::npos && !fs::path(set.telescope).is_absolute() && fs::exists(dir / set.telescope))
+  if (set.telescope.find('/') != std::string::npos && !fs::path(set.telescope).is_absolute() && fs::exists(dir / set.telescope, ec))
     telescope_path = (dir / set.telescope).string();
   const TelescopePreset preset = LoadTelescopePreset(telescope_path);
   set.diameter_m = preset.aperture.pupil.diameter_m;
@@ -365,6 +367,13 @@ double AppliedAmplitude(double commanded_m, double gain, double nonlinear_above_
 CalibrationSet SynthesizeCalibrationSet(const SyntheticCalibrationOptions& o) {
   std::string why;
   if (!o.IsValid(&why)) throw InvalidArgument("SynthesizeCalibrationSet: invalid options: " + why);
+  {
+    // Every frame is kept (ADU and its expected image) until the set is returned.
+    const double modes = double(o.modes.size() + o.patterns.size());
+    const double frames = modes * (2.0 * o.amplitudes_m.size() + o.references_per_mode) + o.shared_references;
+    CheckMemory(3 * 8.0 * frames * double(o.window.rows) * double(o.window.cols),
+                "SynthesizeCalibrationSet: " + ToString(frames) + " frames of " + ToString(o.window) + " pixels");
+  }
   const TelescopePreset preset = LoadTelescopePreset(o.telescope);
   CalibrationSet set;
   set.source = "<memory>";

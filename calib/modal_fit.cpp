@@ -1,7 +1,7 @@
 #include "aosr/calib/modal_fit.hpp"
 
 #include <ceres/ceres.h>
-#include <ceres/covariance.h>
+#include <Eigen/SVD>
 
 #include <algorithm>
 #include <array>
@@ -544,38 +544,51 @@ ModalFitResult FitModalImages(const CalibrationOptics& optics, const Image& mode
   }
   result.model = models;
 
-  // Covariance (the whole Jacobian, then the blocks we report).
+  // Covariance (the whole Jacobian, then the blocks we report): the pseudo-inverse of JᵀJ over every free
+  // parameter, V diag(1/σ²) Vᵀ from the SVD J = U diag(σ) Vᵀ, refused as rank deficient when σ_min/σ_max <
+  // 1e-7 (ceres::Covariance's DENSE_SVD rule with its default min_reciprocal_condition_number 1e-14). Computed
+  // here rather than by ceres::Covariance, whose result varied in its last bits with the arrays' addresses
+  // (run to run under ASLR; identical with ASLR off), so calibration.json was not the same bytes on repeat.
   if (result.termination != Termination::kFailed) {
-    ceres::Covariance::Options co;
-    co.algorithm_type = ceres::DENSE_SVD;
-    co.num_threads = 1;
-    ceres::Covariance cov(co);
-    std::vector<std::pair<const double*, const double*>> pairs = {{&gain, &gain}};
-    if (!start.fix_position) pairs.push_back({position, position});
-    if (layout.has_static && !start.fix_static) pairs.push_back({statics.data(), statics.data()});
-    if (!fix_size) pairs.push_back({&variance, &variance});
-    if (cov.Compute(pairs, problem.get())) {
+    std::vector<double*> blocks = {&gain};
+    int col_position = -1, col_static = -1, col_variance = -1;
+    int cols = 1;
+    if (!start.fix_position) col_position = cols, cols += 2, blocks.push_back(position);
+    if (layout.has_static && !start.fix_static)
+      col_static = cols, cols += layout.n_static, blocks.push_back(statics.data());
+    if (!fix_size) col_variance = cols, cols += 1, blocks.push_back(&variance);
+    for (int i = 0; i < n_img; ++i) cols += 2, blocks.push_back(photometry[i].data());
+    ceres::Problem::EvaluateOptions eo;
+    eo.parameter_blocks = blocks;
+    eo.num_threads = 1;
+    ceres::CRSMatrix crs;
+    bool ok = problem->Evaluate(eo, nullptr, nullptr, nullptr, &crs) && crs.num_cols == cols;
+    Eigen::MatrixXd cov;
+    if (ok) {
+      Eigen::MatrixXd jac = Eigen::MatrixXd::Zero(crs.num_rows, crs.num_cols);
+      for (int row = 0; row < crs.num_rows; ++row)
+        for (int k = crs.rows[row]; k < crs.rows[row + 1]; ++k) jac(row, crs.cols[k]) = crs.values[k];
+      ok = jac.allFinite();
+      if (ok) {
+        const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jac, Eigen::ComputeThinV);
+        const Eigen::VectorXd& sv = svd.singularValues();
+        ok = sv.size() == cols && sv(0) > 0 && sv(cols - 1) / sv(0) >= 1e-7;
+        if (ok) cov = svd.matrixV() * sv.array().square().inverse().matrix().asDiagonal() * svd.matrixV().transpose();
+      }
+    }
+    if (ok) {
       const double sc = result.covariance_scale;
-      double c1 = 0;
-      cov.GetCovarianceBlock(&gain, &gain, &c1);
-      result.gain_sigma = std::sqrt(std::max(0.0, c1 * sc));
-      if (!start.fix_position) {
-        double c2[4];
-        cov.GetCovarianceBlock(position, position, c2);
-        result.dy_sigma_px = std::sqrt(std::max(0.0, c2[0] * sc));
-        result.dx_sigma_px = std::sqrt(std::max(0.0, c2[3] * sc));
+      result.gain_sigma = std::sqrt(std::max(0.0, cov(0, 0) * sc));
+      if (col_position >= 0) {
+        result.dy_sigma_px = std::sqrt(std::max(0.0, cov(col_position, col_position) * sc));
+        result.dx_sigma_px = std::sqrt(std::max(0.0, cov(col_position + 1, col_position + 1) * sc));
       }
-      if (layout.has_static && !start.fix_static) {
-        std::vector<double> cs(layout.n_static * layout.n_static);
-        cov.GetCovarianceBlock(statics.data(), statics.data(), cs.data());
+      if (col_static >= 0)
         for (int k = 0; k < layout.n_static; ++k)
-          result.static_sigma_m[k] = std::sqrt(std::max(0.0, cs[k * layout.n_static + k] * sc)) / rpm;
-      }
-      if (!fix_size) {
-        double cv = 0;
-        cov.GetCovarianceBlock(&variance, &variance, &cv);
+          result.static_sigma_m[k] = std::sqrt(std::max(0.0, cov(col_static + k, col_static + k) * sc)) / rpm;
+      if (col_variance >= 0) {
         // σ = √v: dσ = dv / (2σ); at σ → 0 report √(std(v)) instead of an infinite slope.
-        const double sv = std::sqrt(std::max(0.0, cv * sc));
+        const double sv = std::sqrt(std::max(0.0, cov(col_variance, col_variance) * sc));
         result.source_sigma_sigma_px =
             result.source_sigma_px > 0 ? std::min(sv / (2 * result.source_sigma_px), std::sqrt(sv)) : std::sqrt(sv);
       }

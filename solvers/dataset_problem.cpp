@@ -4,6 +4,7 @@
 #include <memory>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 
 namespace aosr {
 namespace {
@@ -87,6 +88,12 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
       k = FoldOnto(k, d.hr_frame);
       ++out.psf_folded;
     }
+  // The model holds one HR transfer function per frame (complex, half spectrum) and builds each from a padded
+  // real kernel: refuse a dataset whose r and frame count cannot fit before building them.
+  const double hr_pixels = double(d.hr_frame.rows) * double(d.hr_frame.cols);
+  CheckMemory(double(n) * 16.0 * hr_pixels / 2 + 16.0 * hr_pixels,
+              std::string(kFn) + ": the model of " + std::to_string(n) + " frames on the HR grid " + ToString(d.hr_frame) +
+                  " (r = " + std::to_string(d.r) + ")");
   out.problem.model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(d.hr_frame, d.r, psfs));
 
   // ---- Frames (e⁻) and weights. ---------------------------------------------------------------------------

@@ -6,6 +6,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/optics/zernike.hpp"
 #include "design_internal.hpp"
 
@@ -142,6 +143,16 @@ DesignPsfModel::DesignPsfModel(const DesignOptics& optics, int frames, int reali
   CheckArgument(realisations >= 0 && realisations <= 64, fn, "realisations", realisations, "0 .. 64");
   CheckArgument(screens >= 1 && screens <= 256, fn, "screens", screens, "1 .. 256");
   CheckArgument(threads >= 1 && threads <= 64, fn, "threads", threads, "1 .. 64");
+  {
+    // The residual screens (n² each, R·N·L of them), the OTFs of the nominal and realised models (M² complex,
+    // N·(R+1)) and, per thread, the pupil field and PSF work of one exposure (a few (2n)² complex grids).
+    const double n2 = double(n_) * double(n_), m2 = double(optics.grid) * double(optics.grid);
+    const double screens_bytes = optics.ao ? 8.0 * n2 * realisations * double(frames) * screens : 0.0;
+    CheckMemory(screens_bytes + 16.0 * m2 * frames * (realisations + 1.0) * 2 + 4 * 16.0 * 4 * n2 * threads,
+                fn + ": a design of " + std::to_string(frames) + " frames on the " + std::to_string(optics.grid) + "^2 grid with " +
+                    std::to_string(realisations) + " realisations x " + std::to_string(screens) + " screens of " +
+                    std::to_string(n_) + "^2");
+  }
   for (Index p = 0; p < optics.amplitude.size(); ++p)
     if (optics.amplitude.data()[p] > 0) lit_.push_back(p);
   // The periodic path when the sampled pupil's PSF period, Q = n / s pixels (s = θ_hr D / λ), is a whole

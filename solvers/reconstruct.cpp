@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 
 namespace aosr {
 namespace {
@@ -93,6 +94,15 @@ ReconstructionMethod ParseReconstructionMethod(const std::string& name) {
 
 Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options) {
   problem.Validate(kFn);
+  {
+    // The largest solvers hold a few tens of HR images (TV's ADMM variables, L-BFGS's history, the posterior
+    // std) and per-bin matrices of N x r² complex entries per LR frequency, i.e. about 2N HR images.
+    const Shape hr = problem.model->hr_shape();
+    const double hr_bytes = 8.0 * double(hr.rows) * double(hr.cols);
+    CheckMemory(hr_bytes * (32.0 + 2.0 * problem.frame_count()),
+                std::string(kFn) + ": " + ToString(options.method) + " on the HR grid " + ToString(hr) + " from " +
+                    std::to_string(problem.frame_count()) + " frames");
+  }
   std::string why;
   const auto check = [&why](bool ok, const char* what) {
     if (!ok) throw InvalidArgument(std::string(kFn) + ": options." + what + "." + why);

@@ -10,6 +10,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/core/parallel.hpp"
 
 namespace aosr::cli {
@@ -70,6 +71,9 @@ void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads) 
                   "bits of results then vary from run to run)")
       ->capture_default_str()
       ->check(CLI::IsMember({"estimate", "measure", "patient"}));
+  cmd->add_option("--memory-limit", args->memory_limit,
+                  "refuse work whose estimated memory exceeds this, e.g. 8G (default: AOSR_MEMORY_LIMIT, else the "
+                  "physical memory or what ulimit -v leaves)");
 }
 
 void ApplyExecution(const ExecutionArgs& args) {
@@ -80,6 +84,7 @@ void ApplyExecution(const ExecutionArgs& args) {
                 : args.fft_planner == "patient" ? FftSettings::Planner::kPatient
                                                 : FftSettings::Planner::kEstimate;
   SetFftSettings(fft);
+  if (!args.memory_limit.empty()) SetMemoryLimitBytes(ParseByteSize(args.memory_limit, "--memory-limit"));
 }
 
 }  // namespace aosr::cli

@@ -43,8 +43,9 @@ void CheckWritableFile(const std::string& path);
 struct ExecutionArgs {
   int threads = 0;                     // 0: every hardware thread
   std::string fft_planner = "estimate";  // estimate | measure | patient
+  std::string memory_limit;            // empty: AOSR_MEMORY_LIMIT or the machine's (core/memory.hpp)
 };
-// Adds --threads and --fft-planner to `cmd` (--threads only if `with_threads`: design and calibrate have
+// Adds --threads, --fft-planner and --memory-limit to `cmd` (--threads only if `with_threads`: design and calibrate have
 // their own, which ApplyExecution is then given).
 void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads = true);
 // Sets aosr's default thread count and FFT planner from `args`.

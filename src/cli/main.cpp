@@ -3,6 +3,7 @@
 // Exit codes: 0 success, 1 a usage or input error (the message names what is wrong), 2 an internal error.
 #include <cstdio>
 #include <exception>
+#include <new>
 
 #include "aosr/core/error.hpp"
 #include "commands.hpp"
@@ -31,6 +32,15 @@ int main(int argc, char** argv) {
   } catch (const aosr::IoError& e) {
     std::fprintf(stderr, "aosr: error: %s\n", e.what());
     return 1;
+  } catch (const aosr::ResourceError& e) {
+    std::fprintf(stderr, "aosr: error: %s\n", e.what());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    // Requests are checked against memory.hpp's estimates before allocating; reaching this means an estimate
+    // missed something, which is our bug, not the user's.
+    std::fprintf(stderr, "aosr: internal error: out of memory (std::bad_alloc) although the request passed the "
+                         "memory check; set AOSR_MEMORY_LIMIT lower or report this\n");
+    return 2;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "aosr: internal error: %s\n", e.what());
     return 2;

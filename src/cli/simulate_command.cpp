@@ -9,6 +9,7 @@
 
 #include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/scene/pipeline.hpp"
@@ -69,6 +70,7 @@ nlohmann::json PlanJson(const ScenePipeline& p) {
   j["padded_shape"] = {g.padded.rows, g.padded.cols};
   j["psf_size_px"] = g.psf_size;
   j["trustworthy_border_px"] = g.trustworthy_border_px;
+  j["estimated_peak_bytes"] = p.estimated_peak_bytes();
   double total = 0;
   j["stages"] = nlohmann::json::array();
   for (const PipelineStage& s : p.stages()) {
@@ -128,6 +130,7 @@ void RunSimulate(const SimulateArgs& args) {
     j["output"] = args.out_dir.empty() ? nlohmann::json() : nlohmann::json(args.out_dir);
     j["manifest"] = args.out_dir.empty() ? nlohmann::json() : nlohmann::json(JoinPath(args.out_dir, kManifestFileName));
     j["total_seconds"] = clock.Seconds();
+    j["peak_rss_bytes"] = PeakResidentBytes();  // the whole process, for comparison with the estimate
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }

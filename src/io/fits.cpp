@@ -13,6 +13,7 @@
 #include <limits>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/io/atomic_file.hpp"
 
 namespace aosr {
@@ -376,6 +377,8 @@ FitsData ReadFits(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");
   if (std::filesystem::is_directory(path, ec)) throw IoError(path, "is a directory, not a FITS file");
+  // A device or FIFO (/dev/zero) never ends: reading it would not either.
+  if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "is not a regular file (a device, FIFO or socket)");
 
   ClearFitsMessages();
   FitsFile file;
@@ -387,6 +390,31 @@ FitsData ReadFits(const std::string& path) {
   const std::vector<LONGLONG>& axes = info.axes;
   const Index cols = axes[0], rows = axes[1];
   const Index planes = axes.size() == 3 ? axes[2] : 1;
+  // Sizes come from the file: refuse what cannot fit before allocating, and an uncompressed HDU whose data
+  // the file does not hold (a truncated file, or a header that lies) before reading.
+  CheckMemory(8.0 * double(rows) * double(cols) * double(planes),
+              path + ": a FITS image of " + std::to_string(planes) + " plane(s) of " + std::to_string(rows) + "x" +
+                  std::to_string(cols) + " pixels");
+  {
+    int compressed = fits_is_compressed_image(file.get(), &status);
+    LONGLONG head = 0, data_start = 0, data_end = 0;
+    if (!compressed && fits_get_hduaddrll(file.get(), &head, &data_start, &data_end, &status) == 0) {
+      std::error_code ec;
+      const auto size = std::filesystem::file_size(path, ec);
+      const double needed = double(std::abs(info.bitpix) / 8) * double(rows) * double(cols) * double(planes);
+      // Only for a plain FITS file on disk (it starts "SIMPLE"); a gzip'd one is smaller than its data.
+      char magic[6] = {};
+      std::FILE* raw = std::fopen(path.c_str(), "rb");
+      const bool plain = raw != nullptr && std::fread(magic, 1, 6, raw) == 6 && std::string(magic, 6) == "SIMPLE";
+      if (raw != nullptr) std::fclose(raw);
+      if (plain && !ec && double(data_start) + needed > double(size))
+        throw IoError(path, "truncated: its header promises " + std::to_string(planes) + " plane(s) of " +
+                                std::to_string(rows) + "x" + std::to_string(cols) + " pixels (BITPIX " +
+                                std::to_string(info.bitpix) + ", " + FormatBytes(needed) + " of data) but the file holds " +
+                                FormatBytes(std::max(0.0, double(size) - double(data_start))) + " after its header");
+    }
+    status = 0;
+  }
 
   FitsData data;
   data.header = ReadHeader(file.get(), path);

@@ -10,6 +10,7 @@
 #include <fstream>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/io/atomic_file.hpp"
 #include "aosr/io/fits.hpp"
 
@@ -163,6 +164,8 @@ Image ReadImage(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");
   if (std::filesystem::is_directory(path, ec)) throw IoError(path, "is a directory, not an image file");
+  // A device or FIFO (/dev/zero, found by fuzz_calibration_set) never ends: the format probes would read forever.
+  if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "is not a regular file (a device, FIFO or socket)");
   if (LooksLikeFits(path)) return ReadFitsImage(path);
 
   auto in = OIIO::ImageInput::open(path);
@@ -174,6 +177,9 @@ Image ReadImage(const std::string& path) {
   const int channels = spec.nchannels;
   const Index rows = spec.height, cols = spec.width;
   if (channels < 1 || rows < 1 || cols < 1) throw IoError(path, "empty image");
+  CheckMemory((4.0 * channels + 8.0) * double(rows) * double(cols),
+              path + ": an image of " + std::to_string(rows) + "x" + std::to_string(cols) + " pixels and " +
+                  std::to_string(channels) + " channel(s)");
 
   std::vector<float> buffer(static_cast<size_t>(rows * cols * channels));
   if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, buffer.data())) {

@@ -12,6 +12,7 @@
 #include "aosr/ao/phase_screen.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/optics/psf.hpp"
 #include "aosr/optics/zernike.hpp"
@@ -207,6 +208,33 @@ Image ExposureOpd(const SceneSpec& scene, const DmOffset& offset, const Image& s
 
 ScenePipeline::ScenePipeline(SceneSpec scene) : scene_(std::move(scene)) { Compile(); }
 
+// The peak of the large arrays Run() holds at once (pipeline.hpp, Cost), in bytes, from sizes alone: the HR
+// object, truth and star truth; every exposure's PSF (twice for the closed loop: the nominal model too); the
+// padded grid, its spectrum and one transfer function with its product; the convolved HR image of each
+// distinct PSF; the LR frames (expected, and the detector's electrons, ADU, weights and valid map); the star
+// catalogue (and its shifted copy); the pupil-plane work of one PSF (analytic AO: a few 2n x 2n complex
+// grids; closed loop: the layers' screens and the WFS as well).
+namespace {
+double EstimatePeakBytes(const SceneSpec& s, const SceneGeometry& g) {
+  const double hr = double(g.hr_frame.rows) * double(g.hr_frame.cols);
+  const double lr = double(g.frame.rows) * double(g.frame.cols);
+  const double padded = double(g.padded.rows) * double(g.padded.cols);
+  const double half = double(g.padded.rows) * double(g.padded.cols / 2 + 1);
+  const double k2 = double(g.psf_size) * double(g.psf_size);
+  const double n2 = double(s.telescope.pupil_px) * double(s.telescope.pupil_px);
+  const bool loop = s.ao.mode == AoSpec::Mode::kClosedLoop;
+  double stars = 0;
+  for (const ObjectSpec& o : s.objects)
+    if (o.IsPointSources()) stars += o.catalogue.empty() ? o.stars.count : double(o.catalogue.size());
+  // Distinct PSFs are at most the frame count; the count itself is known only after compiling, so the bound.
+  const double distinct = s.frames;
+  const double layers = s.telescope.atmosphere ? double(s.telescope.atmosphere->layers.size()) : 0.0;
+  const double pupil_work = 4 * 16 * (4 * n2) + (loop ? (layers + 4) * 8 * (4 * n2) : 0.0) + 2 * 16 * k2 * std::sqrt(n2);
+  return 8 * 3 * hr + 8 * k2 * s.frames * (loop ? 2 : 1) + 16 * 3 * half + 8 * 2 * padded + 8 * distinct * hr +
+         8 * lr * (distinct + 6.0 * s.frames) + 2 * sizeof(PointSource) * stars + pupil_work;
+}
+}  // namespace
+
 void ScenePipeline::Compile() {
   const SceneSpec& s = scene_;
   SceneGeometry& g = geometry_;
@@ -224,6 +252,13 @@ void ScenePipeline::Compile() {
   g.pad_top = g.psf_size / 2;
   g.pad_left = g.psf_size / 2;
   g.trustworthy_border_px = (g.psf_size / 2 + s.r - 1) / s.r;
+  // Before anything is built (the DM below, later the PSFs): can this run fit in memory at all?
+  estimated_peak_bytes_ = EstimatePeakBytes(s, g);
+  CheckMemory(estimated_peak_bytes_, s.source + ": simulating " + std::to_string(s.frames) + " frames of " +
+                                         ToString(g.frame) + " at r = " + std::to_string(s.r) + " (HR " +
+                                         ToString(g.hr_frame) + ", convolution grid " + ToString(g.padded) +
+                                         ", PSF " + std::to_string(g.psf_size) + "^2, pupil " +
+                                         std::to_string(s.telescope.pupil_px) + "^2)");
 
   // Only what is needed to validate: the DM (for the actuator count), not the PSFs.
   if (NeedsDm(s)) {
@@ -363,7 +398,8 @@ std::string ScenePipeline::PlanReport() const {
     out += buf + st.detail + "\n";
     total += st.estimated_s;
   }
-  out += "  total estimate ~" + Fmt("%.3f", total) + " s (cost model of src/scene/pipeline.cpp, one core)\n";
+  out += "  total estimate ~" + Fmt("%.3f", total) + " s (cost model of src/scene/pipeline.cpp, one core), peak memory ~" +
+         FormatBytes(estimated_peak_bytes_) + "\n";
   return out;
 }
 

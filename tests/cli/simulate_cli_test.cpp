@@ -132,6 +132,65 @@ TEST_F(SimulateCliTest, BadSceneOrOutputExitsOneNamingTheProblem) {
   EXPECT_EQ(Entries(), 1u);
 }
 
+// Memory bounds (core/memory.hpp) through the real executable: a scene that cannot fit is refused with the
+// memory it would need, under the machine's limit, an explicit --memory-limit, and `ulimit -v`; a scene that
+// fits runs under `ulimit -v` (the budget is what the limit leaves, not the limit itself); and the plan's
+// estimate is of the order of what a run really holds.
+CliRun RunShell(const std::string& script) {
+  CliRun run;
+  FILE* p = popen(("sh -c '" + script + "' 2>&1").c_str(), "r");
+  if (!p) return run;
+  char buf[4096];
+  while (std::size_t n = fread(buf, 1, sizeof buf, p)) run.out.append(buf, n);
+  const int status = pclose(p);
+  run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return run;
+}
+
+TEST_F(SimulateCliTest, MemoryBoundsRefuseWhatCannotFitAndSayHowMuch) {
+  CliRun r = RunCli("simulate " + ScenePath() + " --set frames=1024 --set r=4 --set detector.frame_px=4096");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, AllOf(HasSubstr("simulating 1024 frames of 4096x4096 at r = 4"), HasSubstr("TiB of memory"),
+                           HasSubstr("more than the limit")));
+  r = RunCli("simulate " + ScenePath() + " --memory-limit 1M");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("more than the limit of 1 MiB (set for this run)"));
+  r = RunCli("simulate " + ScenePath() + " --memory-limit lots");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("--memory-limit: \"lots\" is not a memory size"));
+  EXPECT_EQ(Entries(), 1u);
+}
+
+TEST_F(SimulateCliTest, UnderUlimitTheBudgetIsWhatTheLimitLeaves) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer reserves terabytes of address space: ulimit -v cannot apply";
+#endif
+  const std::string cli = AOSR_CLI_PATH;
+  // 2 GiB of address space: the small scene runs; a 2048² frame at r = 4 (HR 8192²) would need ~10 GiB.
+  CliRun r = RunShell("ulimit -v 2097152 && " + cli + " simulate " + ScenePath() + " --json --threads 2");
+  EXPECT_EQ(r.status, 0) << r.out;
+  r = RunShell("ulimit -v 2097152 && " + cli + " simulate " + ScenePath() + " --set r=4 --set detector.frame_px=2048");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, AllOf(HasSubstr("frames of 2048x2048 at r = 4"), HasSubstr("GiB of memory (estimate)"),
+                           HasSubstr("what ulimit -v leaves this process")));
+  EXPECT_THAT(r.out, ::testing::Not(HasSubstr("bad_alloc")));
+}
+
+TEST_F(SimulateCliTest, ThePeakMemoryEstimateIsOfTheOrderOfTheRun) {
+  // The large arrays of a 256² frame at r = 4 (HR 1024²) dominate the process; the baseline (libraries, plans)
+  // is measured on the 32² scene and taken off.
+  CliRun r = RunCli("simulate " + ScenePath() + " --json --threads 1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const double base = nlohmann::json::parse(r.out)["peak_rss_bytes"];
+  r = RunCli("simulate " + ScenePath() + " --json --threads 1 --set r=4 --set detector.frame_px=256 --set frames=4");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  const double estimate = j["estimated_peak_bytes"], used = double(j["peak_rss_bytes"]) - base;
+  EXPECT_GT(used, 0.0);
+  EXPECT_GT(estimate, 0.5 * used) << "estimate " << estimate << " B, measured " << used << " B above the baseline";
+  EXPECT_LT(estimate, 4.0 * used) << "estimate " << estimate << " B, measured " << used << " B above the baseline";
+}
+
 }  // namespace
 
 // --calibration: the simulated DM applies each commanded mode times its calibrated gain, so a raster made of

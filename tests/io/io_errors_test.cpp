@@ -43,6 +43,12 @@ TEST(FitsErrorsTest, TextFileNamedFitsIsAnIoErrorWithPath) {
   EXPECT_THAT(ErrorOf<IoError>([&] { ReadImage(path); }), HasSubstr(path));
 }
 
+// Found by fuzz_calibration_set (a frame named /dev/zero hung the loader: the format probes read forever).
+TEST(FitsErrorsTest, DevicesAreNotImageFiles) {
+  EXPECT_THAT(ErrorOf<IoError>([] { ReadFits("/dev/zero"); }), HasSubstr("/dev/zero: is not a regular file"));
+  EXPECT_THAT(ErrorOf<IoError>([] { ReadImage("/dev/zero"); }), HasSubstr("/dev/zero: is not a regular file"));
+}
+
 TEST(FitsErrorsTest, MessagesHoldNoStaleCfitsioText) {
   // cfitsio pushes an informational message for every HIERARCH keyword it writes.
   TempDir dir;
@@ -67,6 +73,44 @@ TEST(FitsErrorsTest, TruncatedFitsIsAnIoErrorWithPath) {
     WriteBytes(path, bytes.substr(0, keep));
     EXPECT_THAT(ErrorOf<IoError>([&] { ReadFits(path); }), HasSubstr(path)) << keep;
   }
+}
+
+// A FITS header whose NAXISn would need more memory than the limit, or more data than the file holds, is
+// refused before anything is allocated: the header is a few bytes, the request it makes is not.
+std::string FitsHeaderOnly(long naxis1, long naxis2, long naxis3) {
+  std::string h;
+  auto card = [&h](const std::string& text) {
+    std::string c = text;
+    c.resize(80, ' ');
+    h += c;
+  };
+  card("SIMPLE  =                    T");
+  card("BITPIX  =                  -64");
+  card(naxis3 > 0 ? "NAXIS   =                    3" : "NAXIS   =                    2");
+  card("NAXIS1  = " + std::string(20 - std::to_string(naxis1).size(), ' ') + std::to_string(naxis1));
+  card("NAXIS2  = " + std::string(20 - std::to_string(naxis2).size(), ' ') + std::to_string(naxis2));
+  if (naxis3 > 0) card("NAXIS3  = " + std::string(20 - std::to_string(naxis3).size(), ' ') + std::to_string(naxis3));
+  card("END");
+  h.resize(2880, ' ');
+  return h + std::string(2880, '\0');  // one block of data, far less than the header promises
+}
+
+TEST(FitsErrorsTest, AHeaderAskingForMoreMemoryThanTheLimitIsRefusedBeforeAllocating) {
+  TempDir dir;
+  const std::string path = dir.File("bomb.fits");
+  WriteBytes(path, FitsHeaderOnly(100000, 100000, 1000));  // 8e13 bytes of float64
+  const std::string msg = ErrorOf<ResourceError>([&] { ReadFits(path); });
+  EXPECT_THAT(msg, HasSubstr(path));
+  EXPECT_THAT(msg, HasSubstr("1000 plane(s) of 100000x100000 pixels needs about 72.8 TiB of memory"));
+}
+
+TEST(FitsErrorsTest, AHeaderPromisingMoreDataThanTheFileHoldsIsTruncated) {
+  TempDir dir;
+  const std::string path = dir.File("liar.fits");
+  WriteBytes(path, FitsHeaderOnly(1000, 1000, 0));  // 8 MB promised, 2880 bytes present
+  const std::string msg = ErrorOf<IoError>([&] { ReadFits(path); });
+  EXPECT_THAT(msg, HasSubstr(path));
+  EXPECT_THAT(msg, HasSubstr("truncated: its header promises 1 plane(s) of 1000x1000 pixels (BITPIX -64, 7.63 MiB of data)"));
 }
 
 TEST(FitsErrorsTest, ReadFitsImageOnACubeMentionsPlanes) {

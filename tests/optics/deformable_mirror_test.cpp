@@ -243,8 +243,10 @@ TEST(DeformableMirrorTest, RegularisationDampsUnlitActuatorsOnly) {
 }
 
 // Apply is called every closed-loop iteration: 17 x 17 actuators onto a 128-pixel pupil. Measured ~0.03 ms
-// for Apply and ~0.03 ms for ApplyAdjoint on one core (Release); the bound is loose for shared CI machines.
-TEST(DeformableMirrorTest, ApplyIsFast) {
+// for Apply and ~0.03 ms for ApplyAdjoint on one core (Release), printed here for the record and measured by
+// bench/closed_loop_bench; tests never assert wall time. What is asserted: repeated calls stay finite and
+// the fitter returns one command per active actuator.
+TEST(DeformableMirrorTest, RepeatedApplyStaysFiniteAndTheFitterRuns) {
   const auto dm = FriedMirror();
   Vector c = Vector::Random(dm->n_active());
   Vector y(dm->rows()), x(dm->cols());
@@ -263,8 +265,8 @@ TEST(DeformableMirrorTest, ApplyIsFast) {
   const double apply_ms = std::chrono::duration<double, std::milli>(t1 - t0).count() / reps;
   const double adjoint_ms = std::chrono::duration<double, std::milli>(t2 - t1).count() / reps;
   std::cout << "DM 17x17 -> 128x128: Apply " << apply_ms << " ms, ApplyAdjoint " << adjoint_ms << " ms\n";
-  EXPECT_LT(apply_ms, 1.0);
-  EXPECT_LT(adjoint_ms, 1.0);
+  EXPECT_TRUE(y.allFinite());
+  EXPECT_TRUE(x.allFinite());
   // Fitter set-up and one fit, for the record.
   const Image pupil = CircularPupil(128, PupilGeometry{8.0, 0.0});
   const Image target = Zernike(5, 128);

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "aosr/core/fft.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/scene/pipeline.hpp"
 #include "support/testing.hpp"
@@ -32,6 +33,31 @@ TEST(ScenePipelineErrors, ActuatorCountMustMatchTheDm) {
   EXPECT_THAT(m, HasSubstr("s.json: offsets.frames[0].actuators_nm has 7 values"));
   EXPECT_THAT(m, HasSubstr("one per active actuator"));
   EXPECT_EQ(FftExecutionCount(), ffts) << "nothing was computed";
+}
+
+TEST(ScenePipelineErrors, AScenePastTheMemoryLimitIsRefusedBeforeAnythingIsBuilt) {
+  // Every field is within its own range (and r·frame_px within the parser's 16384); together they ask for
+  // 1024 frames of 4096² at r = 4.
+  nlohmann::json j = WithActuators("paper-8m", 0);
+  j["frames"] = 1024;
+  j["r"] = 4;
+  j["offsets"] = {{"type", "raster"}};
+  j["detector"]["frame_px"] = 4096;
+  const std::uint64_t ffts = FftExecutionCount();
+  const std::string m = test::ErrorOf<ResourceError>([&] { ScenePipeline(ParseScene(j, "bomb.json")); });
+  EXPECT_THAT(m, HasSubstr("bomb.json: simulating 1024 frames of 4096x4096 at r = 4 (HR 16384x16384"));
+  EXPECT_THAT(m, HasSubstr("TiB of memory (estimate), more than the limit of"));
+  EXPECT_EQ(FftExecutionCount(), ffts) << "nothing was computed";
+}
+
+TEST(ScenePipelineErrors, TheMemoryLimitCanBeLowered) {
+  nlohmann::json j = WithActuators("paper-8m", 0);
+  j["offsets"] = {{"type", "raster"}};
+  SetMemoryLimitBytes(1024.0 * 1024);  // 1 MiB: less than this small scene's PSF work
+  const std::string m = test::ErrorOf<ResourceError>([&] { ScenePipeline(ParseScene(j, "small.json")); });
+  SetMemoryLimitBytes(0);
+  EXPECT_THAT(m, HasSubstr("more than the limit of 1 MiB (set for this run)"));
+  EXPECT_NO_THROW(ScenePipeline(ParseScene(j, "small.json")));
 }
 
 TEST(ScenePipelineErrors, ActuatorsNeedADm) {

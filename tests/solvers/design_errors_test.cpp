@@ -2,6 +2,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/solvers/design_objective.hpp"
 #include "aosr/solvers/design_optimizer.hpp"
 #include "aosr/solvers/design_parameterisation.hpp"
@@ -51,6 +52,15 @@ TEST(DesignErrorsTest, ObjectiveRejectsBadOpticsOptionsAndOpds) {
   optics = design_test::SmallOptics(false);
   optics.hr_pixel_rad *= 3;  // coarser than λ/D
   EXPECT_THAT(ErrorOf([&] { DesignObjective(optics, 2, DesignObjectiveOptions()); }), HasSubstr("hr_pixel_rad"));
+  // Each count within its range, together 64 x 1024 x 256 residual screens: refused before any is drawn.
+  o = DesignObjectiveOptions();
+  o.realisations = 64;
+  o.screens = 256;
+  SetMemoryLimitBytes(1024.0 * 1024 * 1024);  // the screens alone are 128 GiB: refused on any machine
+  const std::string memory = ErrorOf<ResourceError>([&] { DesignObjective(design_test::SmallOptics(true), 1024, o); });
+  SetMemoryLimitBytes(0);
+  EXPECT_THAT(memory, HasSubstr("a design of 1024 frames on the 16^2 grid with 64 realisations x 256 screens of 32^2"));
+  EXPECT_THAT(memory, HasSubstr("of memory (estimate), more than the limit"));
   const DesignObjective f(design_test::SmallOptics(false), 2, DesignObjectiveOptions());
   EXPECT_THAT(ErrorOf([&] { f.Evaluate({Image::Zero(32, 32)}); }), HasSubstr("dm_opds count"));
   EXPECT_THAT(ErrorOf([&] { f.Evaluate({Image::Zero(32, 32), Image::Zero(16, 16)}); }), HasSubstr("shape"));

@@ -5,6 +5,8 @@
 //    anything to Ceres (which aborts on misuse) or FFTW (which does not check).
 //  * InvalidArgument names the function, the argument, the value received and what is allowed.
 //  * IoError names the path and the underlying library's message.
+//  * A request that would need more memory than the limit (memory.hpp) is refused before allocating, with
+//    ResourceError saying how much it would need.
 //  * Non-convergence of an iterative solver is *not* an exception: it is reported in the
 //    solver's Summary. NumericalError is reserved for a NaN/Inf that would otherwise leak.
 #pragma once
@@ -36,6 +38,12 @@ class IoError : public Error {
 
  private:
   std::string path_;
+};
+
+// A request (sizes from a file, config or argument) that needs more memory than the limit of memory.hpp.
+class ResourceError : public Error {
+ public:
+  explicit ResourceError(const std::string& what) : Error(what) {}
 };
 
 class NumericalError : public Error {

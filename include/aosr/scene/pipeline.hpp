@@ -131,8 +131,11 @@ class ScenePipeline {
   const SceneGeometry& geometry() const { return geometry_; }
   // The enabled stages in order.
   const std::vector<PipelineStage>& stages() const { return stages_; }
-  // One line per stage: name, count, estimated time, detail; then the total.
+  // One line per stage: name, count, estimated time, detail; then the total and the peak memory.
   std::string PlanReport() const;
+  // The peak memory of Run() in bytes, estimated from the sizes alone (pipeline.cpp, EstimatePeakBytes). The
+  // constructor refuses (ResourceError) a scene whose estimate exceeds the memory limit (core/memory.hpp).
+  double estimated_peak_bytes() const { return estimated_peak_bytes_; }
 
   // Runs every stage. Deterministic for a given scene (seeds in the scene).
   Simulation Run() const;
@@ -155,6 +158,7 @@ class ScenePipeline {
   std::vector<PipelineStage> stages_;
   std::vector<int> distinct_;  // exposure -> distinct OPD group (all 0..N-1 for the closed loop)
   int distinct_count_ = 0;
+  double estimated_peak_bytes_ = 0.0;
   bool has_extended_ = false;
   bool has_stars_ = false;
 };
