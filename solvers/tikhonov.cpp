@@ -221,6 +221,7 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
 }
 
 void FourierSystem::SetData(const ImageStack& frames) {
+  spectral_.reset();  // made from the data: stale now
   const Shape lr = model_.lr_shape();
   for (int i = 0; i < model_.frames(); ++i) {
     const ComplexImage s = FftForward(frames.at(i).cast<Complex>());
@@ -354,6 +355,66 @@ FourierSystem::Fit FourierSystem::Evaluate(double lambda, bool want_trace) const
     f.woodbury_bins += s.woodbury;
   }
   f.residual2 /= double(bins_.size());  // Parseval for the unnormalised DFT: ||y||² = Σ|Y|² / m²
+  return f;
+}
+
+void FourierSystem::MakeSpectral() const {
+  auto sp = std::make_unique<Spectral>();
+  const Index nb = Index(bins_.size());
+  sp->offset.assign(nb + 1, 0);
+  for (Index i = 0; i < nb; ++i) {
+    const Bin& b = bins_[i];
+    const Index q = b.prior_positive ? std::min(b.a.rows(), b.a.cols()) : 0;
+    sp->offset[i + 1] = sp->offset[i] + q;
+    if (!b.prior_positive) sp->direct.push_back(i);
+  }
+  sp->s2.resize(sp->offset[nb]);
+  sp->c.resize(sp->offset[nb]);
+  sp->perp = Eigen::VectorXd::Zero(nb);
+  for (Index i = 0; i < nb; ++i) {
+    const Bin& b = bins_[i];
+    if (!b.prior_positive) continue;
+    const Index q = sp->offset[i + 1] - sp->offset[i];
+    // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's range,
+    // so the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||² that would cancel
+    // for nearly fitted data. (The eigen-decomposition of the N x N matrix A P⁻¹ Aᴴ costs about as much here
+    // and loses small s² to rounding at the scale of the largest: 100x the SVD's error at λ = 1e-8 λ₀.)
+    const Eigen::MatrixXcd whitened = b.a * b.prior.cwiseSqrt().cwiseInverse().asDiagonal();
+    const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(whitened, Eigen::ComputeFullU);
+    const Eigen::VectorXcd uy = svd.matrixU().adjoint() * b.y;
+    sp->s2.segment(sp->offset[i], q) = svd.singularValues().array().square().matrix();
+    sp->c.segment(sp->offset[i], q) = uy.head(q).cwiseAbs2();
+    sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
+  }
+  spectral_ = std::move(sp);
+}
+
+FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda) const {
+  if (!spectral_) MakeSpectral();
+  const Spectral& sp = *spectral_;
+  const double w = lambda / double(model_.r() * model_.r());
+  const Index n = model_.frames();
+  Fit f;
+  for (Index i = 0; i + 1 < Index(sp.offset.size()); ++i) {
+    const Index q = sp.offset[i + 1] - sp.offset[i];
+    if (q == 0) continue;  // a direct bin, below
+    double res = sp.perp[i], dof = double(n - q);
+    for (Index k = sp.offset[i]; k < sp.offset[i + 1]; ++k) {
+      // w / (s² + w), 1 where both vanish (an unseen direction keeps all its data in the residual).
+      const double d = sp.s2[k] + w;
+      const double g = d > 0 ? w / d : 1.0;
+      res += g * g * sp.c[k];
+      dof += g;
+    }
+    f.residual2 += res;
+    f.dof += dof;
+  }
+  for (Index i : sp.direct) {
+    const BinSolution s = SolveBin(bins_[i], w, true);
+    f.residual2 += s.residual2;
+    f.dof += s.dof;
+  }
+  f.residual2 /= double(bins_.size());  // Parseval, as in Evaluate
   return f;
 }
 
@@ -526,20 +587,26 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
 
 double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations,
                  std::string* edge) {
-  // GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² (Golub, Heath & Wahba 1979), exactly per bin, on a log grid.
+  // GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² (Golub, Heath & Wahba 1979), exactly per bin. Each value is a
+  // sum over the bins' singular values (FourierSystem::EvaluateSpectral), so the search costs one
+  // decomposition per bin: a log grid finds the basin, golden-section search on log λ then finds the minimum
+  // between the grid neighbours of the best point to 1e-4 decades (continuous, not a grid point).
   const double n_data = double(sys.model().frames()) * double(sys.bins());
   const int steps = int(std::lround(options.gcv_decades * options.gcv_steps_per_decade));
-  double best = std::numeric_limits<double>::infinity(), lambda = sys.lambda0();
-  int best_k = steps;
-  auto at = [&](int k) {
-    return sys.lambda0() * std::pow(10.0, -options.gcv_decades + double(k) / options.gcv_steps_per_decade);
-  };
+  const double dt = 1.0 / options.gcv_steps_per_decade;
+  auto lambda_at = [&](double t) { return sys.lambda0() * std::pow(10.0, t); };  // t = log10(λ/λ₀)
   int evaluated = 0;
-  auto visit = [&](int k) {
-    const FourierSystem::Fit f = sys.Evaluate(at(k), true);
+  auto gcv = [&](double t) {
+    const FourierSystem::Fit f = sys.EvaluateSpectral(lambda_at(t));
     ++evaluated;
-    const double g = n_data * f.residual2 / (f.dof * f.dof);
-    if (g < best) best = g, lambda = at(k), best_k = k;
+    return f.dof > 0 ? n_data * f.residual2 / (f.dof * f.dof) : std::numeric_limits<double>::infinity();
+  };
+  auto grid_t = [&](int k) { return -options.gcv_decades + double(k) * dt; };
+  double best = std::numeric_limits<double>::infinity();
+  int best_k = steps;
+  auto visit = [&](int k) {
+    const double g = gcv(grid_t(k));
+    if (g < best) best = g, best_k = k;
   };
   for (int k = 0; k <= steps; ++k) visit(k);
   // A minimum at the top of the grid means the data want more smoothing than λ₀ (weak data: strong blur,
@@ -547,17 +614,37 @@ double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, doubl
   // bottom is GCV's known undersmoothing failure; walking down would only deepen it, so it is reported.)
   int top = steps;
   while (best_k == top && top < 2 * steps) visit(++top);
+  double t_best = grid_t(best_k);
+  const bool at_edge = steps > 0 && (best_k == 0 || best_k == top);
+  if (steps > 0 && !at_edge) {
+    // Golden-section search on [t_{k−1}, t_{k+1}], which brackets a minimum (the middle point is lowest).
+    const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+    double a = grid_t(best_k - 1), b = grid_t(best_k + 1);
+    double c = b - phi * (b - a), d = a + phi * (b - a);
+    double gc = gcv(c), gd = gcv(d);
+    while (b - a > 1e-4) {
+      if (gc <= gd) {
+        b = d, d = c, gd = gc;
+        c = b - phi * (b - a), gc = gcv(c);
+      } else {
+        a = c, c = d, gc = gd;
+        d = a + phi * (b - a), gd = gcv(d);
+      }
+    }
+    const double t_mid = 0.5 * (a + b), g_mid = gcv(t_mid);
+    if (g_mid < best) best = g_mid, t_best = t_mid;  // never worse than the best grid point
+  }
   *score = best;
   *evaluations = evaluated;
   if (edge) {
     edge->clear();
-    if (steps > 0 && (best_k == 0 || best_k == top))
+    if (at_edge)
       *edge = std::string("; GCV minimum at the ") + (best_k == 0 ? "smallest" : "largest") +
               " lambda searched (lambda0 x 10^[-gcv_decades, " + (best_k == 0 ? "0" : "gcv_decades") +
               "]): a bound, not a minimiser" +
               (best_k == 0 ? " (GCV undersmooths here: prefer the discrepancy rule or a fixed lambda)" : "");
   }
-  return lambda;
+  return lambda_at(t_best);
 }
 
 void FinishSummary(const ReconstructionProblem& solved, const Image& x, double lambda,
@@ -614,7 +701,7 @@ TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovO
     const double n_w = double(model.frames()) * double(model.lr_shape().size());
     s.discrepancy_target = options.discrepancy_factor * options.noise_sigma * options.noise_sigma * n_w;
     const LambdaSearch d = DiscrepancySearch(
-        [&](double lam) { return w0 * sys.Evaluate(lam, false).residual2; }, s.discrepancy_target,
+        [&](double lam) { return w0 * sys.EvaluateSpectral(lam).residual2; }, s.discrepancy_target,
         sys.lambda0(), options.discrepancy_tolerance, options.discrepancy_max_evaluations);
     lambda_eff = d.lambda;
     s.lambda_evaluations = d.evaluations;

@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <chrono>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,13 @@ class FourierSystem {
     Index woodbury_bins = 0;
   };
   Fit Evaluate(double lambda, bool want_trace) const;
+  // The same residual and trace from one decomposition per bin (an SVD), made on first use after SetData: with
+  // B(u) = A(u) P(u)^(-1/2) = U diag(s) Vᴴ and c = |Uᴴ Y(u)|², w = λ/r²,
+  //   ||Y − A X||² = Σ_k (w / (s_k² + w))² c_k + ||(I − UUᴴ) Y||²,   N − tr H = Σ_k w / (s_k² + w) + (N − q),
+  // q = min(N, r²): O(q) per bin and λ instead of a solve, so a λ rule may evaluate as often as it likes
+  // (tikhonov.hpp, "λ rules"). Bins whose prior vanishes somewhere (the DC bin of the gradient and Laplacian
+  // priors) are solved directly at each λ.
+  Fit EvaluateSpectral(double lambda) const;
   Image Solve(double lambda, Fit* fit = nullptr) const;
 
   // G(u)⁻¹ for every bin (pseudo-inverse where singular; *proper = false then).
@@ -62,6 +70,17 @@ class FourierSystem {
   Path Choose(const Bin& b, double w) const;
   BinSolution SolveBin(const Bin& b, double w, bool want_trace) const;
   Eigen::MatrixXcd InverseBin(const Bin& b, double w, bool* proper, bool* woodbury) const;
+
+  // EvaluateSpectral's per-bin decomposition (empty until first use; `direct` lists the bins solved directly).
+  struct Spectral {
+    Eigen::VectorXd s2;     // s_k², q per bin, concatenated
+    Eigen::VectorXd c;      // |Uᴴ Y|_k², likewise
+    Eigen::VectorXd perp;   // ||(I − UUᴴ) Y||² per bin
+    std::vector<Index> offset;  // start of each bin's values in s2 and c
+    std::vector<Index> direct;  // bins with a zero of the prior
+  };
+  void MakeSpectral() const;
+  mutable std::unique_ptr<Spectral> spectral_;
 
   const MultiFrameModel& model_;
   TikhonovBinSolver solver_;

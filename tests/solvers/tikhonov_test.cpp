@@ -10,6 +10,7 @@
 #include "aosr/solvers/conjugate_gradient.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "solvers/tikhonov_fixture.hpp"
+#include "solvers/tikhonov_internal.hpp"  // the library's solvers/ folder (tests/CMakeLists.txt)
 #include "support/testing.hpp"
 
 namespace aosr {
@@ -405,6 +406,92 @@ TEST(TikhonovTest, GcvWalksUpwardsPastTheTopOfItsGrid) {
   EXPECT_GT(r.summary.lambda_evaluations, 5) << r.summary.message;  // more than the initial 5 grid points
   EXPECT_NE(r.summary.message.find("largest"), std::string::npos) << r.summary.message;
   EXPECT_TRUE(AllFinite(r.image));
+}
+
+}  // namespace
+}  // namespace aosr
+
+// ---- λ rules in closed form (issue 15): FourierSystem::EvaluateSpectral --------------------------------------
+
+namespace aosr {
+namespace {
+
+using tikhonov_internal::FourierSystem;
+using tikhonov_internal::PriorSymbolImage;
+
+// The spectral residual and trace (one SVD per bin, then sums over singular values) are the per-bin solves'
+// to rounding, for every prior (the DC bin of the gradient/Laplacian is solved directly), for N < r², N = r²
+// and N > r², over twelve decades of λ, and with rank-deficient bins (two identical frames).
+TEST(TikhonovTest, SpectralEvaluationMatchesThePerBinSolves) {
+  struct Case {
+    int r;
+    std::vector<std::pair<double, double>> shifts;
+  };
+  const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}},                  // N = 3 < 4
+                                   {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}},                    // N = r²
+                                   {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}, {0.3, 1.7}}},  // N > r²
+                                   {3, {{0, 0}, {0, 0}, {1.5, 0.5}}},                        // duplicate frames
+                                   {4, {{0, 0}, {1.5, 2.5}}}};
+  for (const Case& c : cases)
+    for (TikhonovPrior prior : {TikhonovPrior::kIdentity, TikhonovPrior::kGradient, TikhonovPrior::kLaplacian,
+                                TikhonovPrior::kPowerSpectrum}) {
+      const Shape hr{6 * c.r, 8 * c.r};
+      const MultiFrameModel m = RasterModel(hr, c.r, c.shifts, 1.0);
+      TikhonovOptions o;
+      o.prior = prior;
+      FourierSystem sys(m, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+      sys.SetData(test::AddNoise(m.Render(test::RandomImage(hr, 9).abs()), 0.02, 4));
+      for (double t = -8; t <= 4; t += 1) {
+        const double lambda = sys.lambda0() * std::pow(10.0, t);
+        const FourierSystem::Fit solved = sys.Evaluate(lambda, true), spectral = sys.EvaluateSpectral(lambda);
+        const std::string what = std::string(ToString(prior)) + ", r = " + std::to_string(c.r) + ", N = " +
+                                 std::to_string(c.shifts.size()) + ", log10(λ/λ0) = " + std::to_string(t);
+        // Both forms lose the small singular values of the whitened bins to rounding at the scale of the
+        // largest (ε s_max² absolutely, with s_max² ≳ λ₀), and each term w / (s² + w), like the solves' K⁻¹,
+        // turns that into an error of about ε s_max² / w: measured at λ = 1e-8 λ₀ up to 1e-13 (λ₀/λ) per bin
+        // in the trace (N < r², Laplacian and power-spectrum priors) and 7e-15 (λ₀/λ) relative in the residual
+        // (Laplacian, r = 3 with two identical frames, whose rank-deficient bins make the solves' K nearly
+        // singular). The tolerances are about 10x that; at λ >= λ₀ they are 1e-9 and 1e-8 relative.
+        const double amplification = 1.0 / std::pow(10.0, std::min(t, 0.0));
+        EXPECT_NEAR(spectral.residual2, solved.residual2, (1e-9 + 1e-13 * amplification) * solved.residual2 + 1e-14)
+            << what;
+        EXPECT_NEAR(spectral.dof, solved.dof, 1e-8 * solved.dof + 2e-12 * double(sys.bins()) * amplification) << what;
+      }
+    }
+}
+
+// GCV's continuous search finds the minimum a fine grid finds: its score is no higher than the best of 2001
+// points over ±1 decade around it, and its λ lies within one fine step (1e-3 decades) of the fine grid's best.
+TEST(TikhonovTest, GcvContinuousOptimumAgreesWithAFineGrid) {
+  for (TikhonovPrior prior : {TikhonovPrior::kIdentity, TikhonovPrior::kGradient, TikhonovPrior::kPowerSpectrum})
+    for (int r : {2, 4}) {
+      const Shape hr{16 * r, 16 * r};
+      const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {0.5, 1.5}, {1.5, 0.5}, {1, 1}}, 1.2);
+      ReconstructionProblem p;
+      p.model = std::make_shared<const MultiFrameModel>(m);
+      p.frames = test::AddNoise(m.Render(test::RandomImage(hr, 7).abs() + 1.0), 0.05, 8);
+      TikhonovOptions o;
+      o.prior = prior;
+      o.lambda_rule = TikhonovLambdaRule::kGcv;
+      const TikhonovResult res = ReconstructTikhonov(p, o);
+      ASSERT_EQ(res.summary.message.find("bound"), std::string::npos) << res.summary.message;
+      FourierSystem sys(m, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+      sys.SetData(p.frames);
+      const double n = double(m.frames()) * double(sys.bins());
+      auto gcv = [&](double lambda) {
+        const FourierSystem::Fit f = sys.EvaluateSpectral(lambda);
+        return n * f.residual2 / (f.dof * f.dof);
+      };
+      double best = std::numeric_limits<double>::infinity(), best_t = 0;
+      for (int k = -1000; k <= 1000; ++k) {
+        const double t = 1e-3 * k, g = gcv(res.summary.lambda * std::pow(10.0, t));
+        if (g < best) best = g, best_t = t;
+      }
+      const std::string what = std::string(ToString(prior)) + ", r = " + std::to_string(r);
+      EXPECT_LE(res.summary.gcv, best * (1 + 1e-12)) << what;
+      EXPECT_LE(std::abs(best_t), 1e-3 + 1e-12) << what << ": the fine grid's best is " << best_t << " decades away";
+      EXPECT_NEAR(gcv(res.summary.lambda), res.summary.gcv, 1e-12 * res.summary.gcv) << what;
+    }
 }
 
 }  // namespace

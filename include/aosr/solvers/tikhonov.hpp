@@ -92,7 +92,11 @@
 // λ rules:
 //   kFixed        λ as given.
 //   kGcv          generalised cross-validation (Golub, Heath & Wahba 1979, Technometrics 21, 215): minimises
-//                 GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² on a log grid; needs no noise level. Needs a
+//                 GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)²; needs no noise level. Each value is a sum over
+//                 the singular values of the whitened bins B(u) = A(u) P(u)^(−½) (one SVD per bin for the whole
+//                 search, then O(min(N, r²)) per bin and λ), so the search is a log grid (gcv_decades x
+//                 gcv_steps_per_decade) to find the basin and a golden-section search on log λ between the
+//                 best point's neighbours to 1e-4 decades: a continuous minimiser, not a grid point. Needs a
 //                 Fourier-exact problem (uniform weights, periodic boundary: tr H exactly, per bin; a CG
 //                 solve then uses that λ); otherwise it is an InvalidArgument. A minimum at either end of the
 //                 grid is a bound, not a GCV minimiser, and the summary's message says so (seen with a point
