@@ -13,7 +13,7 @@
 #
 # Usage: scripts/sanitize.sh [extra ctest arguments, e.g. -R Fft]
 # Environment: SANITIZE_FULL=1 (also solvers_unit_tests), JOBS (default nproc), BUILD_DIR (default
-# build-sanitize), FUZZ_SECONDS (default 30), SANITIZE_CXX_FLAGS (default "-O1 -g1").
+# build-sanitize), FUZZ_SECONDS (default 20), SANITIZE_CXX_FLAGS (default "-O1 -g1").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -30,8 +30,8 @@ COVERED=(core_unit_tests core_errors_tests io_unit_tests io_errors_tests optics_
 if [ "${SANITIZE_FULL:-0}" = 1 ]; then COVERED+=(solvers_unit_tests); fi
 COVERED_LABELS=(unit errors stability)
 # Wall-time cap of each fuzz target's mutation phase here (fuzz/CMakeLists.txt AOSR_FUZZ_MAX_SECONDS; the
-# corpus and regressions are always replayed in full): 8 targets x 30 s on 2 cores is 2 minutes.
-fuzz_seconds=${FUZZ_SECONDS:-30}
+# corpus and regressions are always replayed in full): 8 targets x 20 s on 2 cores is under 2 minutes.
+fuzz_seconds=${FUZZ_SECONDS:-20}
 
 # -O1: ASan's recommended level (2-3x slowdown instead of ~10x at -O0). -g1: line tables only, so reports
 # still give file:line for every frame, at ~25 % less compile time than -g (measured on src/ao and
