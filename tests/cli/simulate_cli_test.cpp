@@ -136,16 +136,8 @@ TEST_F(SimulateCliTest, BadSceneOrOutputExitsOneNamingTheProblem) {
 // memory it would need, under the machine's limit, an explicit --memory-limit, and `ulimit -v`; a scene that
 // fits runs under `ulimit -v` (the budget is what the limit leaves, not the limit itself); and the plan's
 // estimate is of the order of what a run really holds.
-CliRun RunShell(const std::string& script) {
-  CliRun run;
-  FILE* p = popen(("sh -c '" + script + "' 2>&1").c_str(), "r");
-  if (!p) return run;
-  char buf[4096];
-  while (std::size_t n = fread(buf, 1, sizeof buf, p)) run.out.append(buf, n);
-  const int status = pclose(p);
-  run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return run;
-}
+// `ulimit` needs a shell of its own: the script runs under sh -c.
+CliRun RunShell(const std::string& script) { return aosr::test::RunShell("sh -c '" + script + "'"); }
 
 TEST_F(SimulateCliTest, MemoryBoundsRefuseWhatCannotFitAndSayHowMuch) {
   CliRun r = RunCli("simulate " + ScenePath() + " --set frames=1024 --set r=4 --set detector.frame_px=4096");

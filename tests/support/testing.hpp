@@ -44,11 +44,10 @@ struct CliRun {
   std::string out;
 };
 
-#ifdef AOSR_CLI_PATH
-inline CliRun RunCli(const std::string& args) {
-  const std::string cmd = std::string(AOSR_CLI_PATH) + " " + args + " 2>&1";
+// Runs a shell command line (stderr merged into the output): for runs that need the shell, e.g. `ulimit`.
+inline CliRun RunShell(const std::string& command) {
   CliRun run;
-  FILE* p = popen(cmd.c_str(), "r");
+  FILE* p = popen((command + " 2>&1").c_str(), "r");
   if (!p) return run;
   char buf[4096];
   while (std::size_t n = fread(buf, 1, sizeof buf, p)) run.out.append(buf, n);
@@ -56,6 +55,9 @@ inline CliRun RunCli(const std::string& args) {
   run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return run;
 }
+
+#ifdef AOSR_CLI_PATH
+inline CliRun RunCli(const std::string& args) { return RunShell(std::string(AOSR_CLI_PATH) + " " + args); }
 #endif
 
 }  // namespace aosr::test
