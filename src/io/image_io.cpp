@@ -160,6 +160,54 @@ void WriteViewImage(const std::string& path, const Image& img, const ViewOptions
   });
 }
 
+void WriteRgbImage(const std::string& path, const RgbImage& img) {
+  const std::string ext = LowerExtension(path);
+  std::string format;
+  if (ext == ".png") {
+    format = "png";
+  } else if (ext == ".tif" || ext == ".tiff") {
+    format = "tiff";
+  } else {
+    throw InvalidArgument("WriteRgbImage", "file extension", "'" + ext + "' (" + path + ")", ".png, .tif or .tiff");
+  }
+  CheckArgument(img.rows > 0 && img.cols > 0, "WriteRgbImage", "image shape",
+                std::to_string(img.rows) + "x" + std::to_string(img.cols), "non-empty");
+  CheckArgument(img.rgb.size() == static_cast<size_t>(3 * img.rows * img.cols), "WriteRgbImage", "rgb.size()",
+                img.rgb.size(), "3 * rows * cols = " + std::to_string(3 * img.rows * img.cols));
+  AtomicWrite(path, [&](const std::string& tmp) {
+    auto out = OIIO::ImageOutput::create(format);
+    if (!out) throw IoError(path, OiioError("no OpenImageIO writer for " + format));
+    const OIIO::ImageSpec spec(static_cast<int>(img.cols), static_cast<int>(img.rows), 3, OIIO::TypeDesc::UINT8);
+    if (!out->open(tmp, spec)) throw IoError(path, "cannot open for writing: " + out->geterror());
+    if (!out->write_image(OIIO::TypeDesc::UINT8, img.rgb.data())) throw IoError(path, "cannot write pixels: " + out->geterror());
+    if (!out->close()) throw IoError(path, "cannot close: " + out->geterror());
+  });
+}
+
+RgbImage ReadRgbImage(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "no such file (or not a regular file)");
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw IoError(path, "cannot open as an image: " + OiioError("unknown format"));
+  const OIIO::ImageSpec& spec = in->spec();
+  const int channels = spec.nchannels;
+  if (channels < 1 || spec.width < 1 || spec.height < 1 || spec.depth > 1) throw IoError(path, "empty or volume image");
+  CheckMemory((1.0 * channels + 3.0) * double(spec.width) * double(spec.height),
+              path + ": an image of " + std::to_string(spec.height) + "x" + std::to_string(spec.width) + " pixels");
+  std::vector<std::uint8_t> buffer(static_cast<size_t>(spec.width) * spec.height * channels);
+  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, buffer.data()))
+    throw IoError(path, "cannot read pixels: " + in->geterror());
+  in->close();
+  RgbImage img;
+  img.rows = spec.height;
+  img.cols = spec.width;
+  img.rgb.resize(static_cast<size_t>(3 * img.rows * img.cols));
+  const bool gray = channels < 3;
+  for (Index i = 0; i < img.rows * img.cols; ++i)
+    for (int c = 0; c < 3; ++c) img.rgb[size_t(3 * i + c)] = buffer[size_t(i * channels + (gray ? 0 : c))];
+  return img;
+}
+
 Image ReadImage(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");

@@ -18,6 +18,7 @@
 // When hi <= lo (a constant image, or all pixels non-finite) every pixel maps to 0.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,22 @@ Image ApplyStretch(const Image& img, const ViewOptions& options);
 // Writes ApplyStretch(img, options) as a grayscale PNG (.png) or TIFF (.tif, .tiff), case-insensitive
 // extension; InvalidArgument naming any other extension, or bits = 32 for PNG, or an empty image.
 void WriteViewImage(const std::string& path, const Image& img, const ViewOptions& options = {});
+
+// An 8-bit colour raster for figures (plots, annotated pictures): rows x cols pixels, row 0 at the top, each
+// pixel three bytes R, G, B, row-major and interleaved: pixel (y, x) channel c is rgb[3 * (y * cols + x) + c].
+struct RgbImage {
+  Index rows = 0;
+  Index cols = 0;
+  std::vector<std::uint8_t> rgb;
+};
+
+// Writes an RgbImage as an 8-bit RGB PNG (.png) or TIFF (.tif, .tiff), atomically. InvalidArgument for another
+// extension, an empty image or rgb.size() != 3 * rows * cols.
+void WriteRgbImage(const std::string& path, const RgbImage& img);
+
+// Reads any image file OpenImageIO can read as 8-bit RGB (grayscale is replicated to the three channels; an
+// alpha channel and channels past the third are dropped). For checking figures; ReadImage is the science reader.
+RgbImage ReadRgbImage(const std::string& path);
 
 // Reads a FITS file (.fits/.fit/.fts or a file starting with "SIMPLE  =") with ReadFitsImage, and
 // anything else OpenImageIO can read (PNG, TIFF, JPEG, PNM, ...) as grayscale double:
