@@ -12,6 +12,7 @@
 #include "aosr/core/fft.hpp"
 #include "aosr/core/memory.hpp"
 #include "aosr/core/parallel.hpp"
+#include "aosr/scene/dataset.hpp"
 
 namespace aosr::cli {
 
@@ -55,6 +56,46 @@ void CheckWritableFile(const std::string& path) {
   const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
   if (!fs::is_directory(dir, ec)) throw IoError(path, "its folder " + dir.string() + " does not exist");
 }
+
+std::set<std::filesystem::path> DatasetInputFiles(const Dataset& d) {
+  namespace fs = std::filesystem;
+  std::set<fs::path> in;
+  const fs::path manifest = fs::weakly_canonical(d.manifest_path);
+  in.insert(manifest);
+  for (const char* key : {"frames", "valid", "weights", "psfs", "nominal_psfs", "truth", "expected", "scene"})
+    if (d.manifest.contains(key) && d.manifest[key].is_string()) {
+      fs::path p = d.manifest[key].get<std::string>();
+      if (p.is_relative()) p = manifest.parent_path() / p;
+      in.insert(fs::weakly_canonical(p));
+    }
+  return in;
+}
+
+namespace {
+std::string& CommandLineStorage() {
+  static std::string line;
+  return line;
+}
+}  // namespace
+
+void SetCommandLine(int argc, const char* const* argv) {
+  std::string line;
+  for (int i = 0; i < argc; ++i) {
+    const std::string a = argv[i];
+    const bool plain = !a.empty() && a.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ"
+                                                          "0123456789-_./=,:+@%") == std::string::npos;
+    std::string q = a;
+    if (!plain) {
+      q = "'";
+      for (char c : a) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+      q += "'";
+    }
+    line += (i ? " " : "") + q;
+  }
+  CommandLineStorage() = line;
+}
+
+const std::string& CommandLine() { return CommandLineStorage(); }
 
 std::string JoinPath(const std::string& dir, const std::string& name) {
   return (std::filesystem::path(dir) / name).string();

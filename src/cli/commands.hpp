@@ -13,5 +13,6 @@ void RegisterEvaluate(CLI::App& app);
 void RegisterDesign(CLI::App& app);
 void RegisterCalibrate(CLI::App& app);
 void RegisterReconstruct(CLI::App& app);
+void RegisterTradeoff(CLI::App& app);
 
 }  // namespace aosr::cli

@@ -6,6 +6,7 @@
 #include <new>
 
 #include "aosr/core/error.hpp"
+#include "cli_util.hpp"
 #include "commands.hpp"
 
 int main(int argc, char** argv) {
@@ -22,6 +23,8 @@ int main(int argc, char** argv) {
   aosr::cli::RegisterDesign(app);
   aosr::cli::RegisterCalibrate(app);
   aosr::cli::RegisterReconstruct(app);
+  aosr::cli::RegisterTradeoff(app);
+  aosr::cli::SetCommandLine(argc, argv);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -52,20 +52,6 @@ struct ReconstructArgs {
   ExecutionArgs exec;
 };
 
-// The dataset's files, resolved: the output must not be one of them.
-std::set<fs::path> InputFiles(const Dataset& d) {
-  std::set<fs::path> in;
-  const fs::path manifest = fs::weakly_canonical(d.manifest_path);
-  in.insert(manifest);
-  for (const char* key : {"frames", "valid", "weights", "psfs", "nominal_psfs", "truth", "expected", "scene"})
-    if (d.manifest.contains(key) && d.manifest[key].is_string()) {
-      fs::path p = d.manifest[key].get<std::string>();
-      if (p.is_relative()) p = manifest.parent_path() / p;
-      in.insert(fs::weakly_canonical(p));
-    }
-  return in;
-}
-
 std::string AuxPath(const std::string& out, const std::string& aux) {
   fs::path p(out);
   const std::string stem = p.stem().string();
@@ -117,7 +103,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   progress.Step("reading " + a.dataset);
   const Dataset d = LoadDataset(a.dataset);
   const fs::path out_canonical = fs::weakly_canonical(a.out);
-  const std::set<fs::path> inputs = InputFiles(d);
+  const std::set<fs::path> inputs = DatasetInputFiles(d);
   for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std")})
     if (inputs.count(fs::weakly_canonical(p)))
       throw InvalidArgument("aosr reconstruct", "-o", a.out, "a path that is not one of the dataset's input files (" + p + ")");
