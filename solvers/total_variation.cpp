@@ -21,6 +21,8 @@ const char* ToString(TotalVariationXUpdate x_update) {
       return "auto";
     case TotalVariationXUpdate::kFourier:
       return "fourier";
+    case TotalVariationXUpdate::kFourierSplit:
+      return "fourier-split";
     case TotalVariationXUpdate::kConjugateGradient:
       return "conjugate-gradient";
   }
@@ -55,159 +57,9 @@ bool TotalVariationOptions::IsValid(std::string* why) const {
   if (cg_max_iterations < 1)
     return fail("cg_max_iterations must be >= 1, got " + ToString(cg_max_iterations));
   if (x_update != TotalVariationXUpdate::kAuto && x_update != TotalVariationXUpdate::kFourier &&
-      x_update != TotalVariationXUpdate::kConjugateGradient)
-    return fail("x_update must be auto, fourier or conjugate-gradient");
+      x_update != TotalVariationXUpdate::kFourierSplit && x_update != TotalVariationXUpdate::kConjugateGradient)
+    return fail("x_update must be auto, fourier, fourier-split or conjugate-gradient");
   return true;
-}
-
-// ---------------------------------------------------------------------------------------------------------
-// FourierNormalSystem
-
-namespace {
-
-// Symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx):
-// |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 sin²(π f_y/M_y) + 4 sin²(π f_x/M_x).
-double GradientSymbol(Shape hr, Index fy, Index fx) {
-  const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
-  const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
-  return 4.0 * (sy * sy + sx * sx);
-}
-
-// Solves L Lᴴ x = b in place (v: b in, x out) for the lower factor L stored row-major with 1/L_ii on its
-// diagonal. RR > 0 is the size at compile time; 0 means `n` at run time.
-template <int RR>
-void CholeskySubstitution(const Complex* l, int n, Complex* v) {
-  const int size = RR > 0 ? RR : n;
-  for (int i = 0; i < size; ++i) {  // L w = b
-    Complex s = v[i];
-    for (int j = 0; j < i; ++j) s -= l[i * size + j] * v[j];
-    v[i] = s * l[i * size + i].real();
-  }
-  for (int i = size - 1; i >= 0; --i) {  // Lᴴ x = w
-    Complex s = v[i];
-    for (int j = i + 1; j < size; ++j) s -= std::conj(l[j * size + i]) * v[j];
-    v[i] = s * l[i * size + i].real();
-  }
-}
-
-}  // namespace
-
-FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double data_weight)
-    : hr_(model.hr_shape()), lr_(model.lr_shape()), r_(model.r()) {
-  CheckArgument(std::isfinite(data_weight) && data_weight > 0, "FourierNormalSystem", "data_weight",
-                data_weight, "finite and > 0");
-  const int rr = r_ * r_;
-  const Index bins = lr_.size();
-  gram_.resize(bins * rr * rr);
-  symbol_.resize(bins * rr);
-  const double scale = double(rr) * data_weight;  // F(AᵀA x) = r² A(u)ᴴA(u) X(u) per bin (Parseval)
-  for (Index uy = 0; uy < lr_.rows; ++uy)
-    for (Index ux = 0; ux < lr_.cols; ++ux) {
-      const Index bin = uy * lr_.cols + ux;
-      const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
-      const Eigen::MatrixXcd g = scale * (a.adjoint() * a);
-      for (int i = 0; i < rr; ++i)
-        for (int j = 0; j < rr; ++j) gram_[(bin * rr + i) * rr + j] = g(i, j);
-      for (int ky = 0; ky < r_; ++ky)
-        for (int kx = 0; kx < r_; ++kx)
-          symbol_[bin * rr + ky * r_ + kx] = GradientSymbol(hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
-    }
-}
-
-void FourierNormalSystem::Factorize(double gradient_weight, double identity_weight) {
-  CheckArgument(std::isfinite(gradient_weight) && gradient_weight >= 0, "FourierNormalSystem::Factorize",
-                "gradient_weight", gradient_weight, "finite and >= 0");
-  CheckArgument(std::isfinite(identity_weight) && identity_weight >= 0, "FourierNormalSystem::Factorize",
-                "identity_weight", identity_weight, "finite and >= 0");
-  const int rr = r_ * r_;
-  const Index bins = lr_.size();
-  factor_.assign(bins * rr * rr, Complex(0));
-  pseudo_inverse_.assign(bins, Eigen::MatrixXcd());
-  singular_bins_ = 0;
-  Eigen::MatrixXcd k(rr, rr);
-  for (Index bin = 0; bin < bins; ++bin) {
-    for (int i = 0; i < rr; ++i)
-      for (int j = 0; j < rr; ++j) k(i, j) = gram_[(bin * rr + i) * rr + j];
-    for (int i = 0; i < rr; ++i) k(i, i) += gradient_weight * symbol_[bin * rr + i] + identity_weight;
-    const double scale = k.diagonal().real().cwiseAbs().maxCoeff();
-    const Eigen::LLT<Eigen::MatrixXcd> llt(k);
-    bool ok = llt.info() == Eigen::Success && scale > 0;
-    if (ok) {
-      const Eigen::MatrixXcd l = llt.matrixL();
-      // A pivot below 1e-12 of the largest diagonal entry means the matrix is singular to rounding:
-      // the Cholesky "solution" would be noise of size 1e12. Use the pseudo-inverse instead.
-      for (int i = 0; i < rr && ok; ++i) ok = std::norm(l(i, i)) > 1e-12 * scale;
-      if (ok)  // the diagonal of L is real and positive: store 1/L_ii there (no complex division in Solve)
-        for (int i = 0; i < rr; ++i)
-          for (int j = 0; j <= i; ++j)
-            factor_[(bin * rr + i) * rr + j] = i == j ? 1.0 / l(i, i).real() : l(i, j);
-    }
-    if (!ok) {
-      ++singular_bins_;
-      const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd> eig(k);
-      const Eigen::VectorXd& ev = eig.eigenvalues();
-      const double floor = 1e-12 * std::max(ev.cwiseAbs().maxCoeff(), 0.0);
-      Eigen::VectorXd inv = Eigen::VectorXd::Zero(rr);
-      for (int i = 0; i < rr; ++i)
-        if (ev[i] > floor && ev[i] > 0) inv[i] = 1.0 / ev[i];
-      pseudo_inverse_[bin] = eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().adjoint();
-    }
-  }
-  factorized_ = true;
-}
-
-Image FourierNormalSystem::Solve(const Image& rhs) const {
-  if (!factorized_) throw InvalidArgument("FourierNormalSystem::Solve: call Factorize first");
-  CheckArgument(ShapeOf(rhs) == hr_, "FourierNormalSystem::Solve", "rhs shape", ToString(ShapeOf(rhs)),
-                "the HR shape " + ToString(hr_));
-  CheckArgument(AllFinite(rhs), "FourierNormalSystem::Solve", "rhs", "(non-finite values)", "finite values");
-  const int rr = r_ * r_;
-  // The rhs is real, so its spectrum is Hermitian and the half spectrum (columns 0 .. M_x/2) holds it all:
-  // a bin's aliased value at a column beyond M_x/2 is the conjugate of the mirrored stored one. Every HR
-  // frequency belongs to exactly one bin, so each stored value is written back exactly once.
-  ComplexImage half = FftR2C(rhs);
-  const Index half_cols = half.cols();
-  auto get = [&](Index fy, Index fx) {
-    return fx < half_cols ? half(fy, fx) : std::conj(half((hr_.rows - fy) % hr_.rows, hr_.cols - fx));
-  };
-  Complex work[64];  // r² <= 64 covers r <= 8; larger r uses a heap buffer
-  std::vector<Complex> heap;
-  Complex* v = work;
-  if (rr > 64) {
-    heap.resize(rr);
-    v = heap.data();
-  }
-  // Solutions go to a separate half spectrum: a bin may read the mirror of a value another bin writes.
-  ComplexImage out(half.rows(), half_cols);
-  for (Index uy = 0; uy < lr_.rows; ++uy)
-    for (Index ux = 0; ux < lr_.cols; ++ux) {
-      const Index bin = uy * lr_.cols + ux;
-      for (int ky = 0; ky < r_; ++ky)
-        for (int kx = 0; kx < r_; ++kx) v[ky * r_ + kx] = get(uy + ky * lr_.rows, ux + kx * lr_.cols);
-      if (pseudo_inverse_[bin].size() == 0) {
-        const Complex* l = &factor_[bin * rr * rr];
-        switch (rr) {  // fixed sizes let the compiler unroll the common r = 2, 3
-          case 4:
-            CholeskySubstitution<4>(l, rr, v);
-            break;
-          case 9:
-            CholeskySubstitution<9>(l, rr, v);
-            break;
-          default:
-            CholeskySubstitution<0>(l, rr, v);
-            break;
-        }
-      } else {
-        const Eigen::VectorXcd x = pseudo_inverse_[bin] * Eigen::Map<const Eigen::VectorXcd>(v, rr);
-        for (int i = 0; i < rr; ++i) v[i] = x[i];
-      }
-      for (int ky = 0; ky < r_; ++ky)
-        for (int kx = 0; kx < r_; ++kx) {
-          const Index fx = ux + kx * lr_.cols;
-          if (fx < half_cols) out(uy + ky * lr_.rows, fx) = v[ky * r_ + kx];
-        }
-    }
-  return FftC2R(out, hr_.cols);
 }
 
 // ---------------------------------------------------------------------------------------------------------
@@ -278,6 +130,158 @@ double AutomaticRho(const ReconstructionProblem& problem) {
   return rho > 0 && std::isfinite(rho) ? rho : 1.0;
 }
 
+// The x-update strategies. Each owns the data term's part of the ADMM: the x-subproblem
+//   x ← argmin f_data(x) + ρ/2 ||∇x − z + u||² + ρ_v/2 ||x − v + s||²
+// for the current ρ, ρ_v, and (split only) its own splitting variables and their residuals.
+class XUpdate {
+ public:
+  virtual ~XUpdate() = default;
+  // The system for a new ρ (ρ_v = ρ with positivity, else 0).
+  virtual void Prepare(double rho, double rho_v) = 0;
+  // x from prior_rhs = ρ∇ᵀ(z − u) + ρ_v(v − s); false if it failed (x is then overwritten by the caller).
+  virtual bool Solve(const Vector& prior_rhs, Vector* x) = 0;
+  // After the x-update: the split data block's own updates with relaxation α (nothing otherwise).
+  virtual void UpdateSplit(double /*alpha*/) {}
+  // ρ changed by `factor`: scaled duals shrink by it (the unscaled ones are unchanged).
+  virtual void RescaleDual(double /*factor*/) {}
+  // The split block's contributions (its constraint is √κ (Ax − ω) = 0): primal² κ||Ax − ω||², κ||Ax||²,
+  // κ||ω||², and a bound on its part of the dual residual, ρκ ||A||₂ ||ω − ω_prev|| >= ρκ ||Aᵀ(ω − ω_prev)||.
+  struct Split {
+    double primal2 = 0, kx2 = 0, zeta2 = 0, dual = 0;
+  };
+  virtual Split SplitResiduals(double /*rho*/) const { return {}; }
+  virtual std::string Report() const { return ""; }
+};
+
+// Uniform weights w: (w AᵀA + ρ∇ᵀ∇ + ρ_v I) x = w Aᵀy + prior_rhs, exact per bin.
+class FourierXUpdate final : public XUpdate {
+ public:
+  FourierXUpdate(const MultiFrameModel& model, double w, Vector aty, TotalVariationSummary* s)
+      : system_(model, w), aty_(std::move(aty)), hr_(model.hr_shape()), summary_(s) {}
+  void Prepare(double rho, double rho_v) override {
+    system_.Factorize(rho, rho_v);
+    summary_->singular_bins = std::max(summary_->singular_bins, system_.singular_bins());
+  }
+  bool Solve(const Vector& prior_rhs, Vector* x) override {
+    *x = AsVector(system_.Solve(AsImage(Vector(aty_ + prior_rhs), hr_)));
+    return true;
+  }
+  std::string Report() const override {
+    return " (" + std::to_string(system_.woodbury_bins()) + " of " + std::to_string(system_.bins()) +
+           " bins in Woodbury form)";
+  }
+
+ private:
+  FourierNormalSystem system_;
+  Vector aty_;
+  Shape hr_;
+  TotalVariationSummary* summary_;
+};
+
+// Any weights: matrix-free CG on (AᵀWA + ρ∇ᵀ∇ + ρ_v I), warm-started from the previous x.
+class CgXUpdate final : public XUpdate {
+ public:
+  CgXUpdate(const ReconstructionProblem& problem, const Vector& weights, Vector aty,
+            const TotalVariationOptions& options, TotalVariationSummary* s)
+      : aty_(std::move(aty)), n_(problem.model->hr_shape().size()), summary_(s) {
+    const MultiFrameModel& model = *problem.model;
+    const Shape stacked{Index(model.frames()) * model.lr_shape().rows, model.lr_shape().cols};
+    data_normal_ = Normal(Compose(Mask(ToImage(weights.cwiseSqrt(), stacked)), model.Operator()));
+    grad_normal_ = Normal(Gradient(model.hr_shape(), Boundary::kPeriodic));
+    cg_.tolerance = options.cg_tolerance;
+    cg_.max_iterations = options.cg_max_iterations;
+  }
+  void Prepare(double rho, double rho_v) override {
+    std::vector<OperatorPtr> parts = {data_normal_, Scale(rho, grad_normal_)};
+    if (rho_v > 0) parts.push_back(Scale(rho_v, Identity(n_)));
+    normal_ = Sum(parts);
+  }
+  bool Solve(const Vector& prior_rhs, Vector* x) override {
+    const SolverSummary cg = ConjugateGradient(*normal_, Vector(aty_ + prior_rhs), x, cg_);
+    summary_->cg_iterations += cg.iterations;
+    if (cg.termination == Termination::kMaxIterations) ++summary_->cg_unconverged;
+    return cg.termination != Termination::kFailed;
+  }
+  std::string Report() const override {
+    return " (" + std::to_string(summary_->cg_iterations) + " CG steps, " +
+           std::to_string(summary_->cg_unconverged) + " unconverged)";
+  }
+
+ private:
+  Vector aty_;
+  Index n_;
+  TotalVariationSummary* summary_;
+  OperatorPtr data_normal_, grad_normal_, normal_;
+  ConjugateGradientOptions cg_;
+};
+
+// Any weights, exact per bin: the data term is split off as ω = Ax (Almeida & Figueiredo 2013, "Deconvolving
+// images with unknown boundaries using the alternating direction method of multipliers", IEEE TIP 22(8)).
+// The constraint √κ (Ax − ω) = 0 joins ∇x = z (and x = v) under the same penalty ρ, so this is plain ADMM
+// with one penalty and the stopping rule and residual balancing apply unchanged; t is its scaled dual:
+//   x ← (κ AᵀA + ∇ᵀ∇ + [pos] I)⁻¹ (κ Aᵀ(ω − t) + ∇ᵀ(z − u) + [pos] (v − s))     independent of ρ
+//   â ← α Ax + (1 − α) ω;   ω ← (W∘y + ρκ (â + t)) / (W + ρκ)   per pixel (W = 0: masked, ω = â + t);
+//   t ← t + â − ω.
+// κ = w̄ / ρ₀ (w̄ the mean positive weight, ρ₀ the initial ρ) makes the x-update matrix at ρ₀ the one the
+// uniform path would use at weight w̄. The matrix does not depend on ρ, so it is factorised once; Ax comes
+// out of the same per-bin solve.
+class SplitXUpdate final : public XUpdate {
+ public:
+  SplitXUpdate(const ReconstructionProblem& problem, const Vector& weights, const Vector& y, const Vector& x0,
+               double rho0, bool positivity)
+      : model_(*problem.model), weights_(weights), wy_(weights.cwiseProduct(y)), hr_(model_.hr_shape()) {
+    double sum = 0;
+    Index count = 0;
+    for (Index p = 0; p < weights.size(); ++p)
+      if (weights[p] > 0) sum += weights[p], ++count;
+    kappa_ = (count > 0 ? sum / double(count) : 1.0) / rho0;
+    system_ = std::make_unique<FourierNormalSystem>(model_, kappa_);
+    system_->Factorize(1.0, positivity ? 1.0 : 0.0);
+    ax_ = model_.Operator()->Apply(x0);
+    omega_ = ax_;
+    omega_prev_ = omega_;
+    t_ = Vector::Zero(ax_.size());
+  }
+  void Prepare(double rho, double /*rho_v*/) override { rho_ = rho; }
+  bool Solve(const Vector& prior_rhs, Vector* x) override {
+    Image xi;
+    ImageStack ax;
+    system_->SolveWithData(AsImage(Vector(prior_rhs / rho_), hr_), model_.Unflatten(omega_ - t_), &xi, &ax);
+    *x = AsVector(xi);
+    ax_ = model_.Flatten(ax);
+    return true;
+  }
+  void UpdateSplit(double alpha) override {
+    omega_prev_ = omega_;
+    const double c = rho_ * kappa_;
+    const Vector ahat = alpha * ax_ + (1 - alpha) * omega_prev_;
+    const Vector q = ahat + t_;
+    omega_ = (wy_ + c * q).cwiseQuotient(weights_ + Vector::Constant(q.size(), c));
+    t_ += ahat - omega_;
+  }
+  void RescaleDual(double factor) override { t_ /= factor; }
+  Split SplitResiduals(double rho) const override {
+    Split s;
+    s.primal2 = kappa_ * (ax_ - omega_).squaredNorm();
+    s.kx2 = kappa_ * ax_.squaredNorm();
+    s.zeta2 = kappa_ * omega_.squaredNorm();
+    s.dual = rho * kappa_ * system_->ModelNorm() * (omega_ - omega_prev_).norm();
+    return s;
+  }
+  std::string Report() const override {
+    return " (data split, kappa " + ToString(kappa_) + "; " + std::to_string(system_->woodbury_bins()) +
+           " of " + std::to_string(system_->bins()) + " bins in Woodbury form)";
+  }
+
+ private:
+  const MultiFrameModel& model_;
+  Vector weights_, wy_;
+  Shape hr_;
+  double kappa_ = 1, rho_ = 1;
+  std::unique_ptr<FourierNormalSystem> system_;
+  Vector ax_, omega_, omega_prev_, t_;
+};
+
 }  // namespace
 
 Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariationOptions& options,
@@ -297,15 +301,16 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   if (options.x_update == TotalVariationXUpdate::kFourier && !uniform)
     throw InvalidArgument(
         kFunction, "options.x_update", "fourier",
-        "auto or conjugate-gradient when the weights are not uniform (masked or varying pixels)");
-  const bool fourier = options.x_update == TotalVariationXUpdate::kFourier ||
-                       (options.x_update == TotalVariationXUpdate::kAuto && uniform);
+        "auto, fourier-split or conjugate-gradient when the weights are not uniform (masked or varying pixels)");
+  TotalVariationXUpdate path = options.x_update;
+  if (path == TotalVariationXUpdate::kAuto)
+    path = uniform ? TotalVariationXUpdate::kFourier : TotalVariationXUpdate::kFourierSplit;
   const auto start = std::chrono::steady_clock::now();
 
   TotalVariationSummary s;
   s.method = "tv";
   s.mu = options.mu;
-  s.x_update = fourier ? TotalVariationXUpdate::kFourier : TotalVariationXUpdate::kConjugateGradient;
+  s.x_update = path;
 
   // Data: AᵀW y with unweighted pixels zeroed (they are never read, problem.hpp).
   const OperatorPtr& a = model.Operator();
@@ -314,35 +319,21 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   const Vector aty = a->ApplyAdjoint(weights.cwiseProduct(y));
   const OperatorPtr grad = Gradient(hr, Boundary::kPeriodic);
 
-  // x-update machinery for the current ρ.
-  double rho = options.rho > 0 ? options.rho : AutomaticRho(problem);
-  s.initial_rho = rho;
-  const bool pos = options.positivity;
-  std::unique_ptr<FourierNormalSystem> fourier_system;
-  OperatorPtr data_normal, cg_normal;
-  if (fourier) {
-    fourier_system = std::make_unique<FourierNormalSystem>(model, weights[0]);
-  } else {
-    const Shape stacked{Index(model.frames()) * model.lr_shape().rows, model.lr_shape().cols};
-    data_normal = Normal(Compose(Mask(ToImage(weights.cwiseSqrt(), stacked)), a));
-  }
-  auto prepare = [&](double rho_now) {
-    if (fourier) {
-      fourier_system->Factorize(rho_now, pos ? rho_now : 0.0);
-      s.singular_bins = std::max(s.singular_bins, fourier_system->singular_bins());
-    } else {
-      std::vector<OperatorPtr> parts = {data_normal, Scale(rho_now, Normal(grad))};
-      if (pos) parts.push_back(Scale(rho_now, Identity(n)));
-      cg_normal = Sum(parts);
-    }
-  };
-  prepare(rho);
-  ConjugateGradientOptions cg_options;
-  cg_options.tolerance = options.cg_tolerance;
-  cg_options.max_iterations = options.cg_max_iterations;
-
   // State: x, z = ∇x (+ u), v = x (+ s). Start consistent with x, duals at zero.
   Vector x = initial ? Vector(AsVector(*initial)) : Vector(Vector::Zero(n));
+  double rho = options.rho > 0 ? options.rho : AutomaticRho(problem);
+  s.initial_rho = rho;
+  std::unique_ptr<XUpdate> x_update;
+  if (path == TotalVariationXUpdate::kFourier)
+    x_update = std::make_unique<FourierXUpdate>(model, weights[0], aty, &s);
+  else if (path == TotalVariationXUpdate::kFourierSplit)
+    x_update = std::make_unique<SplitXUpdate>(problem, weights, y, x, rho, options.positivity);
+  else
+    x_update = std::make_unique<CgXUpdate>(problem, weights, aty, options, &s);
+
+  const bool pos = options.positivity;
+  x_update->Prepare(rho, pos ? rho : 0.0);
+
   Vector gx = grad->Apply(x);
   Vector z = gx, u = Vector::Zero(2 * n);
   Vector v, sv;
@@ -352,7 +343,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   }
   const double alpha = options.relaxation;
   const double sqrt_p = std::sqrt(double((pos ? 3 : 2) * n)), sqrt_n = std::sqrt(double(n));
-  // Work vectors, allocated once (an iteration allocates only inside the FFTs).
+  // Work vectors, allocated once.
   Vector rhs(n), x_prev(n), z_prev(2 * n), v_prev(pos ? n : 0), vhat(pos ? n : 0), dual(n), ktu(n),
       diff(2 * n);
 
@@ -368,11 +359,11 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   if (failed)
     s.message = "the data are too large for double precision (||AᵀWy||² overflows); rescale the frames";
   for (int k = 0; !failed && k < options.max_iterations; ++k) {
-    // x-update: (AᵀWA + ρ∇ᵀ∇ + ρ_v I) x = AᵀWy + ρ∇ᵀ(z − u) + ρ_v(v − s).
+    // x-update: the data term's system with right-hand side ρ∇ᵀ(z − u) + ρ_v(v − s).
     x_prev = x;
     diff = z - u;
     grad->ApplyAdjoint(diff, rhs);
-    rhs = aty + rho * rhs;
+    rhs *= rho;
     if (pos) rhs += rho * (v - sv);
     if (!std::isfinite(rhs.squaredNorm())) {
       failed = true;
@@ -380,15 +371,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
                   std::to_string(k + 1) + "; returned the last finite iterate";
       break;
     }
-    if (fourier) {
-      const Image xi = fourier_system->Solve(AsImage(rhs, hr));
-      x = AsVector(xi);
-    } else {
-      const SolverSummary cg = ConjugateGradient(*cg_normal, rhs, &x, cg_options);
-      s.cg_iterations += cg.iterations;
-      if (cg.termination == Termination::kMaxIterations) ++s.cg_unconverged;
-      if (cg.termination == Termination::kFailed) x.setConstant(std::numeric_limits<double>::quiet_NaN());
-    }
+    if (!x_update->Solve(rhs, &x)) x.setConstant(std::numeric_limits<double>::quiet_NaN());
     if (!x.allFinite()) {
       x = x_prev;
       failed = true;
@@ -397,7 +380,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
       break;
     }
 
-    // z-update (relaxed), dual update.
+    // z-update (relaxed), dual update; the split data block likewise.
     grad->Apply(x, gx);
     z_prev = z;
     diff = alpha * gx + (1 - alpha) * z_prev;  // ĝ
@@ -410,9 +393,14 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
       v = (vhat + sv).cwiseMax(0.0);
       sv += vhat - v;
     }
+    x_update->UpdateSplit(alpha);
 
-    // Residuals and tolerances (Boyd §3.3.1).
-    double primal2 = (gx - z).squaredNorm(), kx2 = gx.squaredNorm(), zeta2 = z.squaredNorm();
+    // Residuals and tolerances (Boyd §3.3.1; the split block's dual part is bounded, so the rule never
+    // stops early. Its ε_dual keeps the scale ρ||∇ᵀu + s||: with the data split off, the full Kᵀ(ρu) tends
+    // to 0 at the optimum and would make the relative tolerance vanish.)
+    const XUpdate::Split split = x_update->SplitResiduals(rho);
+    double primal2 = (gx - z).squaredNorm() + split.primal2, kx2 = gx.squaredNorm() + split.kx2,
+           zeta2 = z.squaredNorm() + split.zeta2;
     diff = z - z_prev;
     grad->ApplyAdjoint(diff, dual);
     if (pos) {
@@ -422,7 +410,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
       dual += v - v_prev;
     }
     const double primal = std::sqrt(primal2);
-    const double dual_res = rho * dual.norm();
+    const double dual_res = rho * dual.norm() + split.dual;
     grad->ApplyAdjoint(u, ktu);
     if (pos) ktu += sv;
     const double eps_pri =
@@ -483,8 +471,9 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
         rho *= factor;
         u /= factor;  // the unscaled dual ρu is unchanged
         if (pos) sv /= factor;
+        x_update->RescaleDual(factor);
         ++s.rho_updates;
-        prepare(rho);
+        x_update->Prepare(rho, pos ? rho : 0.0);
       }
     }
   }
@@ -508,8 +497,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
     msg << s.message;
   msg << "; primal " << s.primal_residual << " (tol " << s.primal_tolerance << "), dual " << s.dual_residual
       << " (tol " << s.dual_tolerance << "); rho " << s.initial_rho << " -> " << rho << " (" << s.rho_updates
-      << " updates); x-update " << ToString(s.x_update);
-  if (!fourier) msg << " (" << s.cg_iterations << " CG steps, " << s.cg_unconverged << " unconverged)";
+      << " updates); x-update " << ToString(s.x_update) << x_update->Report();
   if (s.singular_bins > 0) msg << "; " << s.singular_bins << " singular bins (pseudo-inverse)";
   s.message = msg.str();
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -107,6 +107,14 @@ TEST(TotalVariationErrorsTest, FourierNormalSystemChecksItsArguments) {
   Image nan = Image::Zero(8, 8);
   nan(0, 0) = kNaN;
   EXPECT_THAT(ErrorOf([&] { system.Solve(nan); }), HasSubstr("rhs"));
+  Image x;
+  const ImageStack v(p.frames.size(), Image::Zero(p.model->lr_shape().rows, p.model->lr_shape().cols));
+  EXPECT_THAT(ErrorOf([&] { system.SolveWithData(Image::Zero(8, 8), ImageStack(1, v[0]), &x, nullptr); }),
+              HasSubstr("v frames"));
+  ImageStack bad = v;
+  bad[0](0, 0) = kNaN;
+  EXPECT_THAT(ErrorOf([&] { system.SolveWithData(Image::Zero(8, 8), bad, &x, nullptr); }), HasSubstr("v"));
+  EXPECT_THAT(ErrorOf([&] { system.SolveWithData(Image::Zero(8, 8), v, nullptr, nullptr); }), HasSubstr("x"));
 }
 
 TEST(TotalVariationErrorsTest, ObjectiveChecksItsArguments) {

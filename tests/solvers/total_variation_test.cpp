@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <memory>
 #include <random>
@@ -143,6 +144,60 @@ TEST(TotalVariationTest, FourierAndConjugateGradientPathsReachTheSameOptimum) {
   EXPECT_LT(RelativeDifference(xf, xc), 1e-4);
 }
 
+// Photon-noise-like weights (varying over two decades) and masked pixels: the split-data path and CG on the
+// unsplit system solve the same convex problem, so they reach the same optimum, and the split path's
+// stopping rule (whose dual part is a bound) does not stop early: its objective is as low as CG's.
+TEST(TotalVariationTest, SplitDataPathAndConjugateGradientAgreeOnWeightedMaskedData) {
+  for (bool positivity : {false, true}) {
+    ReconstructionProblem p = SmallProblem();
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> decades(-1.0, 1.0);
+    p.weights.clear();
+    for (std::size_t i = 0; i < p.frames.size(); ++i) {
+      Image w(16, 16);
+      for (Index k = 0; k < w.size(); ++k) w.data()[k] = 400.0 * std::pow(10.0, decades(rng));
+      w(3, 4 + int(i)) = 0.0;  // a bad pixel per frame
+      p.weights.push_back(w);
+    }
+    p.frames[1](3, 5) = std::numeric_limits<double>::quiet_NaN();
+    TotalVariationOptions o;
+    o.mu = 20.0;
+    o.positivity = positivity;
+    o.relative_tolerance = 1e-7;
+    o.max_iterations = 20000;
+    TotalVariationSummary ss, sc;
+    o.x_update = TotalVariationXUpdate::kFourierSplit;
+    const Image xs = TotalVariationAdmm(p, o, &ss);
+    o.x_update = TotalVariationXUpdate::kConjugateGradient;
+    const Image xc = TotalVariationAdmm(p, o, &sc);
+    ASSERT_EQ(ss.termination, Termination::kConverged) << ss.BriefReport();
+    ASSERT_EQ(sc.termination, Termination::kConverged) << sc.BriefReport();
+    EXPECT_EQ(ss.x_update, TotalVariationXUpdate::kFourierSplit);
+    EXPECT_EQ(ss.cg_iterations, 0);
+    EXPECT_LT(RelativeDifference(xs, xc), 1e-4) << "positivity " << positivity;
+    EXPECT_LT(std::abs(ss.final_cost - sc.final_cost) / sc.final_cost, 1e-5) << "positivity " << positivity;
+    std::printf("positivity %d: split %d iterations, CG %d iterations (%d CG steps)\n", int(positivity),
+                ss.iterations, sc.iterations, sc.cg_iterations);
+  }
+}
+
+// With uniform weights the split path solves the same problem as the exact Fourier path.
+TEST(TotalVariationTest, SplitDataPathMatchesTheFourierPathOnUniformWeights) {
+  const ReconstructionProblem p = SmallProblem();
+  TotalVariationOptions o;
+  o.mu = 0.05;
+  o.relative_tolerance = 1e-7;
+  o.max_iterations = 20000;
+  TotalVariationSummary sf, ss;
+  o.x_update = TotalVariationXUpdate::kFourier;
+  const Image xf = TotalVariationAdmm(p, o, &sf);
+  o.x_update = TotalVariationXUpdate::kFourierSplit;
+  const Image xs = TotalVariationAdmm(p, o, &ss);
+  ASSERT_EQ(ss.termination, Termination::kConverged) << ss.BriefReport();
+  EXPECT_LT(RelativeDifference(xf, xs), 1e-4);
+  EXPECT_LT(std::abs(sf.final_cost - ss.final_cost) / sf.final_cost, 1e-6);
+}
+
 // A pixel with weight 0 is never read: a NaN there gives exactly what any finite value gives.
 TEST(TotalVariationTest, MaskedNaNPixelDoesNotChangeTheOutput) {
   ReconstructionProblem p = SmallProblem();
@@ -157,7 +212,7 @@ TEST(TotalVariationTest, MaskedNaNPixelDoesNotChangeTheOutput) {
   TotalVariationSummary sp, sq;
   const Image xp = TotalVariationAdmm(p, o, &sp);
   const Image xq = TotalVariationAdmm(q, o, &sq);
-  EXPECT_EQ(sp.x_update, TotalVariationXUpdate::kConjugateGradient);  // a mask breaks Fourier-diagonality
+  EXPECT_EQ(sp.x_update, TotalVariationXUpdate::kFourierSplit);  // a mask: the data term is split off
   ASSERT_TRUE(AllFinite(xp));
   EXPECT_LE((xp - xq).abs().maxCoeff(), 1e-12 * xq.abs().maxCoeff());
   EXPECT_EQ(sp.iterations, sq.iterations);
@@ -197,8 +252,8 @@ TEST(TotalVariationTest, ChangeToleranceStopsOnASmallStep) {
 // Valid but absurdly scaled data (|y| ~ 1e300: every squared norm overflows) cannot be solved in double
 // precision. That is reported as kFailed with a finite image, on both x-update paths; NaN never leaks.
 TEST(TotalVariationTest, DataTooLargeForDoublePrecisionFailWithAFiniteResult) {
-  for (TotalVariationXUpdate path :
-       {TotalVariationXUpdate::kFourier, TotalVariationXUpdate::kConjugateGradient}) {
+  for (TotalVariationXUpdate path : {TotalVariationXUpdate::kFourier, TotalVariationXUpdate::kFourierSplit,
+                                     TotalVariationXUpdate::kConjugateGradient}) {
     ReconstructionProblem p = SmallProblem();
     for (Image& f : p.frames) f *= 1e300;
     TotalVariationOptions o;

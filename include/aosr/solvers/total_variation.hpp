@@ -29,20 +29,29 @@
 //
 //     (r² w A(u)ᴴA(u) + ρ P(u) + ρ_v I) X(f_·) = B(f_·),   B = DFT of the right-hand side,
 //
-// an r² x r² Hermitian positive-definite solve. It is Cholesky-factorised once per value of ρ and reused
-// every iteration, so an iteration costs two HR FFTs, m² pairs of small triangular solves and a few
-// pixel-wise passes: the x-update is exact, not an inner iteration. With masked or varying weights the
-// system is not Fourier-diagonal and is solved by conjugate gradients (conjugate_gradient.hpp) on the
-// matrix-free operator, warm-started from the previous x. That CG is not preconditioned: each step costs
-// 4N FFTs (N = 4: 16), and on the tests an x-update took ~25 steps in the first hundred ADMM iterations and
-// ~6 on average over a solve to ε_rel = 1e-7, against 2 FFTs for the exact update.
+// solved exactly by fourier_normal_system.hpp (Woodbury N x N form where N < r², factorised once per value of
+// ρ), so an iteration costs two HR FFTs, m² small solves and a few pixel-wise passes.
+// With masked or varying weights (the normal case for measured and photon-noise data) the default splits the
+// data term off (x_update kFourierSplit): ω = Ax is a further ADMM variable with a fixed penalty ρ_ω (the mean
+// positive weight) and scaled dual t, so the x-update keeps the Fourier-exact system above at weight ρ_ω and
+// the weights enter only a per-pixel update:
+//
+//   x ← (ρ_ω AᵀA + ρ∇ᵀ∇ + ρ_v I)⁻¹ (ρ_ω Aᵀ(ω − t) + ρ∇ᵀ(z − u) + ρ_v(v − s)),
+//   â ← α Ax + (1 − α) ω,   ω ← (W∘y + ρ_ω(â + t)) / (W + ρ_ω),   t ← t + â − ω
+//
+// (Almeida & Figueiredo 2013, IEEE TIP 22(8), 3074). Ax comes out of the same per-bin solve, so an iteration
+// costs the two HR FFTs plus 2N LR FFTs (each r² times smaller). kConjugateGradient instead solves the unsplit
+// system (AᵀWA + ρ∇ᵀ∇ + ρ_v I) by unpreconditioned CG, warm-started: 4N HR FFTs per CG step and tens of steps
+// per x-update; it is kept as the reference the split path is tested against.
 //
 // Convergence in practice (measured, 64x64 HR, r = 2 and 3, μ near its PSNR-best value): 300–400
 // iterations to the default ε_rel = 1e-4, 1500–2000 to 1e-6, ADMM's usual slow linear tail. Small μ with
 // noise-free data, or μ far above the noise level, converge more slowly (thousands to 1e-5). Time per
 // iteration on one core: 0.16 ms (64x64 HR), 0.7 ms (128x128), 7 ms (256x256) for the exact update.
 //
-// Stopping rule (Boyd §3.3.1), with K = [∇; I] (the I row only with positivity), ζ = (z, v):
+// Stopping rule (Boyd §3.3.1), with K = [∇; I] (the I row only with positivity), ζ = (z, v); with the split
+// data block its residuals join, scaled by ρ_ω/ρ into the gradient block's units, and its part of the dual
+// residual is bounded by ρ_ω ||A||₂ ||ω − ω_prev|| (so the rule can only stop late, never early):
 //     primal residual  r = ||K x − ζ||,            ε_pri  = √p ε_abs + ε_rel max(||K x||, ||ζ||),
 //     dual residual    d = ρ ||Kᵀ(ζ − ζ_prev)||,   ε_dual = √n ε_abs + ε_rel ρ ||Kᵀ (u, s)||,
 // p = number of constraint rows (2n, or 3n with positivity), n = HR pixels. Converged when r ≤ ε_pri and
@@ -66,6 +75,7 @@
 #include <vector>
 
 #include "aosr/core/forward_model.hpp"
+#include "aosr/solvers/fourier_normal_system.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/summary.hpp"
 
@@ -74,8 +84,9 @@ namespace aosr {
 // How the ADMM x-update system is solved ("execution is not maths": both give the same iterates up to
 // the CG tolerance).
 enum class TotalVariationXUpdate {
-  kAuto,               // kFourier when problem.HasUniformWeights(), else kConjugateGradient
-  kFourier,            // exact per-frequency Cholesky; InvalidArgument unless weights are uniform
+  kAuto,               // kFourier when problem.HasUniformWeights(), else kFourierSplit
+  kFourier,            // exact per-frequency solve; InvalidArgument unless weights are uniform
+  kFourierSplit,       // data term split off (ω = Ax), exact per-frequency x-update; any weights
   kConjugateGradient,  // matrix-free CG on (AᵀWA + ρ∇ᵀ∇ + ρ_v I), warm-started; any weights
 };
 const char* ToString(TotalVariationXUpdate x_update);
@@ -180,35 +191,5 @@ double TotalVariationObjective(const ReconstructionProblem& problem, const Image
 // at 0. Returns x̂ (>= 0 when options.positivity).
 Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariationOptions& options = {},
                          TotalVariationSummary* summary = nullptr, const Image* initial = nullptr);
-
-// The ADMM x-update system with uniform data weight w > 0,
-//
-//     (w AᵀA + a ∇ᵀ∇ + b I) x = rhs,   a, b >= 0,
-//
-// solved exactly per LR frequency bin (see the top of this file): the r² x r² matrices
-// r² w A(u)ᴴA(u) + a P(u) + b I are Cholesky-factorised by Factorize and reused by every Solve. A bin
-// whose matrix is singular (a = b = 0 with rank-deficient A(u), or all OTFs zero at DC) gets its
-// minimum-norm solution via an eigen-decomposition pseudo-inverse and is counted in singular_bins().
-// Exposed so that tests can check it against CG and other splitting solvers can reuse it.
-class FourierNormalSystem {
- public:
-  // Precomputes r² w A(u)ᴴA(u) for every bin. w must be finite and > 0.
-  FourierNormalSystem(const MultiFrameModel& model, double data_weight);
-  // (Re)factorises for the given a, b (finite, >= 0). Cost: m² Cholesky factorisations of r² x r².
-  void Factorize(double gradient_weight, double identity_weight);
-  // x = (w AᵀA + a ∇ᵀ∇ + b I)⁻¹ rhs for an HR image rhs (finite). Requires a prior Factorize.
-  Image Solve(const Image& rhs) const;
-  Index singular_bins() const { return singular_bins_; }
-
- private:
-  Shape hr_, lr_;
-  int r_ = 1;
-  bool factorized_ = false;
-  Index singular_bins_ = 0;
-  std::vector<Complex> gram_;                     // per bin, r² x r² row-major: r² w A(u)ᴴA(u)
-  std::vector<double> symbol_;                    // per bin, r² values of P(u)
-  std::vector<Complex> factor_;                   // per bin, Cholesky L (row-major), 1/L_ii on the diagonal
-  std::vector<Eigen::MatrixXcd> pseudo_inverse_;  // per bin; non-empty only for singular bins
-};
 
 }  // namespace aosr

@@ -1,0 +1,340 @@
+#include "aosr/solvers/fourier_normal_system.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "aosr/core/error.hpp"
+#include "aosr/core/fft.hpp"
+#include "aosr/core/parallel.hpp"
+
+namespace aosr {
+
+namespace {
+
+// Largest tolerated Woodbury amplification ||B||²_F / min D (see the header): the subtraction in
+// D⁻¹v − D⁻¹BᴴK⁻¹BD⁻¹v loses about log10 of it in digits.
+constexpr double kWoodburyAmplification = 1e6;
+// Largest r² whose per-bin scratch lives on the stack.
+constexpr int kStackBins = 64;
+
+// Symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx):
+// |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 sin²(π f_y/M_y) + 4 sin²(π f_x/M_x).
+double GradientSymbol(Shape hr, Index fy, Index fx) {
+  const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
+  const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
+  return 4.0 * (sy * sy + sx * sx);
+}
+
+// In-place Cholesky G = L Lᴴ of an n x n Hermitian matrix (row-major; the lower triangle is read). Stores L
+// in the lower triangle with 1/L_ii on the diagonal (no complex division in the substitutions). False if a
+// pivot falls to `pivot_floor` or below (singular to rounding).
+bool CholeskyInPlace(Complex* g, int n, double pivot_floor) {
+  for (int j = 0; j < n; ++j) {
+    double d = g[j * n + j].real();
+    for (int k = 0; k < j; ++k) d -= std::norm(g[j * n + k]);
+    if (!(d > pivot_floor)) return false;
+    const double inv = 1.0 / std::sqrt(d);
+    g[j * n + j] = inv;
+    for (int i = j + 1; i < n; ++i) {
+      Complex s = g[i * n + j];
+      for (int k = 0; k < j; ++k) s -= g[i * n + k] * std::conj(g[j * n + k]);
+      g[i * n + j] = s * inv;
+    }
+  }
+  return true;
+}
+
+// Solves L Lᴴ x = b in place (v: b in, x out) for a factor from CholeskyInPlace. RR > 0 fixes the size at
+// compile time (the common r² = 4, 9 and N = 2, 4, 8 unroll); 0 means `n` at run time.
+template <int RR>
+void CholeskySubstitution(const Complex* l, int n, Complex* v) {
+  const int size = RR > 0 ? RR : n;
+  for (int i = 0; i < size; ++i) {  // L w = b
+    Complex s = v[i];
+    for (int j = 0; j < i; ++j) s -= l[i * size + j] * v[j];
+    v[i] = s * l[i * size + i].real();
+  }
+  for (int i = size - 1; i >= 0; --i) {  // Lᴴ x = w
+    Complex s = v[i];
+    for (int j = i + 1; j < size; ++j) s -= std::conj(l[j * size + i]) * v[j];
+    v[i] = s * l[i * size + i].real();
+  }
+}
+
+void Substitute(const Complex* l, int n, Complex* v) {
+  switch (n) {
+    case 2:
+      return CholeskySubstitution<2>(l, n, v);
+    case 4:
+      return CholeskySubstitution<4>(l, n, v);
+    case 8:
+      return CholeskySubstitution<8>(l, n, v);
+    case 9:
+      return CholeskySubstitution<9>(l, n, v);
+    default:
+      return CholeskySubstitution<0>(l, n, v);
+  }
+}
+
+}  // namespace
+
+FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double data_weight)
+    : hr_(model.hr_shape()), lr_(model.lr_shape()), r_(model.r()), n_(model.frames()) {
+  CheckArgument(std::isfinite(data_weight) && data_weight > 0, "FourierNormalSystem", "data_weight",
+                data_weight, "finite and > 0");
+  const int rr = r_ * r_;
+  const Index bins = lr_.size();
+  // F(AᵀA x) = r² A(u)ᴴA(u) X(u) per bin (Parseval for the unnormalised DFTs): the data block is BᴴB.
+  sqrt_s_ = std::sqrt(double(rr) * data_weight);
+  b_.resize(bins * n_ * rr);
+  symbol_.resize(bins * rr);
+  std::vector<double> norms(bins, 0.0);
+  ParallelFor(lr_.rows, [&](Index uy) {
+    for (Index ux = 0; ux < lr_.cols; ++ux) {
+      const Index bin = uy * lr_.cols + ux;
+      const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
+      for (int i = 0; i < n_; ++i)
+        for (int k = 0; k < rr; ++k) b_[(bin * n_ + i) * rr + k] = sqrt_s_ * a(i, k);
+      for (int ky = 0; ky < r_; ++ky)
+        for (int kx = 0; kx < r_; ++kx)
+          symbol_[bin * rr + ky * r_ + kx] = GradientSymbol(hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
+      // σ_max(A(u))² from the smaller Gram matrix.
+      const Eigen::MatrixXcd g = n_ <= rr ? Eigen::MatrixXcd(a * a.adjoint()) : Eigen::MatrixXcd(a.adjoint() * a);
+      norms[bin] = g.size() ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly)
+                                  .eigenvalues()
+                                  .maxCoeff()
+                            : 0.0;
+    }
+  });
+  model_norm_ = double(r_) * std::sqrt(std::max(0.0, *std::max_element(norms.begin(), norms.end())));
+}
+
+void FourierNormalSystem::Factorize(double gradient_weight, double identity_weight) {
+  CheckArgument(std::isfinite(gradient_weight) && gradient_weight >= 0, "FourierNormalSystem::Factorize",
+                "gradient_weight", gradient_weight, "finite and >= 0");
+  CheckArgument(std::isfinite(identity_weight) && identity_weight >= 0, "FourierNormalSystem::Factorize",
+                "identity_weight", identity_weight, "finite and >= 0");
+  const int rr = r_ * r_, n = n_;
+  const Index bins = lr_.size();
+  dinv_.assign(bins * rr, 0.0);
+  kfactor_.assign(bins * n * n, Complex(0));
+  slot_.assign(bins, -1);
+  // Pass 1 (parallel): Woodbury factors where they are cheaper and accurate; the rest are marked.
+  std::vector<char> woodbury(bins, 0);
+  ParallelFor(lr_.rows, [&](Index uy) {
+    for (Index ux = 0; ux < lr_.cols; ++ux) {
+      const Index bin = uy * lr_.cols + ux;
+      const Complex* b = &b_[bin * n * rr];
+      double* dinv = &dinv_[bin * rr];
+      double dmin = std::numeric_limits<double>::infinity(), frob = 0;
+      for (int k = 0; k < rr; ++k) {
+        const double d = gradient_weight * symbol_[bin * rr + k] + identity_weight;
+        dmin = std::min(dmin, d);
+        dinv[k] = d > 0 ? 1.0 / d : 0.0;
+      }
+      for (int e = 0; e < n * rr; ++e) frob += std::norm(b[e]);
+      if (!(n < rr && dmin > 0 && frob <= kWoodburyAmplification * dmin)) continue;
+      // K = I + B D⁻¹ Bᴴ (N x N, Hermitian positive definite: ≥ I).
+      Complex* kf = &kfactor_[bin * n * n];
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j <= i; ++j) {
+          Complex s = i == j ? 1.0 : 0.0;
+          for (int k = 0; k < rr; ++k) s += b[i * rr + k] * dinv[k] * std::conj(b[j * rr + k]);
+          kf[i * n + j] = s;
+          kf[j * n + i] = std::conj(s);
+        }
+      woodbury[bin] = CholeskyInPlace(kf, n, 1e-12);
+    }
+  });
+  // Pass 2 (serial: few bins, and the slots are numbered in bin order): the dense r² x r² factorisations.
+  dense_.clear();
+  pseudo_.clear();
+  singular_bins_ = 0;
+  woodbury_bins_ = 0;
+  for (Index bin = 0; bin < bins; ++bin) {
+    if (woodbury[bin]) {
+      ++woodbury_bins_;
+      continue;
+    }
+    const Complex* b = &b_[bin * n * rr];
+    std::vector<Complex> g(rr * rr);
+    double scale = 0;
+    for (int k = 0; k < rr; ++k)
+      for (int l = 0; l < rr; ++l) {
+        Complex s = 0;
+        for (int i = 0; i < n; ++i) s += std::conj(b[i * rr + k]) * b[i * rr + l];
+        if (k == l) {
+          s += gradient_weight * symbol_[bin * rr + k] + identity_weight;
+          scale = std::max(scale, std::abs(s.real()));
+        }
+        g[k * rr + l] = s;
+      }
+    slot_[bin] = int(dense_.size());
+    std::vector<Complex> f = g;
+    // A pivot below 1e-12 of the largest diagonal entry means G(u) is singular to rounding: the Cholesky
+    // "solution" would be noise of size 1e12. Use the pseudo-inverse instead.
+    if (scale > 0 && CholeskyInPlace(f.data(), rr, 1e-12 * scale)) {
+      dense_.push_back(std::move(f));
+      pseudo_.emplace_back();
+      continue;
+    }
+    ++singular_bins_;
+    const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> gm(
+        g.data(), rr, rr);
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd> eig{Eigen::MatrixXcd(gm)};
+    const Eigen::VectorXd& ev = eig.eigenvalues();
+    const double floor = 1e-12 * std::max(ev.cwiseAbs().maxCoeff(), 0.0);
+    Eigen::VectorXd inv = Eigen::VectorXd::Zero(rr);
+    for (int i = 0; i < rr; ++i)
+      if (ev[i] > floor && ev[i] > 0) inv[i] = 1.0 / ev[i];
+    dense_.emplace_back();
+    pseudo_.push_back(eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().adjoint());
+  }
+  factorized_ = true;
+}
+
+void FourierNormalSystem::SolveBin(Index bin, Complex* v, Complex* work) const {
+  const int rr = r_ * r_, n = n_;
+  const int slot = slot_[bin];
+  if (slot < 0) {
+    // Woodbury: c = D⁻¹v, t = K⁻¹ B c, v = c − D⁻¹ Bᴴ t.
+    const Complex* b = &b_[bin * n * rr];
+    const double* dinv = &dinv_[bin * rr];
+    for (int k = 0; k < rr; ++k) v[k] *= dinv[k];
+    for (int i = 0; i < n; ++i) {
+      Complex s = 0;
+      for (int k = 0; k < rr; ++k) s += b[i * rr + k] * v[k];
+      work[i] = s;
+    }
+    Substitute(&kfactor_[bin * n * n], n, work);
+    for (int k = 0; k < rr; ++k) {
+      Complex s = 0;
+      for (int i = 0; i < n; ++i) s += std::conj(b[i * rr + k]) * work[i];
+      v[k] -= dinv[k] * s;
+    }
+  } else if (!dense_[slot].empty()) {
+    Substitute(dense_[slot].data(), rr, v);
+  } else {
+    const Eigen::VectorXcd x = pseudo_[slot] * Eigen::Map<const Eigen::VectorXcd>(v, rr);
+    for (int k = 0; k < rr; ++k) v[k] = x[k];
+  }
+}
+
+void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<ComplexImage>* v,
+                                    ComplexImage* out, std::vector<ComplexImage>* ax) const {
+  const int rr = r_ * r_, n = n_;
+  // The rhs is real, so its spectrum is Hermitian and the half spectrum (columns 0 .. M_x/2) holds it all; a
+  // value at a column beyond M_x/2 is the conjugate of the mirrored stored one. The bins come in mirror pairs
+  // u, −u whose systems and right-hand sides are conjugate, so only one of each pair is solved and the other
+  // is its conjugate: half the work, and the output spectrum is exactly Hermitian. (Solving both would
+  // splice two solutions whose rounding errors differ; for an ill-conditioned bin that error lies along
+  // near-null directions of each solve but not of the splice, and the residual grew to 1e3 in a test.)
+  // Every HR frequency is written by exactly one solved bin, so the bins may run on any number of threads.
+  const Index half_cols = half.cols(), lr_half = lr_.cols / 2 + 1;
+  auto at = [&](const ComplexImage& spectrum, Shape full, Index fy, Index fx) {
+    return fx < spectrum.cols() ? spectrum(fy, fx)
+                                : std::conj(spectrum((full.rows - fy) % full.rows, full.cols - fx));
+  };
+  ParallelFor(lr_.rows, [&](Index uy) {
+    Complex stack_v[kStackBins], stack_w[kStackBins];
+    std::vector<Complex> heap;
+    Complex* x = stack_v;
+    Complex* work = stack_w;
+    if (rr > kStackBins || n > kStackBins) {
+      heap.resize(2 * std::max(rr, n));
+      x = heap.data();
+      work = heap.data() + std::max(rr, n);
+    }
+    const Index muy = (lr_.rows - uy) % lr_.rows;
+    for (Index ux = 0; ux < lr_.cols; ++ux) {
+      const Index mux = (lr_.cols - ux) % lr_.cols;
+      if (!(ux < mux || (ux == mux && uy <= muy))) continue;  // the mirror bin is solved instead
+      const bool self_mirror = ux == mux && uy == muy;
+      const Index bin = uy * lr_.cols + ux;
+      for (int ky = 0; ky < r_; ++ky)
+        for (int kx = 0; kx < r_; ++kx) x[ky * r_ + kx] = at(half, hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
+      const Complex* b = &b_[bin * n * rr];
+      if (v) {
+        // + w r² A(u)ᴴ V(u) = √s Bᴴ V(u), V the frames' spectra at u.
+        for (int i = 0; i < n; ++i) work[i] = sqrt_s_ * at((*v)[i], lr_, uy, ux);
+        for (int k = 0; k < rr; ++k) {
+          Complex sum = 0;
+          for (int i = 0; i < n; ++i) sum += std::conj(b[i * rr + k]) * work[i];
+          x[k] += sum;
+        }
+      }
+      SolveBin(bin, x, work);
+      if (self_mirror) {
+        // The bin is its own mirror: its exact solution satisfies X(−f) = conj X(f) within the bin. Average
+        // the solve with its mirrored conjugate (also a solution), so the stored half spectrum is consistent.
+        for (int k = 0; k < rr; ++k) work[k] = x[k];
+        for (int ky = 0; ky < r_; ++ky)
+          for (int kx = 0; kx < r_; ++kx) {
+            const Index my = (hr_.rows - (uy + ky * lr_.rows)) % hr_.rows;
+            const Index mx = (hr_.cols - (ux + kx * lr_.cols)) % hr_.cols;
+            const int k = ky * r_ + kx, km = int(my / lr_.rows) * r_ + int(mx / lr_.cols);
+            x[k] = 0.5 * (work[k] + std::conj(work[km]));
+          }
+      }
+      for (int ky = 0; ky < r_; ++ky)
+        for (int kx = 0; kx < r_; ++kx) {
+          const Index fy = uy + ky * lr_.rows, fx = ux + kx * lr_.cols;
+          const Complex value = x[ky * r_ + kx];
+          if (fx < half_cols) (*out)(fy, fx) = value;
+          const Index my = (hr_.rows - fy) % hr_.rows, mx = (hr_.cols - fx) % hr_.cols;
+          if (mx < half_cols) (*out)(my, mx) = std::conj(value);
+        }
+      if (ax) {
+        // F(A_i x)(u) = A(u) X(u) = B X / √s, and its conjugate at −u.
+        for (int i = 0; i < n; ++i) {
+          Complex sum = 0;
+          for (int k = 0; k < rr; ++k) sum += b[i * rr + k] * x[k];
+          sum /= sqrt_s_;
+          if (ux < lr_half) (*ax)[i](uy, ux) = sum;
+          if (mux < lr_half) (*ax)[i](muy, mux) = std::conj(sum);
+        }
+      }
+    }
+  });
+}
+
+Image FourierNormalSystem::Solve(const Image& rhs) const {
+  if (!factorized_) throw InvalidArgument("FourierNormalSystem::Solve: call Factorize first");
+  CheckArgument(ShapeOf(rhs) == hr_, "FourierNormalSystem::Solve", "rhs shape", ToString(ShapeOf(rhs)),
+                "the HR shape " + ToString(hr_));
+  CheckArgument(AllFinite(rhs), "FourierNormalSystem::Solve", "rhs", "(non-finite values)", "finite values");
+  const ComplexImage half = FftR2C(rhs);
+  // Solutions go to a separate half spectrum: a bin may read the mirror of a value another bin writes.
+  ComplexImage out(half.rows(), half.cols());
+  SolveBins(half, nullptr, &out, nullptr);
+  return FftC2R(out, hr_.cols);
+}
+
+void FourierNormalSystem::SolveWithData(const Image& rhs, const ImageStack& v, Image* x, ImageStack* ax) const {
+  constexpr const char* kFn = "FourierNormalSystem::SolveWithData";
+  if (!factorized_) throw InvalidArgument(std::string(kFn) + ": call Factorize first");
+  CheckArgument(ShapeOf(rhs) == hr_, kFn, "rhs shape", ToString(ShapeOf(rhs)), "the HR shape " + ToString(hr_));
+  CheckArgument(AllFinite(rhs), kFn, "rhs", "(non-finite values)", "finite values");
+  CheckArgument(Index(v.size()) == n_, kFn, "v frames", std::to_string(v.size()), std::to_string(n_));
+  CheckArgument(x != nullptr, kFn, "x", "null", "an output image");
+  for (const Image& f : v) {
+    CheckArgument(ShapeOf(f) == lr_, kFn, "v frame shape", ToString(ShapeOf(f)), "the LR shape " + ToString(lr_));
+    CheckArgument(AllFinite(f), kFn, "v", "(non-finite values)", "finite values");
+  }
+  const ComplexImage half = FftR2C(rhs);
+  std::vector<ComplexImage> spectra(n_);
+  ParallelFor(n_, [&](Index i) { spectra[i] = FftR2C(v[i]); });
+  ComplexImage out(half.rows(), half.cols());
+  std::vector<ComplexImage> ax_half;
+  if (ax) ax_half.assign(n_, ComplexImage(lr_.rows, lr_.cols / 2 + 1));
+  SolveBins(half, &spectra, &out, ax ? &ax_half : nullptr);
+  *x = FftC2R(out, hr_.cols);
+  if (ax) {
+    ax->resize(n_);
+    ParallelFor(n_, [&](Index i) { (*ax)[i] = FftC2R(ax_half[i], lr_.cols); });
+  }
+}
+
+}  // namespace aosr
