@@ -1,24 +1,26 @@
-// `aosr tradeoff DATASET -o DIR`: the accuracy/time trade-off of every reconstructor on the user's own dataset,
-// as a table (tradeoff.md), as data (tradeoff.json) and as a picture (tradeoff.png, io/plot.hpp).
+// `aosr tradeoff DATASET -o DIR`: the accuracy/time trade-off of every reconstructor on the user's own
+// dataset, as a table (tradeoff.md), as data (tradeoff.json) and as a picture (tradeoff.png, io/plot.hpp).
 //
 // Each method runs through Reconstruct() (solvers/reconstruct.hpp) with the defaults of `aosr reconstruct`,
 // over its knob:
 //   shift-add, shift-add-median, drizzle   one run (no knob)
 //   tikhonov                               λ by GCV, then fixed λ = f · λ_GCV for each --lambda-factors f
 //                                          (the fixed runs skip the GCV search, so they are also its cost)
-//   tv, map                                one run per --iterations cap, each from scratch (the Tikhonov pilot,
+//   tv, map                                one run per --iterations cap, each from scratch (the Tikhonov
+//   pilot,
 //                                          which also sets their weight, is part of every run's time)
 // Per row: termination, iterations, wall seconds (Reconstruction::seconds_total: warm start and automatic
 // weight included), and
 //   with a truth     PSNR, SSIM, RMSE (core/metrics.hpp) on the truth cropped by the dataset's trustworthy
 //                    border, crop = trustworthy_border_px · r HR px, exactly as bench/reconstruct_bench.cpp
-//                    scores (so the numbers agree with the bench; the crop falls back to 0 when it would leave
-//                    less than the 11 px SSIM window, as `aosr reconstruct` does);
-//   always           the method's own final objective (Summary::final_cost: not comparable across methods), the
+//                    scores (so the numbers agree with the bench; the crop falls back to 0 when it would
+//                    leave less than the 11 px SSIM window, as `aosr reconstruct` does);
+//   always           the method's own final objective (Summary::final_cost: not comparable across methods),
+//   the
 //                    data misfit as the reduced χ² = Σ w (y − A x)² / n_w over the n_w weighted pixels (≈ 1
 //                    when the residual is at the noise level with true inverse-variance weights; comparable
-//                    across methods), and the relative change ‖x_k − x_{k−1}‖ / ‖x_k‖ from the previous row of
-//                    the same method (previous cap, or next smaller λ).
+//                    across methods), and the relative change ‖x_k − x_{k−1}‖ / ‖x_k‖ from the previous row
+//                    of the same method (previous cap, or next smaller λ).
 // The picture: PSNR [dB] and SSIM against wall seconds (log axis), one curve per method; without a truth, the
 // misfit and the relative change (both log) instead, and the titles say so.
 #include <algorithm>
@@ -66,9 +68,9 @@ struct TradeoffArgs {
 
 struct Row {
   std::string method;
-  std::string knob;               // human-readable knob setting, "-" for none
-  double lambda_factor = kNaN;    // tikhonov: λ / λ_GCV (1 for the GCV row)
-  int iteration_cap = 0;          // tv, map
+  std::string knob;             // human-readable knob setting, "-" for none
+  double lambda_factor = kNaN;  // tikhonov: λ / λ_GCV (1 for the GCV row)
+  int iteration_cap = 0;        // tv, map
   int iterations = 0;
   std::string termination, message;
   double seconds = 0, regularisation = 0;
@@ -94,11 +96,14 @@ double ReducedChiSquare(const ReconstructionProblem& p, const Image& x) {
 
 std::vector<std::string> Methods(const TradeoffArgs& a) {
   std::vector<std::string> out;
-  const std::vector<std::string> asked = a.methods.empty() ? std::vector<std::string>(std::begin(kAllMethods), std::end(kAllMethods))
-                                                           : a.methods;
+  const std::vector<std::string> asked =
+      a.methods.empty() ? std::vector<std::string>(std::begin(kAllMethods), std::end(kAllMethods))
+                        : a.methods;
   for (const std::string& m : asked) {
     if (std::find(std::begin(kAllMethods), std::end(kAllMethods), m) == std::end(kAllMethods))
-      throw InvalidArgument(kCmd, "--methods", m, "a comma-separated list of shift-add, shift-add-median, drizzle, tikhonov, tv, map");
+      throw InvalidArgument(
+          kCmd, "--methods", m,
+          "a comma-separated list of shift-add, shift-add-median, drizzle, tikhonov, tv, map");
     if (std::find(out.begin(), out.end(), m) == out.end()) out.push_back(m);
   }
   return out;
@@ -109,7 +114,8 @@ std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProbl
   const bool truth = d.truth.has_value();
   std::ostringstream os;
   os << "# Accuracy against time: " << a.dataset << "\n\n"
-     << "Command: `" << CommandLine() << "` (aosr " << AOSR_VERSION << ", " << DefaultThreads() << " thread(s)).\n\n"
+     << "Command: `" << CommandLine() << "` (aosr " << AOSR_VERSION << ", " << DefaultThreads()
+     << " thread(s)).\n\n"
      << "Dataset: " << d.size() << " frames of " << ToString(d.frame) << " camera px, r = " << d.r << " (HR "
      << ToString(d.hr_frame) << "); weights: " << dp.weights_source << "; "
      << (truth ? "truth given: PSNR/SSIM (core/metrics.hpp, L = the cropped truth's range) on the truth " +
@@ -119,13 +125,19 @@ std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProbl
                                   : std::string("uncropped: the trustworthy border (") +
                                         std::to_string(d.trustworthy_border_px * d.r) +
                                         " HR px) would leave less than the 11 px SSIM window.")
-               : std::string("no truth in the dataset: PSNR/SSIM cannot be computed; judge by the data misfit and "
-                             "the change between knob settings.")) << "\n\n"
-     << "Columns: time = Reconstruction::seconds_total (tv and map include their Tikhonov pilot; every run starts "
-        "from scratch); objective = the method's own final cost (not comparable across methods); misfit = reduced "
+               : std::string(
+                     "no truth in the dataset: PSNR/SSIM cannot be computed; judge by the data misfit and "
+                     "the change between knob settings."))
+     << "\n\n"
+     << "Columns: time = Reconstruction::seconds_total (tv and map include their Tikhonov pilot; every run "
+        "starts "
+        "from scratch); objective = the method's own final cost (not comparable across methods); misfit = "
+        "reduced "
         "chi^2, sum w (y - A x)^2 / n_w over the weighted pixels (about 1 at the noise level with true "
-        "inverse-variance weights); change = |x_k - x_(k-1)| / |x_k| from the previous row of the same method "
-        "(previous iteration cap, or the next smaller lambda). Wall times depend on the machine and its load.\n\n";
+        "inverse-variance weights); change = |x_k - x_(k-1)| / |x_k| from the previous row of the same "
+        "method "
+        "(previous iteration cap, or the next smaller lambda). Wall times depend on the machine and its "
+        "load.\n\n";
   os << "| method | knob | iterations | termination | time [s] |" << (truth ? " PSNR [dB] | SSIM |" : "")
      << " objective | misfit | change |\n"
      << "|---|---|---:|---|---:|" << (truth ? "---:|---:|" : "") << "---:|---:|---:|\n";
@@ -133,7 +145,8 @@ std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProbl
     os << "| " << r.method << " | " << r.knob << " | " << r.iterations << " | " << r.termination << " | "
        << Fmt("%.3f", r.seconds) << " | ";
     if (truth) os << Fmt("%.2f", r.psnr) << " | " << Fmt("%.4f", r.ssim) << " | ";
-    os << Fmt("%.4g", r.objective) << " | " << Fmt("%.4g", r.misfit) << " | " << Fmt("%.3g", r.change) << " |\n";
+    os << Fmt("%.4g", r.objective) << " | " << Fmt("%.4g", r.misfit) << " | " << Fmt("%.3g", r.change)
+       << " |\n";
   }
   os << "\n![accuracy against time](tradeoff.png)\n";
   return os.str();
@@ -196,9 +209,11 @@ std::vector<LinePlot> Panels(const std::string& name, bool truth, const std::vec
   for (const std::string& m : methods) {
     if (m == "tikhonov") {
       add("tikhonov (GCV)", [](const Row& r) { return r.method == "tikhonov" && r.lambda_factor == 1.0; });
-      add("tikhonov (fixed lambda)", [](const Row& r) { return r.method == "tikhonov" && r.lambda_factor != 1.0; });
+      add("tikhonov (fixed lambda)",
+          [](const Row& r) { return r.method == "tikhonov" && r.lambda_factor != 1.0; });
     } else {
-      add(m == "tv" || m == "map" ? m + " (iteration caps)" : m, [&m](const Row& r) { return r.method == m; });
+      add(m == "tv" || m == "map" ? m + " (iteration caps)" : m,
+          [&m](const Row& r) { return r.method == m; });
     }
   }
   return {a, b};
@@ -209,17 +224,21 @@ void RunTradeoff(const TradeoffArgs& a) {
   const Progress progress(!a.json);
   // Options, checked before anything is read or computed.
   const std::vector<std::string> methods = Methods(a);
-  std::vector<int> caps = a.iterations;  // increasing: the change column compares each cap with the one before
+  std::vector<int> caps =
+      a.iterations;  // increasing: the change column compares each cap with the one before
   for (int cap : caps)
-    if (cap < 1 || cap > 1000000) throw InvalidArgument(kCmd, "--iterations", std::to_string(cap), "caps in 1..1000000");
+    if (cap < 1 || cap > 1000000)
+      throw InvalidArgument(kCmd, "--iterations", std::to_string(cap), "caps in 1..1000000");
   std::sort(caps.begin(), caps.end());
   caps.erase(std::unique(caps.begin(), caps.end()), caps.end());
   for (double f : a.lambda_factors)
     if (!(std::isfinite(f) && f > 0) || f == 1.0)
-      throw InvalidArgument(kCmd, "--lambda-factors", ToString(f), "finite factors > 0 other than 1 (the GCV row is always run)");
+      throw InvalidArgument(kCmd, "--lambda-factors", ToString(f),
+                            "finite factors > 0 other than 1 (the GCV row is always run)");
   DatasetProblemOptions dpo;
   dpo.weights = ParseDatasetWeights(a.weights);
-  const std::string md_path = JoinPath(a.out_dir, "tradeoff.md"), json_path = JoinPath(a.out_dir, "tradeoff.json"),
+  const std::string md_path = JoinPath(a.out_dir, "tradeoff.md"),
+                    json_path = JoinPath(a.out_dir, "tradeoff.json"),
                     png_path = JoinPath(a.out_dir, "tradeoff.png");
   const std::vector<std::string> outputs = {md_path, json_path, png_path};
   {
@@ -237,7 +256,8 @@ void RunTradeoff(const TradeoffArgs& a) {
   const std::set<fs::path> inputs = DatasetInputFiles(d);
   for (const std::string& p : outputs)
     if (inputs.count(fs::weakly_canonical(p)))
-      throw InvalidArgument(kCmd, "-o", a.out_dir, "a folder where no output (" + p + ") is one of the dataset's input files");
+      throw InvalidArgument(kCmd, "-o", a.out_dir,
+                            "a folder where no output (" + p + ") is one of the dataset's input files");
   const DatasetProblem dp = ProblemFromDataset(d, dpo);
   const ReconstructionProblem& p = dp.problem;
   EnsureDirectory(a.out_dir);
@@ -275,7 +295,8 @@ void RunTradeoff(const TradeoffArgs& a) {
   };
   // Appends a row of a knob sweep, with its change from the sweep's previous estimate (empty: the first).
   const auto append = [&](Row row, Image image, Image* previous) {
-    if (previous->size() > 0 && previous->size() == image.size() && AllFinite(image) && AllFinite(*previous)) {
+    if (previous->size() > 0 && previous->size() == image.size() && AllFinite(image) &&
+        AllFinite(*previous)) {
       const double norm = image.matrix().norm();
       if (norm > 0) row.change = (image - *previous).matrix().norm() / norm;
     }
@@ -383,9 +404,12 @@ void RegisterTradeoff(CLI::App& app) {
       "(table and command line), DIR/tradeoff.json (the rows) and DIR/tradeoff.png (PSNR and SSIM against "
       "seconds; without a truth, the data misfit and the change between knob settings).");
   cmd->add_option("dataset", a->dataset, "dataset folder or manifest")->required();
-  cmd->add_option("-o,--output", a->out_dir, "output folder (created if needed; the dataset is never written)")->required();
-  cmd->add_option("--methods", a->methods,
-                  "comma-separated subset of shift-add,shift-add-median,drizzle,tikhonov,tv,map (default: all)")
+  cmd->add_option("-o,--output", a->out_dir,
+                  "output folder (created if needed; the dataset is never written)")
+      ->required();
+  cmd->add_option(
+         "--methods", a->methods,
+         "comma-separated subset of shift-add,shift-add-median,drizzle,tikhonov,tv,map (default: all)")
       ->delimiter(',');
   cmd->add_option("--iterations", a->iterations, "comma-separated iteration caps of tv and map")
       ->delimiter(',')
@@ -394,7 +418,8 @@ void RegisterTradeoff(CLI::App& app) {
                   "comma-separated multiples of the GCV lambda run as fixed-lambda Tikhonov")
       ->delimiter(',')
       ->capture_default_str();
-  cmd->add_option("--weights", a->weights, "auto | dataset (inverse variances) | mask (uniform on valid pixels)")
+  cmd->add_option("--weights", a->weights,
+                  "auto | dataset (inverse variances) | mask (uniform on valid pixels)")
       ->capture_default_str();
   cmd->add_flag("--force", a->force, "overwrite tradeoff.md/.json/.png if they exist");
   cmd->add_flag("--json", a->json, "print tradeoff.json to stdout instead of the table");

@@ -20,8 +20,8 @@ const cv::Scalar kBlack(0, 0, 0), kGrid(225, 225, 225), kAxisGrey(90, 90, 90), k
 // Hershey fonts have ASCII glyphs only: spell out the symbols reports use, '?' for anything else.
 std::string Ascii(const std::string& s) {
   static const std::pair<const char*, const char*> kMap[] = {
-      {"λ", "lambda"}, {"μ", "mu"}, {"σ", "sigma"}, {"×", "x"}, {"²", "^2"}, {"³", "^3"}, {"—", "-"},
-      {"–", "-"},      {"≈", "~"},  {"≤", "<="},    {"≥", ">="}, {"⁻", "-"}, {"¹", "1"}};
+      {"λ", "lambda"}, {"μ", "mu"}, {"σ", "sigma"}, {"×", "x"},  {"²", "^2"}, {"³", "^3"}, {"—", "-"},
+      {"–", "-"},      {"≈", "~"},  {"≤", "<="},    {"≥", ">="}, {"⁻", "-"},  {"¹", "1"}};
   std::string out;
   for (std::size_t i = 0; i < s.size();) {
     const unsigned char c = static_cast<unsigned char>(s[i]);
@@ -140,7 +140,7 @@ Scale MakeScale(const PlotAxis& axis, const std::vector<double>& values) {
     }
   const bool fixed_lo = std::isfinite(axis.min), fixed_hi = std::isfinite(axis.max);
   if (!(lo <= hi)) {  // no data
-    lo = axis.log ? 0.0 : 0.0;
+    lo = 0.0;  // [0, 1], or [1, 10] on a log axis (axis units are decades there)
     hi = 1.0;
   } else if (hi - lo < 1e-12 * std::max(1.0, std::abs(hi))) {
     lo -= 0.5;
@@ -153,8 +153,10 @@ Scale MakeScale(const PlotAxis& axis, const std::vector<double>& values) {
   if (fixed_lo) lo = s.Unit(axis.min);
   if (fixed_hi) hi = s.Unit(axis.max);
   if (!(hi > lo)) {  // one fixed end beyond the data's other end
-    if (fixed_lo) hi = lo + 1;
-    else lo = hi - 1;
+    if (fixed_lo)
+      hi = lo + 1;
+    else
+      lo = hi - 1;
   }
   s.lo = lo;
   s.hi = hi;
@@ -167,11 +169,11 @@ bool CheckAxis(const PlotAxis& a, const char* name, std::string* why) {
     return false;
   };
   if (std::isfinite(a.min) && std::isfinite(a.max) && !(a.min < a.max))
-    return fail(std::string(name) + ".min = " + ToString(a.min) + " >= " + name + ".max = " + ToString(a.max) +
-                "; need min < max");
+    return fail(std::string(name) + ".min = " + ToString(a.min) + " >= " + name +
+                ".max = " + ToString(a.max) + "; need min < max");
   if (a.log && ((std::isfinite(a.min) && a.min <= 0) || (std::isfinite(a.max) && a.max <= 0)))
-    return fail(std::string(name) + ": a log axis needs a positive fixed range, got [" + ToString(a.min) + ", " +
-                ToString(a.max) + "]");
+    return fail(std::string(name) + ": a log axis needs a positive fixed range, got [" + ToString(a.min) +
+                ", " + ToString(a.max) + "]");
   return true;
 }
 
@@ -187,7 +189,8 @@ void DrawPanel(cv::Mat& m, const LinePlot& p) {
   for (std::size_t i = 0; i < p.series.size(); ++i) {
     const PlotSeries& s = p.series[i];
     bool any = false;
-    for (std::size_t k = 0; k < s.x.size(); ++k) any = any || (std::isfinite(s.x[k]) && std::isfinite(s.y[k]));
+    for (std::size_t k = 0; k < s.x.size(); ++k)
+      any = any || (std::isfinite(s.x[k]) && std::isfinite(s.y[k]));
     if (any && !s.label.empty()) {
       legend.push_back(int(i));
       legend_text_w = std::max(legend_text_w, TextSize(Ascii(s.label), kLegendFont).width);
@@ -221,7 +224,8 @@ void DrawPanel(cv::Mat& m, const LinePlot& p) {
   const auto X = [&](double v) { return area.x + sx.Fraction(v) * area.width; };
   const auto Y = [&](double v) { return area.y + area.height - sy.Fraction(v) * area.height; };
   const auto inside = [&](double px, double py) {
-    return px >= area.x - 0.5 && px <= area.x + area.width + 0.5 && py >= area.y - 0.5 && py <= area.y + area.height + 0.5;
+    return px >= area.x - 0.5 && px <= area.x + area.width + 0.5 && py >= area.y - 0.5 &&
+           py <= area.y + area.height + 0.5;
   };
 
   // Grid and ticks.
@@ -276,7 +280,8 @@ void DrawPanel(cv::Mat& m, const LinePlot& p) {
   // Labels and title.
   if (!p.x.label.empty()) {
     const std::string l = Ascii(p.x.label);
-    Text(m, l, area.x + (area.width - TextSize(l, kLabelFont).width) / 2, m.rows - 12 - text_h / 2, kLabelFont);
+    Text(m, l, area.x + (area.width - TextSize(l, kLabelFont).width) / 2, m.rows - 12 - text_h / 2,
+         kLabelFont);
   }
   if (!p.y.label.empty()) {
     // Drawn horizontally into a scratch image, rotated a quarter turn counter-clockwise and pasted.
@@ -294,7 +299,8 @@ void DrawPanel(cv::Mat& m, const LinePlot& p) {
   if (!p.title.empty()) {
     const std::string l = Ascii(p.title);
     const int w = TextSize(l, kTitleFont).width;
-    cv::putText(m, l, cv::Point(std::max(4, area.x + (area.width - w) / 2), 12 + TextSize("Ay", kTitleFont).height),
+    cv::putText(m, l,
+                cv::Point(std::max(4, area.x + (area.width - w) / 2), 12 + TextSize("Ay", kTitleFont).height),
                 kFont, kTitleFont, kBlack, 1, cv::LINE_AA);
   }
 
@@ -308,7 +314,8 @@ void DrawPanel(cv::Mat& m, const LinePlot& p) {
     cv::circle(m, {x0 + 11, y}, 4, Bgr(i), cv::FILLED, cv::LINE_AA);
     cv::circle(m, {x0 + 11, y}, 4, kBlack, 1, cv::LINE_AA);
     std::string l = Ascii(p.series[std::size_t(i)].label);
-    while (l.size() > 3 && TextSize(l, kLegendFont).width > legend_text_w) l = l.substr(0, l.size() - 4) + "..";
+    while (l.size() > 3 && TextSize(l, kLegendFont).width > legend_text_w)
+      l = l.substr(0, l.size() - 4) + "..";
     Text(m, l, x0 + 28, y, kLegendFont);
     y += row_h;
   }
@@ -326,7 +333,8 @@ bool LinePlot::IsValid(std::string* why) const {
     const PlotSeries& s = series[i];
     const std::string name = "series[" + std::to_string(i) + "] ('" + s.label + "')";
     if (s.x.size() != s.y.size())
-      return fail(name + ": x has " + std::to_string(s.x.size()) + " points, y " + std::to_string(s.y.size()));
+      return fail(name + ": x has " + std::to_string(s.x.size()) + " points, y " +
+                  std::to_string(s.y.size()));
     for (std::size_t k = 0; k < s.x.size(); ++k) {
       if (x.log && std::isfinite(s.x[k]) && s.x[k] <= 0)
         return fail(name + ".x[" + std::to_string(k) + "] = " + ToString(s.x[k]) +
@@ -344,7 +352,8 @@ bool FigureOptions::IsValid(std::string* why) const {
     if (why) *why = m;
     return false;
   };
-  if (panel_width < 240 || panel_width > 4000) return fail("panel_width = " + std::to_string(panel_width) + "; need 240..4000");
+  if (panel_width < 240 || panel_width > 4000)
+    return fail("panel_width = " + std::to_string(panel_width) + "; need 240..4000");
   if (panel_height < 180 || panel_height > 4000)
     return fail("panel_height = " + std::to_string(panel_height) + "; need 180..4000");
   if (columns < 1) return fail("columns = " + std::to_string(columns) + "; need >= 1");
@@ -353,7 +362,7 @@ bool FigureOptions::IsValid(std::string* why) const {
 
 std::array<std::uint8_t, 3> SeriesColour(int i) {
   static const std::array<std::uint8_t, 3> kTab10[10] = {
-      {{31, 119, 180}}, {{255, 127, 14}}, {{44, 160, 44}},  {{214, 39, 40}},   {{148, 103, 189}},
+      {{31, 119, 180}}, {{255, 127, 14}},  {{44, 160, 44}},   {{214, 39, 40}},  {{148, 103, 189}},
       {{140, 86, 75}},  {{227, 119, 194}}, {{127, 127, 127}}, {{188, 189, 34}}, {{23, 190, 207}}};
   return kTab10[((i % 10) + 10) % 10];
 }

@@ -1,4 +1,5 @@
-// End-to-end checks of `aosr tradeoff` through the real executable, on the demo scene simulated at a small size.
+// End-to-end checks of `aosr tradeoff` through the real executable, on the demo scene simulated at a small
+// size.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -35,8 +36,8 @@ class TradeoffCliTest : public ::testing::Test {
     dir_ = fs::temp_directory_path() / ("aosr_tradeoff_cli_" + std::to_string(getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    status_ = RunCli("simulate " + std::string(AOSR_SOURCE_DIR) + "/data/scenes/demo.json --set detector.frame_px=64 -o " +
-                     Data());
+    status_ = RunCli("simulate " + std::string(AOSR_SOURCE_DIR) +
+                     "/data/scenes/demo.json --set detector.frame_px=64 -o " + Data());
     if (status_.status == 0) {
       nlohmann::json m = nlohmann::json::parse(ReadText(dir_ / "data" / "manifest.json"));
       m.erase("truth");
@@ -55,7 +56,8 @@ class TradeoffCliTest : public ::testing::Test {
 fs::path TradeoffCliTest::dir_;
 CliRun TradeoffCliTest::status_;
 
-constexpr const char* kQuick = " --methods shift-add,drizzle,tikhonov,tv --iterations 10,5 --lambda-factors 0.1,10 --threads 1";
+constexpr const char* kQuick =
+    " --methods shift-add,drizzle,tikhonov,tv --iterations 10,5 --lambda-factors 0.1,10 --threads 1";
 
 TEST_F(TradeoffCliTest, WritesTableJsonAndPictureWithARowPerMethodAndKnob) {
   const CliRun r = RunCli("tradeoff " + Data() + " -o " + Out("with_truth") + kQuick);
@@ -80,7 +82,8 @@ TEST_F(TradeoffCliTest, WritesTableJsonAndPictureWithARowPerMethodAndKnob) {
     EXPECT_NE(row["termination"], "failed") << row.dump();
     EXPECT_GE(row["seconds"].get<double>(), 0.0);
   }
-  EXPECT_EQ(per_method, (std::map<std::string, int>{{"shift-add", 1}, {"drizzle", 1}, {"tikhonov", 3}, {"tv", 2}}));
+  EXPECT_EQ(per_method,
+            (std::map<std::string, int>{{"shift-add", 1}, {"drizzle", 1}, {"tikhonov", 3}, {"tv", 2}}));
   const auto& rows = j["rows"];
   EXPECT_DOUBLE_EQ(rows[2]["lambda_factor"].get<double>(), 0.1);
   EXPECT_DOUBLE_EQ(rows[3]["lambda_factor"].get<double>(), 1.0);
@@ -105,7 +108,8 @@ TEST_F(TradeoffCliTest, WritesTableJsonAndPictureWithARowPerMethodAndKnob) {
 }
 
 TEST_F(TradeoffCliTest, PsnrAgreesWithReconstruct) {
-  const CliRun t = RunCli("tradeoff " + Data() + " -o " + Out("agree") + " --methods tikhonov --lambda-factors 10 --json");
+  const CliRun t =
+      RunCli("tradeoff " + Data() + " -o " + Out("agree") + " --methods tikhonov --lambda-factors 10 --json");
   ASSERT_EQ(t.status, 0) << t.out;
   const nlohmann::json j = nlohmann::json::parse(t.out);
   const CliRun r = RunCli("reconstruct " + Data() + " -m tikhonov -o " + Out("agree/tik.fits") + " --json");
@@ -141,8 +145,9 @@ TEST_F(TradeoffCliTest, WritesBesideTheDatasetWithoutTouchingIt) {
 }
 
 TEST_F(TradeoffCliTest, WithoutATruthPlotsTheMisfitAndTheChange) {
-  const CliRun r = RunCli("tradeoff " + (dir_ / "data" / "no_truth.json").string() + " -o " + Out("no_truth") +
-                          " --methods shift-add,tikhonov,map --iterations 5,10 --lambda-factors 0.1 --threads 1");
+  const CliRun r =
+      RunCli("tradeoff " + (dir_ / "data" / "no_truth.json").string() + " -o " + Out("no_truth") +
+             " --methods shift-add,tikhonov,map --iterations 5,10 --lambda-factors 0.1 --threads 1");
   ASSERT_EQ(r.status, 0) << r.out;
   const fs::path out = Out("no_truth");
   const nlohmann::json j = nlohmann::json::parse(ReadText(out / "tradeoff.json"));

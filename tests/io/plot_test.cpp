@@ -13,8 +13,8 @@
 namespace aosr {
 namespace {
 
-using testing_io::TempDir;
 using ::testing::HasSubstr;
+using testing_io::TempDir;
 
 std::string ErrorOf(const std::function<void()>& f) {
   try {
@@ -40,7 +40,8 @@ LinePlot TwoCurves() {
 }
 
 // Number of pixels of `img` within a box that have colour c (each channel within tol).
-int CountColour(const RgbImage& img, std::array<std::uint8_t, 3> c, int tol, Index y0, Index x0, Index y1, Index x1) {
+int CountColour(const RgbImage& img, std::array<std::uint8_t, 3> c, int tol, Index y0, Index x0, Index y1,
+                Index x1) {
   int n = 0;
   for (Index y = y0; y < y1; ++y)
     for (Index x = x0; x < x1; ++x) {
@@ -58,8 +59,8 @@ TEST(PlotTest, PngDecodesWithThePanelGridSize) {
   o.columns = 2;
   WriteFigure(dir.File("fig.png"), {TwoCurves(), TwoCurves(), TwoCurves()}, o);
   const RgbImage img = ReadRgbImage(dir.File("fig.png"));
-  EXPECT_EQ(img.cols, 1000);  // 2 columns
-  EXPECT_EQ(img.rows, 600);   // 3 panels -> 2 rows
+  EXPECT_EQ(img.cols, 1000);                                   // 2 columns
+  EXPECT_EQ(img.rows, 600);                                    // 3 panels -> 2 rows
   EXPECT_EQ(dir.List(), std::vector<std::string>{"fig.png"});  // no temporary left behind
 }
 
@@ -132,7 +133,8 @@ TEST(PlotTest, LogAxisRejectsNonPositiveValuesByName) {
   EXPECT_FALSE(p.IsValid(&why));
   EXPECT_THAT(why, HasSubstr("series[1] ('tv').x[2] = 0"));
   EXPECT_THAT(why, HasSubstr("log x axis needs x > 0"));
-  EXPECT_THAT(ErrorOf([&] { RenderFigure({p}); }), HasSubstr("RenderFigure: panel 0 ('PSNR against wall time')"));
+  EXPECT_THAT(ErrorOf([&] { RenderFigure({p}); }),
+              HasSubstr("RenderFigure: panel 0 ('PSNR against wall time')"));
 
   LinePlot q = TwoCurves();
   q.y.log = true;

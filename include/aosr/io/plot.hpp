@@ -1,5 +1,5 @@
-// Line plots for reports: one or more panels of (x, y) series, each a coloured polyline with a marker at every
-// point, with axes, ticks, tick labels, axis labels, a title and a legend, rendered into an RgbImage
+// Line plots for reports: one or more panels of (x, y) series, each a coloured polyline with a marker at
+// every point, with axes, ticks, tick labels, axis labels, a title and a legend, rendered into an RgbImage
 // (image_io.hpp) and written as PNG. Made for the accuracy-against-time pictures of `aosr tradeoff` and the
 // reconstruction benchmark, and small enough to reuse for any "curve per method" figure.
 //
@@ -16,7 +16,8 @@
 //    names the panel, the series, the point and the value otherwise (plot log10 of it yourself, or drop it).
 //  * Ranges are the finite data's, widened by 5 % of the span on each side (log axes: of the decades), unless
 //    PlotAxis::min / max fix them; points outside a fixed range are clipped at the plot area's edge. A
-//    constant or empty range is widened to a unit span (log: one decade) around the value (or [0, 1], [1, 10]).
+//    constant range is widened to a unit span (log: one decade) around the value, an empty one is [0, 1]
+//    (log: [1, 10]).
 //  * Ticks: linear axes at 1, 2 or 5 x 10^k steps (4-8 ticks); log axes at decades (every k-th decade when
 //    there are many), with 2 and 5 added when fewer than three decades show, and plain 1-2-5 steps when the
 //    range lies within less than one decade. Labels are printf %g with 3 significant digits (exponents
@@ -82,6 +83,7 @@ std::array<std::uint8_t, 3> SeriesColour(int i);
 RgbImage RenderFigure(const std::vector<LinePlot>& panels, const FigureOptions& options = {});
 
 // RenderFigure, then WriteRgbImage(path, ...): an 8-bit RGB PNG (or TIFF by extension), written atomically.
-void WriteFigure(const std::string& path, const std::vector<LinePlot>& panels, const FigureOptions& options = {});
+void WriteFigure(const std::string& path, const std::vector<LinePlot>& panels,
+                 const FigureOptions& options = {});
 
 }  // namespace aosr
