@@ -457,7 +457,16 @@ int main(int argc, char** argv) {
   if (!out_file.empty()) {
     std::ofstream f(out_file);
     f << md.str();
-    WritePlot(png_file, rows);
+    if (!f) {
+      std::fprintf(stderr, "reconstruct_bench: cannot write %s\n", out_file.c_str());
+      return 1;
+    }
+    try {
+      WritePlot(png_file, rows);
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "reconstruct_bench: %s\n", e.what());
+      return 1;
+    }
   }
   return 0;
 }
