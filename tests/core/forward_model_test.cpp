@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "aosr/core/adjoint_test.hpp"
 #include "aosr/core/fft.hpp"
@@ -33,6 +35,28 @@ TEST(ForwardModelTest, OperatorPassesAdjointTest) {
   const MultiFrameModel m = TestModel({24, 18}, 3);
   EXPECT_LT(AdjointTest(*m.Operator()).worst(), 1e-10);
   EXPECT_EQ(m.Operator()->rows(), 3 * 8 * 6);
+}
+
+// The stacked Operator() runs through the aliasing structure (one HR and N LR FFTs each way); it must be
+// the same operator as the per-frame compositions D_r ∘ H_i (FrameOperator), stacked, on even and odd grids,
+// and its adjoint the same as theirs summed.
+TEST(ForwardModelTest, StackedOperatorEqualsTheFrameOperators) {
+  for (auto [hr, r] : std::vector<std::pair<Shape, int>>{{{24, 18}, 3}, {{21, 15}, 3}, {{32, 32}, 4},
+                                                         {{20, 30}, 2}, {{14, 18}, 1}}) {
+    const MultiFrameModel m = TestModel(hr, r);
+    const Index lr = m.lr_shape().size();
+    const Vector x = AsVector(Random(hr, 5));
+    const Vector y = m.Operator()->Apply(x);
+    const Vector v = Vector::Random(y.size());
+    Vector adjoint = Vector::Zero(hr.size());
+    for (int i = 0; i < m.frames(); ++i) {
+      const Vector yi = m.FrameOperator(i)->Apply(x);
+      EXPECT_LT((y.segment(i * lr, lr) - yi).norm(), 1e-12 * yi.norm()) << ToString(hr) << " r=" << r;
+      adjoint += m.FrameOperator(i)->ApplyAdjoint(v.segment(i * lr, lr));
+    }
+    EXPECT_LT((m.Operator()->ApplyAdjoint(v) - adjoint).norm(), 1e-12 * adjoint.norm()) << ToString(hr);
+    EXPECT_LT(AdjointTest(*m.Operator()).worst(), 1e-10) << ToString(hr);
+  }
 }
 
 // The aliasing formula in forward_model.hpp, checked against the spatial operator: for every LR bin u,
