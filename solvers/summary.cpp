@@ -10,6 +10,7 @@ const char* ToString(Termination t) {
     case Termination::kMaxIterations: return "max-iterations";
     case Termination::kStagnated: return "stagnated";
     case Termination::kFailed: return "failed";
+    case Termination::kUserCancelled: return "cancelled";
   }
   return "unknown";
 }

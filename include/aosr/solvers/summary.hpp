@@ -12,6 +12,9 @@ enum class Termination {
   kStagnated,        // stopped because progress fell to rounding level before the stopping rule was met: the
                      // estimate is as good as double precision allows, the tolerance asked for more; see message
   kFailed,           // could not produce a trustworthy result; see message
+  kUserCancelled,    // the caller's progress callback returned false (core/progress.hpp): stopped at the end of
+                     // that iteration with the current (finite, unconverged) estimate; message says "cancelled
+                     // by the caller"
 };
 
 const char* ToString(Termination t);
