@@ -380,6 +380,29 @@ class AbortOnNonFinite : public ceres::IterationCallback {
   const Tracker* tracker_;
 };
 
+// Hands each completed L-BFGS iteration (Ceres' iteration 0 is the start, not reported) to the caller's
+// progress callback; a cancellation ends the solve as a Ceres USER_SUCCESS, which keeps the current iterate.
+class ReportProgress : public ceres::IterationCallback {
+ public:
+  ReportProgress(ProgressReporter* reporter, int max_iterations)
+      : reporter_(reporter), max_iterations_(max_iterations) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
+    if (summary.iteration < 1) return ceres::SOLVER_CONTINUE;
+    const bool last = summary.iteration >= max_iterations_;
+    if (!reporter_->Report(summary.iteration, summary.cost, last) && !last) {
+      cancelled_at_ = summary.iteration;
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
+    }
+    return ceres::SOLVER_CONTINUE;
+  }
+  int cancelled_at() const { return cancelled_at_; }  // 0: not cancelled
+
+ private:
+  ProgressReporter* reporter_;
+  int max_iterations_;
+  int cancelled_at_ = 0;
+};
+
 }  // namespace
 
 MapResult MapReconstruct(const ReconstructionProblem& problem, const MapOptions& options,
@@ -455,6 +478,9 @@ MapResult MapReconstruct(const ReconstructionProblem& problem, const MapOptions&
   Tracker tracker;
   AbortOnNonFinite abort_callback(&tracker);
   ceres_options.callbacks.push_back(&abort_callback);
+  ProgressReporter reporter(options.progress, "map", options.max_iterations, "cost");
+  ReportProgress progress_callback(&reporter, options.max_iterations);
+  if (reporter.active()) ceres_options.callbacks.push_back(&progress_callback);
   std::string ceres_why;
   if (!ceres_options.IsValid(
           &ceres_why))  // our IsValid should make this unreachable; never hand Ceres bad input
@@ -472,6 +498,11 @@ MapResult MapReconstruct(const ReconstructionProblem& problem, const MapOptions&
   s.gradient_evaluations = tracker.gradient_evaluations;
   s.message = ceres_summary.BriefReport() + "; " + ceres_summary.message;
   s.termination = TerminationOf(ceres_summary.termination_type);
+  if (progress_callback.cancelled_at() > 0 && !tracker.non_finite) {
+    s.termination = Termination::kUserCancelled;
+    s.message = "cancelled by the caller after iteration " +
+                std::to_string(progress_callback.cancelled_at()) + "; " + s.message;
+  }
   if (tracker.non_finite) {
     s.termination = Termination::kFailed;
     s.message =
@@ -486,6 +517,8 @@ MapResult MapReconstruct(const ReconstructionProblem& problem, const MapOptions&
     s.message = "non-finite image; returned the warm start. " + s.message;
     finish(z);
   }
+  reporter.Finish(s.iterations, s.final_cost);
+  reporter.RethrowIfThrown();
   return result;
 }
 

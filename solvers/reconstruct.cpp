@@ -70,6 +70,30 @@ Pilot RunPilot(const ReconstructionProblem& problem, const TikhonovOptions& base
   return p;
 }
 
+// The pilot as the progress stage "pilot": iteration 0 of 1 when it starts, 1 of 1 (value λ) when it ends. A
+// cancellation asked at either point is honoured after the pilot (a direct solve), whose estimate is then the
+// result: *cancelled is set.
+Pilot RunPilotStage(const ReconstructionProblem& problem, const TikhonovOptions& base,
+                    const ProgressCallback& progress, bool* cancelled) {
+  ProgressReporter stage(progress, "pilot", 1, "lambda");
+  stage.Start();
+  Pilot p = RunPilot(problem, base);
+  stage.Finish(1, p.tikhonov.summary.lambda);
+  stage.RethrowIfThrown();
+  *cancelled = stage.cancelled();
+  return p;
+}
+
+// The result of a run cancelled during its pilot: the pilot's Tikhonov estimate, reported as cancelled.
+void CancelledAfterPilot(Pilot p, Reconstruction* out) {
+  out->image = std::move(p.tikhonov.image);
+  out->regularisation = p.tikhonov.summary.lambda;
+  out->summary = p.tikhonov.summary;
+  out->summary.termination = Termination::kUserCancelled;
+  out->summary.message = "cancelled by the caller after the pilot stage; the image is its Tikhonov estimate";
+  out->summary.message += " (lambda " + ToString(out->regularisation) + ")";
+}
+
 }  // namespace
 
 const char* ToString(ReconstructionMethod m) {
@@ -148,9 +172,15 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
     }
     case ReconstructionMethod::kTotalVariation: {
       TotalVariationOptions tv = options.tv;
+      if (options.progress) tv.progress = options.progress;
       Image initial;
       if (options.auto_regularisation) {
-        const Pilot p = RunPilot(problem, options.tikhonov);
+        bool cancelled = false;
+        Pilot p = RunPilotStage(problem, options.tikhonov, tv.progress, &cancelled);
+        if (cancelled) {
+          CancelledAfterPilot(std::move(p), &out);
+          break;
+        }
         tv.mu = p.mu;
         initial = p.tikhonov.image;
       }
@@ -163,7 +193,13 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
     }
     case ReconstructionMethod::kMap: {
       MapOptions m = options.map;
-      const Pilot p = RunPilot(problem, options.tikhonov);
+      if (options.progress) m.progress = options.progress;
+      bool cancelled = false;
+      Pilot p = RunPilotStage(problem, options.tikhonov, m.progress, &cancelled);
+      if (cancelled) {
+        CancelledAfterPilot(std::move(p), &out);
+        break;
+      }
       if (options.auto_regularisation) {
         m.lambda = 2 * p.mu;
         m.epsilon = 1e-3 * p.contrast;

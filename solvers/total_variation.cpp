@@ -352,6 +352,11 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
     return 0.5 * weights.dot(r.cwiseAbs2()) + options.mu * IsotropicTotalVariation(AsImage(xx, hr));
   };
 
+  ProgressReporter reporter(options.progress, "tv", options.max_iterations, "primal/tol");
+  const auto primal_over_tolerance = [&s] {
+    return s.primal_tolerance > 0 ? s.primal_residual / s.primal_tolerance
+                                  : std::numeric_limits<double>::quiet_NaN();
+  };
   s.termination = Termination::kMaxIterations;
   int still_iterations = 0;  // consecutive iterations in which x did not move beyond rounding
   // Squared norms of the data-sized vectors must exist in double precision, or no residual is meaningful.
@@ -437,27 +442,34 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
                   "; returned the last finite iterate";
       break;
     }
+    bool done = false;
     if (primal <= eps_pri && dual_res <= eps_dual) {
       s.termination = Termination::kConverged;
       s.message = "primal and dual residuals within tolerance";
-      break;
-    }
-    if (options.change_tolerance > 0 && (x - x_prev).norm() <= options.change_tolerance * x.norm()) {
+      done = true;
+    } else if (options.change_tolerance > 0 && (x - x_prev).norm() <= options.change_tolerance * x.norm()) {
       s.termination = Termination::kConverged;
       s.message = "relative change of x below change_tolerance";
-      break;
-    }
-    // Stagnation: x has not moved beyond rounding (4ε relative) for 3 iterations while the residuals still
-    // exceed tolerances that double precision cannot resolve for this problem: stop and say so.
-    if ((x - x_prev).norm() <= 4 * std::numeric_limits<double>::epsilon() * x.norm()) {
+      done = true;
+    } else if ((x - x_prev).norm() <= 4 * std::numeric_limits<double>::epsilon() * x.norm()) {
+      // Stagnation: x has not moved beyond rounding (4ε relative) for 3 iterations while the residuals still
+      // exceed tolerances that double precision cannot resolve for this problem: stop and say so.
       if (++still_iterations >= 3) {
         s.termination = Termination::kStagnated;
         s.message = "x unchanged to rounding for 3 iterations with the residuals above tolerance";
-        break;
+        done = true;
       }
     } else {
       still_iterations = 0;
     }
+    // Progress (reads scalars only). A cancellation on the last iteration cuts nothing short.
+    const bool last = done || k + 1 == options.max_iterations;
+    if (!reporter.Report(k + 1, primal_over_tolerance(), last) && !last) {
+      s.termination = Termination::kUserCancelled;
+      s.message = "cancelled by the caller after iteration " + std::to_string(k + 1);
+      done = true;
+    }
+    if (done) break;
 
     // Residual balancing on the tolerance-normalised residuals.
     if (options.adaptive_rho && s.rho_updates < options.max_rho_updates && eps_pri > 0 && eps_dual > 0) {
@@ -478,6 +490,8 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
     }
   }
   if (failed) s.termination = Termination::kFailed;
+  reporter.Finish(s.iterations, primal_over_tolerance());  // a failure path ends without a last report
+  reporter.RethrowIfThrown();
   s.final_rho = rho;
 
   Image out = ToImage(x, hr);

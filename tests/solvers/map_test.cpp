@@ -1,10 +1,15 @@
 #include "aosr/solvers/map.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
+#include <thread>
+#include <vector>
 
 #include "aosr/solvers/tikhonov.hpp"
 #include "solvers/map_fixtures.hpp"
@@ -243,6 +248,105 @@ TEST(MapTest, NamesRoundTrip) {
     EXPECT_EQ(ParseMapPositivity(ToString(p)), p);
   std::string why;
   EXPECT_TRUE(MapOptions{}.IsValid(&why)) << why;
+}
+
+// Progress (core/progress.hpp) through Ceres' IterationCallback: rising iterations that end at the summary's
+// count, with the cost, which never increases along L-BFGS' accepted steps.
+TEST(MapTest, ProgressReportsRisingIterationsEndingAtTheSummarysCount) {
+  const Shape hr{32, 32};
+  const auto model = Raster4(hr);
+  const ReconstructionProblem problem =
+      MakeProblem(model, NoisyFrames(*model, map_test::PiecewiseConstant(hr, 1.0, 2.0), 0.05, 21));
+  for (int max_iterations : {500, 7}) {  // converged, then stopped at the limit
+    MapOptions o;
+    o.max_iterations = max_iterations;
+    std::vector<Progress> seen;
+    o.progress = [&seen](const Progress& q) {
+      seen.push_back(q);
+      return true;
+    };
+    const MapResult r = MapReconstruct(problem, o);
+    ASSERT_FALSE(seen.empty());
+    EXPECT_EQ(seen.front().iteration, 1);
+    EXPECT_EQ(seen.back().iteration, r.summary.iterations) << r.summary.BriefReport();
+    for (std::size_t i = 0; i < seen.size(); ++i) {
+      EXPECT_EQ(seen[i].stage, "map");
+      EXPECT_EQ(seen[i].total, max_iterations);
+      EXPECT_EQ(seen[i].value_name, "cost");
+      EXPECT_TRUE(std::isfinite(seen[i].value));
+      if (i > 0) {
+        EXPECT_GT(seen[i].iteration, seen[i - 1].iteration);
+        EXPECT_LE(seen[i].value, seen[i - 1].value);
+      }
+    }
+    EXPECT_EQ(r.summary.termination,
+              max_iterations == 7 ? Termination::kMaxIterations : Termination::kConverged);
+    EXPECT_NEAR(seen.back().value, r.summary.final_cost, 1e-9 * r.summary.final_cost);
+  }
+}
+
+// Returning false stops after that iteration with kUserCancelled, that iterate and a finite image. The
+// second delivery is forced by sleeping past the 0.2 s interval inside the first (no wall time is asserted).
+TEST(MapTest, ProgressCallbackReturningFalseCancelsAfterThatIteration) {
+  const Shape hr{32, 32};
+  const auto model = Raster4(hr);
+  const ReconstructionProblem problem =
+      MakeProblem(model, NoisyFrames(*model, map_test::PiecewiseConstant(hr, 1.0, 2.0), 0.05, 22));
+  for (int cancel_at_call : {1, 2}) {
+    MapOptions o;
+    o.positivity = MapPositivity::kSoftplus;
+    int calls = 0;
+    double reported_cost = 0;
+    o.progress = [&](const Progress& q) {
+      reported_cost = q.value;
+      if (++calls == cancel_at_call) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+      return true;
+    };
+    const MapResult r = MapReconstruct(problem, o);
+    EXPECT_EQ(r.summary.termination, Termination::kUserCancelled) << r.summary.BriefReport();
+    EXPECT_EQ(r.summary.iterations, cancel_at_call);
+    EXPECT_EQ(calls, cancel_at_call);
+    EXPECT_THAT(r.summary.message, ::testing::HasSubstr("cancelled by the caller"));
+    EXPECT_TRUE(AllFinite(r.image));
+    EXPECT_GE(r.image.minCoeff(), 0.0);
+    // The image is the iterate the callback saw, not the warm start.
+    EXPECT_NEAR(r.summary.final_cost, reported_cost, 1e-9 * reported_cost);
+    EXPECT_LT(r.summary.final_cost, r.summary.initial_cost);
+  }
+}
+
+// The callback cannot change the maths: a callback that always continues gives the same bits as none.
+TEST(MapTest, ProgressCallbackLeavesTheResultBitIdentical) {
+  const Shape hr{32, 32};
+  const auto model = Raster4(hr);
+  const ReconstructionProblem problem =
+      MakeProblem(model, NoisyFrames(*model, map_test::PiecewiseConstant(hr, 1.0, 2.0), 0.05, 23));
+  MapOptions o;
+  o.positivity = MapPositivity::kSoftplus;
+  const MapResult r0 = MapReconstruct(problem, o);
+  int calls = 0;
+  o.progress = [&calls](const Progress&) { return ++calls > 0; };
+  const MapResult r1 = MapReconstruct(problem, o);
+  EXPECT_GT(calls, 0);
+  EXPECT_TRUE((r0.image == r1.image).all());
+  EXPECT_EQ(r0.summary.iterations, r1.summary.iterations);
+  EXPECT_EQ(r0.summary.termination, r1.summary.termination);
+  EXPECT_EQ(r0.summary.final_cost, r1.summary.final_cost);
+  EXPECT_EQ(r0.summary.gradient_evaluations, r1.summary.gradient_evaluations);
+}
+
+// A callback's exception (a binding's KeyboardInterrupt, say) stops the solve and reaches the caller intact;
+// it never crosses Ceres.
+TEST(MapTest, ProgressCallbackExceptionReachesTheCaller) {
+  const Shape hr{16, 16};
+  const auto model = Raster4(hr);
+  const ReconstructionProblem problem =
+      MakeProblem(model, NoisyFrames(*model, map_test::PiecewiseConstant(hr, 1.0, 2.0), 0.05, 24));
+  MapOptions o;
+  o.progress = [](const Progress&) -> bool { throw std::runtime_error("KeyboardInterrupt"); };
+  EXPECT_THAT(test::ErrorOf<std::runtime_error>([&] { MapReconstruct(problem, o); }),
+              ::testing::HasSubstr("KeyboardInterrupt"));
 }
 
 }  // namespace

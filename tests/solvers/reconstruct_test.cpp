@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
+#include <vector>
 
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
@@ -225,6 +227,68 @@ TEST(ReconstructTest, MaskedNanPixelIsIgnoredByEveryMethod) {
       EXPECT_THAT(r.summary.message, HasSubstr("GCV on the unweighted"));
     }
   }
+}
+
+// One callback sees every stage of a run in order: the pilot (0 then 1 of 1, with its λ), then the solver's
+// iterations, ending at the summary's count; a callback that continues leaves the bits unchanged.
+TEST(ReconstructTest, ProgressShowsThePilotThenTheSolverStage) {
+  const Dataset d = MakeDataset({32, 32}, 2, 2, 1.0, 0.0, 20.0);
+  const ReconstructionProblem p = ProblemFromDataset(d).problem;
+  for (ReconstructionMethod m : {ReconstructionMethod::kTotalVariation, ReconstructionMethod::kMap}) {
+    ReconstructOptions o;
+    o.method = m;
+    const Reconstruction quiet = Reconstruct(p, o);
+    std::vector<Progress> seen;
+    o.progress = [&seen](const Progress& q) {
+      seen.push_back(q);
+      return true;
+    };
+    const Reconstruction r = Reconstruct(p, o);
+    ASSERT_GE(seen.size(), 3u) << ToString(m);
+    EXPECT_EQ(seen[0].stage, "pilot");
+    EXPECT_EQ(seen[0].iteration, 0);
+    EXPECT_EQ(seen[1].stage, "pilot");
+    EXPECT_EQ(seen[1].iteration, 1);
+    EXPECT_EQ(seen[1].total, 1);
+    EXPECT_EQ(seen[1].value_name, "lambda");
+    EXPECT_GT(seen[1].value, 0.0);
+    for (std::size_t i = 2; i < seen.size(); ++i) {
+      EXPECT_EQ(seen[i].stage, ToString(m));
+      if (i > 2) {
+        EXPECT_GT(seen[i].iteration, seen[i - 1].iteration);
+      }
+    }
+    EXPECT_EQ(seen.back().iteration, r.summary.iterations);
+    EXPECT_TRUE((quiet.image == r.image).all()) << ToString(m);
+    EXPECT_EQ(quiet.summary.iterations, r.summary.iterations);
+  }
+}
+
+// Cancelling during the pilot returns the pilot's Tikhonov estimate; later, the solver's current iterate.
+TEST(ReconstructTest, ProgressCancellationInEitherStage) {
+  const Dataset d = MakeDataset({32, 32}, 2, 2, 1.0, 0.0, 20.0);
+  const ReconstructionProblem p = ProblemFromDataset(d).problem;
+  ReconstructOptions t;
+  t.method = ReconstructionMethod::kTikhonov;
+  const Reconstruction tikhonov = Reconstruct(p, t);
+  for (ReconstructionMethod m : {ReconstructionMethod::kTotalVariation, ReconstructionMethod::kMap})
+    for (const std::string stop_in : {"pilot", "solver"}) {
+      ReconstructOptions o;
+      o.method = m;
+      o.progress = [&](const Progress& q) {
+        return stop_in == "pilot" ? q.stage != "pilot" : q.stage == "pilot";
+      };
+      const Reconstruction r = Reconstruct(p, o);
+      EXPECT_EQ(r.summary.termination, Termination::kUserCancelled) << ToString(m) << " " << stop_in;
+      EXPECT_THAT(r.summary.message, HasSubstr("cancelled by the caller"));
+      EXPECT_TRUE(AllFinite(r.image));
+      if (stop_in == "pilot") {
+        EXPECT_EQ(r.summary.iterations, 0);
+        EXPECT_LT((r.image - tikhonov.image).matrix().norm(), 1e-12 * tikhonov.image.matrix().norm());
+      } else {
+        EXPECT_EQ(r.summary.iterations, 1);
+      }
+    }
 }
 
 }  // namespace

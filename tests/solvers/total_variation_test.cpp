@@ -1,12 +1,16 @@
 #include "aosr/solvers/total_variation.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <memory>
 #include <random>
+#include <thread>
+#include <vector>
 
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
@@ -359,6 +363,85 @@ TEST(TotalVariationTest, IsotropicTotalVariationOfSimpleImages) {
   Image dot = Image::Zero(5, 5);
   dot(2, 2) = 1.0;
   EXPECT_DOUBLE_EQ(IsotropicTotalVariation(dot), 2.0 + std::sqrt(2.0));
+}
+
+// Progress (core/progress.hpp): the callback sees rising iterations that end at the summary's count.
+TEST(TotalVariationTest, ProgressReportsRisingIterationsEndingAtTheSummarysCount) {
+  const ReconstructionProblem p = SmallProblem();
+  for (int max_iterations : {1000, 40}) {  // converged, then stopped at the limit
+    TotalVariationOptions o;
+    o.max_iterations = max_iterations;
+    std::vector<Progress> seen;
+    o.progress = [&seen](const Progress& q) {
+      seen.push_back(q);
+      return true;
+    };
+    TotalVariationSummary s;
+    TotalVariationAdmm(p, o, &s);
+    ASSERT_FALSE(seen.empty());
+    EXPECT_EQ(seen.front().iteration, 1);
+    EXPECT_EQ(seen.back().iteration, s.iterations) << s.BriefReport();
+    for (std::size_t i = 0; i < seen.size(); ++i) {
+      EXPECT_EQ(seen[i].stage, "tv");
+      EXPECT_EQ(seen[i].total, max_iterations);
+      EXPECT_EQ(seen[i].value_name, "primal/tol");
+      EXPECT_TRUE(std::isfinite(seen[i].value) && seen[i].value >= 0);
+      if (i > 0) {
+        EXPECT_GT(seen[i].iteration, seen[i - 1].iteration);
+        EXPECT_GE(seen[i].elapsed_seconds, seen[i - 1].elapsed_seconds);
+      }
+    }
+    EXPECT_EQ(s.termination, max_iterations == 40 ? Termination::kMaxIterations : Termination::kConverged);
+    EXPECT_NEAR(seen.back().value, s.primal_residual / s.primal_tolerance, 1e-12 * seen.back().value);
+  }
+}
+
+// Returning false stops after that iteration with kUserCancelled and a finite estimate. The second
+// delivery is forced by sleeping past the 0.2 s interval inside the first (no wall time is asserted).
+TEST(TotalVariationTest, ProgressCallbackReturningFalseCancelsAfterThatIteration) {
+  const ReconstructionProblem p = SmallProblem();
+  for (int cancel_at_call : {1, 2}) {
+    TotalVariationOptions o;
+    o.positivity = true;
+    int calls = 0;
+    o.progress = [&](const Progress&) {
+      if (++calls == cancel_at_call) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+      return true;
+    };
+    TotalVariationSummary s;
+    const Image x = TotalVariationAdmm(p, o, &s);
+    EXPECT_EQ(s.termination, Termination::kUserCancelled) << s.BriefReport();
+    EXPECT_EQ(s.iterations, cancel_at_call);
+    EXPECT_EQ(calls, cancel_at_call);
+    EXPECT_THAT(s.message, ::testing::HasSubstr("cancelled by the caller"));
+    EXPECT_STREQ(ToString(s.termination), "cancelled");
+    EXPECT_TRUE(AllFinite(x));
+    EXPECT_GE(x.minCoeff(), 0.0);
+    EXPECT_TRUE(std::isfinite(s.final_cost));
+  }
+}
+
+// The callback cannot change the maths: a callback that always continues gives the same bits as none.
+TEST(TotalVariationTest, ProgressCallbackLeavesTheResultBitIdentical) {
+  for (TotalVariationXUpdate path :
+       {TotalVariationXUpdate::kFourier, TotalVariationXUpdate::kConjugateGradient}) {
+    const ReconstructionProblem p = SmallProblem(3);
+    TotalVariationOptions o;
+    o.x_update = path;
+    o.max_iterations = 300;
+    TotalVariationSummary s0, s1;
+    const Image x0 = TotalVariationAdmm(p, o, &s0);
+    int calls = 0;
+    o.progress = [&calls](const Progress&) { return ++calls > 0; };
+    const Image x1 = TotalVariationAdmm(p, o, &s1);
+    EXPECT_GT(calls, 0);
+    EXPECT_TRUE((x0 == x1).all()) << ToString(path);
+    EXPECT_EQ(s0.iterations, s1.iterations);
+    EXPECT_EQ(s0.termination, s1.termination);
+    EXPECT_EQ(s0.final_cost, s1.final_cost);
+    EXPECT_EQ(s0.message, s1.message);
+  }
 }
 
 }  // namespace

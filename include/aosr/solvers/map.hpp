@@ -60,6 +60,7 @@
 
 #include <string>
 
+#include "aosr/core/progress.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/summary.hpp"
 #include "aosr/solvers/tikhonov.hpp"
@@ -132,16 +133,23 @@ struct MapOptions {
   // relative error 0.338 instead of 0.331.
   bool lbfgs_eigenvalue_scaling = true;
 
+  // Called after L-BFGS iterations (a Ceres IterationCallback; core/progress.hpp: at most every 0.2 s, always
+  // the first and the last) with stage "map", total = max_iterations and value = F ("cost"). Returning false
+  // stops after that iteration with Termination::kUserCancelled and that iterate. Empty (the default): not
+  // called, no cost; a callback that returns true leaves the result bit-identical.
+  ProgressCallback progress;
+
   // False (and *why names the field, if why is non-null) unless every field is in its documented range.
   bool IsValid(std::string* why) const;
 };
 
 struct MapSummary : SolverSummary {
   // SolverSummary: method "map"; termination kConverged (Ceres CONVERGENCE), kMaxIterations (Ceres
-  // NO_CONVERGENCE) or kFailed (Ceres FAILURE, a non-finite cost or gradient anywhere — then the returned
-  // image is the lowest-cost finite iterate — or a non-finite objective at the warm start, when Ceres is not
-  // run and the warm start is returned); message = Ceres' BriefReport and its termination reason; final_cost
-  // = F at the returned image; frame_residual_rms over each frame's unmasked pixels of y − Ax − b.
+  // NO_CONVERGENCE), kUserCancelled (options.progress returned false) or kFailed (Ceres FAILURE, a non-finite
+  // cost or gradient anywhere — then the returned image is the lowest-cost finite iterate — or a non-finite
+  // objective at the warm start, when Ceres is not run and the warm start is returned); message = Ceres'
+  // BriefReport and its termination reason; final_cost = F at the returned image; frame_residual_rms over
+  // each frame's unmasked pixels of y − Ax − b.
   double initial_cost = 0.0;           // F at the warm start (after the positivity floor, if any)
   double data_cost = 0.0;              // L(y | Ax) at the returned image
   double prior_cost = 0.0;             // λ R(x) at the returned image

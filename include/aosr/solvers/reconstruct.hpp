@@ -53,6 +53,14 @@ struct ReconstructOptions {
   MapOptions map;
   // tv and map: set μ (tv.mu) and λ, ε (map.lambda, map.epsilon) by the rule above, overriding the fields.
   bool auto_regularisation = true;
+  // One progress callback for every stage of the run (core/progress.hpp), so a caller sees which stage runs:
+  // "pilot" (the GCV Tikhonov estimate behind tv's automatic μ and warm start, and map's warm start; reported
+  // as iteration 0 of 1 when it starts and 1 of 1, value λ, when it ends), then "tv" or "map" (their solvers'
+  // iterations). When set it replaces tv.progress and map.progress; when empty those are used as given.
+  // Returning false cancels: during the pilot the run returns the pilot's Tikhonov estimate, later the
+  // solver's current iterate, both with Termination::kUserCancelled. The other methods are direct and do not
+  // call it. Empty (the default): no cost.
+  ProgressCallback progress;
 };
 
 struct Reconstruction {

@@ -75,6 +75,7 @@
 #include <vector>
 
 #include "aosr/core/forward_model.hpp"
+#include "aosr/core/progress.hpp"
 #include "aosr/solvers/fourier_normal_system.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/summary.hpp"
@@ -150,6 +151,13 @@ struct TotalVariationOptions {
   // Record per-iteration residuals, tolerances, ρ and objective in the summary. The objective costs N
   // extra forward-model applications per iteration, so this is off by default.
   bool record_history = false;
+
+  // Called after ADMM iterations (core/progress.hpp: at most every 0.2 s, always the first and the last) with
+  // stage "tv", total = max_iterations and value = primal residual / its tolerance ("primal/tol", <= 1 once
+  // the primal part of the stopping rule is met). Returning false stops after that iteration with
+  // Termination::kUserCancelled and the current estimate. Empty (the default): not called, no cost; a
+  // callback that returns true leaves the result bit-identical.
+  ProgressCallback progress;
 
   // False, with `why` naming the offending field, when any field is outside its documented range.
   bool IsValid(std::string* why) const;
