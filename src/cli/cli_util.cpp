@@ -16,7 +16,7 @@
 
 namespace aosr::cli {
 
-Progress::Progress(bool enabled) : enabled_(enabled && isatty(fileno(stderr))) {}
+Progress::Progress(bool enabled, bool force) : enabled_(force || (enabled && isatty(fileno(stderr)))) {}
 
 void Progress::Step(const std::string& message) const {
   if (enabled_) std::fprintf(stderr, "[aosr] %s\n", message.c_str());

@@ -13,11 +13,12 @@ struct Dataset;
 
 namespace aosr::cli {
 
-// Prints "[aosr] message" to stderr when stderr is a terminal and `enabled`; silent otherwise
-// (so --json output and pipes stay clean).
+// Prints "[aosr] message" to stderr when stderr is a terminal and `enabled`, or always when `force` (a
+// command's --progress, for logs); silent otherwise (so --json output and pipes stay clean). Never stdout.
+// The per-iteration line of long solves is progress_bar.hpp's.
 class Progress {
  public:
-  explicit Progress(bool enabled);
+  explicit Progress(bool enabled, bool force = false);
   void Step(const std::string& message) const;
 
  private:

@@ -18,6 +18,7 @@
 #include "aosr/solvers/reconstruct.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
+#include "progress_bar.hpp"
 
 namespace aosr::cli {
 namespace {
@@ -29,6 +30,7 @@ struct ReconstructArgs {
   std::string method = "tikhonov";
   std::string out;
   bool json = false;
+  bool progress = false;  // --progress: progress on stderr even under --json or without a terminal
   std::string weights = "auto";
   std::string offsets = "auto";
   std::string model_psfs;
@@ -60,7 +62,8 @@ std::string AuxPath(const std::string& out, const std::string& aux) {
 
 void RunReconstruct(const ReconstructArgs& a) {
   ApplyExecution(a.exec);
-  const Progress progress(!a.json);
+  const Progress progress(!a.json, a.progress);
+  ProgressBar bar(ProgressBar::Choose(a.json, a.progress));
   ReconstructOptions o;
   o.method = ParseReconstructionMethod(a.method);
   DatasetProblemOptions dpo;
@@ -116,7 +119,9 @@ void RunReconstruct(const ReconstructArgs& a) {
 
   progress.Step(std::string("reconstructing with ") + ToString(o.method) + " (" + std::to_string(d.size()) +
                 " frames of " + ToString(d.frame) + ", r = " + std::to_string(d.r) + ")");
+  o.progress = bar.Callback();
   const Reconstruction rec = Reconstruct(dp.problem, o);
+  bar.Clear();
 
   FitsHeader h;
   h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
@@ -195,6 +200,10 @@ void RegisterReconstruct(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("-o,--output", a->out, "output FITS image")->required();
   cmd->add_flag("--json", a->json, "print the summary as JSON");
+  cmd->add_flag(
+      "--progress", a->progress,
+      "show progress on stderr even with --json or when stderr is not a terminal (then as lines, at most "
+      "one a second; by default it shows only on a terminal without --json)");
   cmd->add_option("--weights", a->weights, "auto | dataset (inverse variances) | mask (uniform on valid pixels)")
       ->capture_default_str();
   cmd->add_option("--offsets", a->offsets, "registration offsets for shift-add/drizzle: auto | dm | centroids")

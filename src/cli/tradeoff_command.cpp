@@ -45,6 +45,7 @@
 #include "aosr/solvers/reconstruct.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
+#include "progress_bar.hpp"
 
 namespace aosr::cli {
 namespace {
@@ -63,6 +64,7 @@ struct TradeoffArgs {
   std::string weights = "auto";
   bool force = false;
   bool json = false;
+  bool progress = false;  // --progress: progress on stderr even under --json or without a terminal
   ExecutionArgs exec;
 };
 
@@ -221,7 +223,8 @@ std::vector<LinePlot> Panels(const std::string& name, bool truth, const std::vec
 
 void RunTradeoff(const TradeoffArgs& a) {
   ApplyExecution(a.exec);
-  const Progress progress(!a.json);
+  const Progress progress(!a.json, a.progress);
+  ProgressBar bar(ProgressBar::Choose(a.json, a.progress));
   // Options, checked before anything is read or computed.
   const std::vector<std::string> methods = Methods(a);
   std::vector<int> caps =
@@ -271,7 +274,9 @@ void RunTradeoff(const TradeoffArgs& a) {
   const auto run = [&](const std::string& method, ReconstructOptions o, Row row, Image* image) {
     o.method = ParseReconstructionMethod(method);
     progress.Step(method + " " + row.knob);
+    o.progress = bar.Callback();
     Reconstruction rec = Reconstruct(p, o);
+    bar.Clear();
     row.method = method;
     row.iterations = rec.summary.iterations;
     row.termination = ToString(rec.summary.termination);
@@ -423,6 +428,10 @@ void RegisterTradeoff(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--force", a->force, "overwrite tradeoff.md/.json/.png if they exist");
   cmd->add_flag("--json", a->json, "print tradeoff.json to stdout instead of the table");
+  cmd->add_flag(
+      "--progress", a->progress,
+      "show progress on stderr even with --json or when stderr is not a terminal (then as lines, at "
+      "most one a second; by default it shows only on a terminal without --json)");
   AddExecutionOptions(cmd, &a->exec);
   cmd->callback([a] { RunTradeoff(*a); });
 }

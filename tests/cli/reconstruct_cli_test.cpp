@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -17,6 +18,7 @@ namespace fs = std::filesystem;
 using aosr::test::CliRun;
 using aosr::test::RunCli;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 // One dataset for the whole suite: paper-8m without turbulence, 48-px frames, r = 2, N = 4 raster, 1% noise.
 class ReconstructCliTest : public ::testing::Test {
@@ -97,6 +99,40 @@ TEST_F(ReconstructCliTest, BadRequestsFailBeforeWritingAnything) {
   r = RunCli("reconstruct " + Data() + " -m drizzle --kernel round -o " + Out("z"));
   EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.out, HasSubstr("kernel"));
+}
+
+// Progress (src/cli/progress_bar.hpp): --progress writes it to stderr, as whole lines when stderr is a file,
+// and never to stdout (the JSON stays clean); without it, with stderr not a terminal (a file here), a
+// successful run writes nothing to stderr.
+TEST_F(ReconstructCliTest, ProgressGoesToStderrOnlyWhenAskedOrOnATerminal) {
+  const fs::path err = dir_ / "stderr.txt";
+  const auto run = [&](const std::string& extra) {
+    // The subshell keeps stderr in the file (RunShell merges only the subshell's own stderr into stdout).
+    return aosr::test::RunShell("(" + std::string(AOSR_CLI_PATH) + " reconstruct " + Data() + " -m tv -o " +
+                                Out("tv-progress") + " --iterations 30 " + extra + " 2> " + err.string() +
+                                ")");
+  };
+  const auto read = [](const fs::path& p) {
+    std::ifstream in(p);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  CliRun r = run("--json --progress");
+  ASSERT_EQ(r.status, 0) << r.out << read(err);
+  EXPECT_NO_THROW(nlohmann::json::parse(r.out)) << r.out;
+  EXPECT_THAT(r.out, Not(HasSubstr("[aosr]")));
+  const std::string progress = read(err);
+  EXPECT_THAT(progress, HasSubstr("[aosr] pilot 0/1"));
+  EXPECT_THAT(progress, HasSubstr("[aosr] tv 1/30 ["));
+  EXPECT_THAT(progress, HasSubstr("[aosr] tv 30/30 [####################] primal/tol "));
+  EXPECT_THAT(progress, HasSubstr("elapsed"));
+  EXPECT_THAT(progress, Not(HasSubstr("\r")));  // lines, not a redrawn line, in a file
+
+  for (const char* quiet : {"--json", ""}) {
+    r = run(quiet);
+    ASSERT_EQ(r.status, 0) << r.out;
+    EXPECT_EQ(read(err), "") << quiet;
+    EXPECT_THAT(r.out, Not(HasSubstr("[aosr]")));
+  }
 }
 
 }  // namespace

@@ -192,4 +192,25 @@ TEST_F(TradeoffCliTest, BadInputGetsAClearError) {
   EXPECT_THAT(r.out, HasSubstr("not a directory"));
 }
 
+// --progress: every stage of every run on stderr, stdout only the JSON; quiet without it (stderr a file).
+TEST_F(TradeoffCliTest, ProgressGoesToStderrOnlyWhenAsked) {
+  const fs::path err = dir_ / "stderr.txt";
+  const auto run = [&](const std::string& extra) {
+    return aosr::test::RunShell(
+        "(" + std::string(AOSR_CLI_PATH) + " tradeoff " + Data() + " -o " + Out("progress") +
+        " --force --methods tv,map --iterations 4 --threads 1 --json " + extra + " 2> " + err.string() + ")");
+  };
+  CliRun r = run("--progress");
+  ASSERT_EQ(r.status, 0) << r.out << ReadText(err);
+  EXPECT_NO_THROW(nlohmann::json::parse(r.out)) << r.out;
+  const std::string progress = ReadText(err);
+  for (const char* line : {"[aosr] pilot 0/1", "[aosr] tv 4/4", "[aosr] map 4/4"})
+    EXPECT_THAT(progress, HasSubstr(line)) << progress;
+  EXPECT_THAT(r.out, Not(HasSubstr("[aosr]")));
+
+  r = run("");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(ReadText(err), "");
+}
+
 }  // namespace
