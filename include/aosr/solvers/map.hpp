@@ -136,7 +136,9 @@ struct MapOptions {
   // Called after L-BFGS iterations (a Ceres IterationCallback; core/progress.hpp: at most every 0.2 s, always
   // the first and the last) with stage "map", total = max_iterations and value = F ("cost"). Returning false
   // stops after that iteration with Termination::kUserCancelled and that iterate. Empty (the default): not
-  // called, no cost; a callback that returns true leaves the result bit-identical.
+  // called, no cost; a callback that returns true leaves the result bit-identical. Callers that run solves
+  // in parallel (design_empirical.hpp's objective B, one MAP per training pair) must leave it empty: it would
+  // be called from several threads at once.
   ProgressCallback progress;
 
   // False (and *why names the field, if why is non-null) unless every field is in its documented range.
