@@ -8,6 +8,7 @@
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/parallel.hpp"
+#include "bin_kernels.hpp"
 
 namespace aosr {
 
@@ -25,57 +26,6 @@ double GradientSymbol(Shape hr, Index fy, Index fx) {
   const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
   const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
   return 4.0 * (sy * sy + sx * sx);
-}
-
-// In-place Cholesky G = L Lᴴ of an n x n Hermitian matrix (row-major; the lower triangle is read). Stores L
-// in the lower triangle with 1/L_ii on the diagonal (no complex division in the substitutions). False if a
-// pivot falls to `pivot_floor` or below (singular to rounding).
-bool CholeskyInPlace(Complex* g, int n, double pivot_floor) {
-  for (int j = 0; j < n; ++j) {
-    double d = g[j * n + j].real();
-    for (int k = 0; k < j; ++k) d -= std::norm(g[j * n + k]);
-    if (!(d > pivot_floor)) return false;
-    const double inv = 1.0 / std::sqrt(d);
-    g[j * n + j] = inv;
-    for (int i = j + 1; i < n; ++i) {
-      Complex s = g[i * n + j];
-      for (int k = 0; k < j; ++k) s -= g[i * n + k] * std::conj(g[j * n + k]);
-      g[i * n + j] = s * inv;
-    }
-  }
-  return true;
-}
-
-// Solves L Lᴴ x = b in place (v: b in, x out) for a factor from CholeskyInPlace. RR > 0 fixes the size at
-// compile time (the common r² = 4, 9 and N = 2, 4, 8 unroll); 0 means `n` at run time.
-template <int RR>
-void CholeskySubstitution(const Complex* l, int n, Complex* v) {
-  const int size = RR > 0 ? RR : n;
-  for (int i = 0; i < size; ++i) {  // L w = b
-    Complex s = v[i];
-    for (int j = 0; j < i; ++j) s -= l[i * size + j] * v[j];
-    v[i] = s * l[i * size + i].real();
-  }
-  for (int i = size - 1; i >= 0; --i) {  // Lᴴ x = w
-    Complex s = v[i];
-    for (int j = i + 1; j < size; ++j) s -= std::conj(l[j * size + i]) * v[j];
-    v[i] = s * l[i * size + i].real();
-  }
-}
-
-void Substitute(const Complex* l, int n, Complex* v) {
-  switch (n) {
-    case 2:
-      return CholeskySubstitution<2>(l, n, v);
-    case 4:
-      return CholeskySubstitution<4>(l, n, v);
-    case 8:
-      return CholeskySubstitution<8>(l, n, v);
-    case 9:
-      return CholeskySubstitution<9>(l, n, v);
-    default:
-      return CholeskySubstitution<0>(l, n, v);
-  }
 }
 
 }  // namespace
@@ -145,7 +95,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
           kf[i * n + j] = s;
           kf[j * n + i] = std::conj(s);
         }
-      woodbury[bin] = CholeskyInPlace(kf, n, 1e-12);
+      woodbury[bin] = bins::CholeskyInPlace(kf, n, 1e-12);
     }
   });
   // Pass 2 (serial: few bins, and the slots are numbered in bin order): the dense r² x r² factorisations.
@@ -175,7 +125,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
     std::vector<Complex> f = g;
     // A pivot below 1e-12 of the largest diagonal entry means G(u) is singular to rounding: the Cholesky
     // "solution" would be noise of size 1e12. Use the pseudo-inverse instead.
-    if (scale > 0 && CholeskyInPlace(f.data(), rr, 1e-12 * scale)) {
+    if (scale > 0 && bins::CholeskyInPlace(f.data(), rr, 1e-12 * scale)) {
       dense_.push_back(std::move(f));
       pseudo_.emplace_back();
       continue;
@@ -208,14 +158,14 @@ void FourierNormalSystem::SolveBin(Index bin, Complex* v, Complex* work) const {
       for (int k = 0; k < rr; ++k) s += b[i * rr + k] * v[k];
       work[i] = s;
     }
-    Substitute(&kfactor_[bin * n * n], n, work);
+    bins::Substitute(&kfactor_[bin * n * n], n, work);
     for (int k = 0; k < rr; ++k) {
       Complex s = 0;
       for (int i = 0; i < n; ++i) s += std::conj(b[i * rr + k]) * work[i];
       v[k] -= dinv[k] * s;
     }
   } else if (!dense_[slot].empty()) {
-    Substitute(dense_[slot].data(), rr, v);
+    bins::Substitute(dense_[slot].data(), rr, v);
   } else {
     const Eigen::VectorXcd x = pseudo_[slot] * Eigen::Map<const Eigen::VectorXcd>(v, rr);
     for (int k = 0; k < rr; ++k) v[k] = x[k];

@@ -9,6 +9,8 @@
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
+#include "aosr/core/parallel.hpp"
+#include "bin_kernels.hpp"
 #include "tikhonov_internal.hpp"
 
 namespace aosr {
@@ -192,9 +194,11 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
   const Shape lr = model.lr_shape();
   const int r = model.r(), rr = r * r;
   bins_.resize(lr.size());
-  double trace_ata = 0, trace_p = 0, sv_max = 0;
-  std::vector<Eigen::VectorXd> svs(bins_.size());
-  for (Index uy = 0; uy < lr.rows; ++uy)
+  // σ(A(u))² as the eigenvalues of the smaller Gram matrix (N x N or r² x r²): the rank needs only the values,
+  // and this is several times cheaper than an SVD of the N x r² matrix. Bins are independent: each task
+  // writes its own entries, and the sums below run in bin order (the same bits for any thread count).
+  std::vector<Eigen::VectorXd> sv2(bins_.size());
+  ParallelFor(lr.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr.cols; ++ux) {
       Bin& b = bins_[uy * lr.cols + ux];
       b.a = model.AliasedSystem(uy, ux);
@@ -204,14 +208,33 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
         for (int kx = 0; kx < r; ++kx)
           b.prior[ky * r + kx] = prior_symbol(uy + ky * lr.rows, ux + kx * lr.cols);
       b.prior_positive = (b.prior.array() > 0).all();
-      trace_ata += b.a.squaredNorm();
-      trace_p += b.prior.sum();
-      svs[uy * lr.cols + ux] = Eigen::JacobiSVD<Eigen::MatrixXcd>(b.a).singularValues();
-      if (svs[uy * lr.cols + ux].size()) sv_max = std::max(sv_max, svs[uy * lr.cols + ux][0]);
+      const Eigen::MatrixXcd g =
+          b.a.rows() <= b.a.cols() ? Eigen::MatrixXcd(b.a * b.a.adjoint()) : Eigen::MatrixXcd(b.a.adjoint() * b.a);
+      sv2[uy * lr.cols + ux] =
+          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().cwiseMax(0.0);
     }
-  sv_floor_ = rank_tolerance * sv_max;
+  });
+  double trace_ata = 0, trace_p = 0, sv2_max = 0;
   for (std::size_t i = 0; i < bins_.size(); ++i) {
-    bins_[i].rank = int((svs[i].array() > sv_floor_).count());
+    trace_ata += bins_[i].a.squaredNorm();
+    trace_p += bins_[i].prior.sum();
+    if (sv2[i].size()) sv2_max = std::max(sv2_max, sv2[i].maxCoeff());
+  }
+  // A Gram matrix holds σ² only to about n ε σ_max(u)² absolutely (n its size), so a value that close to the
+  // rank floor cannot be classified from it. Such bins (strong bins with a zero of the pixel box, or
+  // degenerate frames) get the SVD of A(u) itself, which resolves σ to ε σ_max(u): the rank at any
+  // rank_tolerance is then what an SVD of every bin would say, at the cost of a few SVDs.
+  const double floor2_all = std::pow(rank_tolerance, 2) * sv2_max;
+  ParallelFor(Index(bins_.size()), [&](Index i) {
+    if (sv2[i].size() == 0) return;
+    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(sv2[i].size()) * sv2[i].maxCoeff();
+    if (((sv2[i].array() - floor2_all).abs() <= noise).any())
+      sv2[i] = Eigen::JacobiSVD<Eigen::MatrixXcd>(bins_[i].a).singularValues().array().square().matrix();
+  });
+  sv_floor_ = rank_tolerance * std::sqrt(sv2_max);
+  const double floor2 = sv_floor_ * sv_floor_;
+  for (std::size_t i = 0; i < bins_.size(); ++i) {
+    bins_[i].rank = int((sv2[i].array() > floor2).count());
     if (bins_[i].rank < rr) {
       ++deficient_;
       unconstrained_ += rr - bins_[i].rank;
@@ -371,9 +394,10 @@ void FourierSystem::MakeSpectral() const {
   sp->s2.resize(sp->offset[nb]);
   sp->c.resize(sp->offset[nb]);
   sp->perp = Eigen::VectorXd::Zero(nb);
-  for (Index i = 0; i < nb; ++i) {
+  // One SVD per bin, in parallel: each bin writes only its own segment.
+  ParallelFor(nb, [&](Index i) {
     const Bin& b = bins_[i];
-    if (!b.prior_positive) continue;
+    if (!b.prior_positive) return;
     const Index q = sp->offset[i + 1] - sp->offset[i];
     // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's range,
     // so the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||² that would cancel
@@ -385,7 +409,7 @@ void FourierSystem::MakeSpectral() const {
     sp->s2.segment(sp->offset[i], q) = svd.singularValues().array().square().matrix();
     sp->c.segment(sp->offset[i], q) = uy.head(q).cwiseAbs2();
     sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
-  }
+  });
   spectral_ = std::move(sp);
 }
 
@@ -418,23 +442,115 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda) const {
   return f;
 }
 
+bool FourierSystem::SolveBinInPlace(const Bin& b, double w, Path path, Complex* x, Complex* scratch) const {
+  // The per-bin solves of SolveBin on caller-owned scratch (no allocation): A is column-major N x r².
+  const int n = int(b.a.rows()), rr = int(b.a.cols());
+  const Complex* a = b.a.data();
+  const double* p = b.prior.data();
+  if (path == Path::kWoodbury) {
+    // (3): K = A P⁻¹ Aᴴ + w I (N x N), X = P⁻¹ Aᴴ K⁻¹ Y.
+    Complex* k = scratch;
+    Complex* z = scratch + n * n;
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j <= i; ++j) {
+        Complex sum = i == j ? Complex(w) : Complex(0);
+        for (int c = 0; c < rr; ++c) sum += a[c * n + i] * std::conj(a[c * n + j]) / p[c];
+        k[i * n + j] = sum;
+        k[j * n + i] = std::conj(sum);
+      }
+    if (!bins::CholeskyInPlace(k, n, 0.0)) return false;
+    for (int i = 0; i < n; ++i) z[i] = b.y[i];
+    bins::Substitute(k, n, z);
+    for (int c = 0; c < rr; ++c) {
+      Complex sum = 0;
+      for (int i = 0; i < n; ++i) sum += std::conj(a[c * n + i]) * z[i];
+      x[c] = sum / p[c];
+    }
+    return true;
+  }
+  // kNormal: (AᴴA + w P) X = Aᴴ Y by Cholesky.
+  Complex* g = scratch;
+  for (int c = 0; c < rr; ++c)
+    for (int d = 0; d <= c; ++d) {
+      Complex sum = c == d ? Complex(w * p[c]) : Complex(0);
+      for (int i = 0; i < n; ++i) sum += std::conj(a[c * n + i]) * a[d * n + i];
+      g[c * rr + d] = sum;
+      g[d * rr + c] = std::conj(sum);
+    }
+  if (!bins::CholeskyInPlace(g, rr, 0.0)) return false;
+  for (int c = 0; c < rr; ++c) {
+    Complex sum = 0;
+    for (int i = 0; i < n; ++i) sum += std::conj(a[c * n + i]) * b.y[i];
+    x[c] = sum;
+  }
+  bins::Substitute(g, rr, x);
+  return true;
+}
+
 Image FourierSystem::Solve(double lambda, Fit* fit) const {
   const Shape hr = model_.hr_shape(), lr = model_.lr_shape();
-  const int r = model_.r();
-  const double w = lambda / double(r * r);
-  ComplexImage X(hr.rows, hr.cols);
-  Fit f;
-  for (Index uy = 0; uy < lr.rows; ++uy)
+  const int r = model_.r(), rr = r * r, n = model_.frames();
+  const double w = lambda / double(rr);
+  // Only one bin of each mirror pair u, −u is solved; the other is its conjugate (the data are real), so the
+  // output spectrum is exactly Hermitian and half the bins cost nothing (fourier_normal_system.hpp).
+  const Index half_cols = hr.cols / 2 + 1;
+  ComplexImage X(hr.rows, half_cols);
+  std::vector<double> row_residual(lr.rows, 0.0);
+  std::vector<Index> row_woodbury(lr.rows, 0);
+  ParallelFor(lr.rows, [&](Index uy) {
+    std::vector<Complex> scratch(std::max(rr * rr, n * n + n) + rr);
+    Complex* x = scratch.data() + std::max(rr * rr, n * n + n);
+    const Index muy = (lr.rows - uy) % lr.rows;
     for (Index ux = 0; ux < lr.cols; ++ux) {
-      const BinSolution s = SolveBin(bins_[uy * lr.cols + ux], w, false);
-      f.residual2 += s.residual2;
-      f.woodbury_bins += s.woodbury;
+      const Index mux = (lr.cols - ux) % lr.cols;
+      if (!(ux < mux || (ux == mux && uy <= muy))) continue;
+      const bool self_mirror = ux == mux && uy == muy;
+      const Bin& b = bins_[uy * lr.cols + ux];
+      Path path = Choose(b, w);
+      bool done = false, woodbury = false;
+      if (path == Path::kWoodbury) {
+        done = woodbury = SolveBinInPlace(b, w, Path::kWoodbury, x, scratch.data());
+        if (!done) path = Path::kNormal;
+      }
+      if (!done && path == Path::kNormal) done = SolveBinInPlace(b, w, Path::kNormal, x, scratch.data());
+      if (!done) {  // the minimum-norm path (rare: a rank-deficient bin with a zero of the prior)
+        const BinSolution s = SolveBin(b, w, false);
+        for (int c = 0; c < rr; ++c) x[c] = s.x[c];
+      }
+      double res = 0;
+      for (int i = 0; i < n; ++i) {
+        Complex ax = 0;
+        for (int c = 0; c < rr; ++c) ax += b.a(i, c) * x[c];
+        res += std::norm(b.y[i] - ax);
+      }
+      row_residual[uy] += self_mirror ? res : 2 * res;
+      row_woodbury[uy] += woodbury ? (self_mirror ? 1 : 2) : 0;
+      if (self_mirror) {  // keep the stored spectrum Hermitian within the bin (see FourierNormalSystem)
+        for (int c = 0; c < rr; ++c) scratch[c] = x[c];
+        for (int ky = 0; ky < r; ++ky)
+          for (int kx = 0; kx < r; ++kx) {
+            const Index my = (hr.rows - (uy + ky * lr.rows)) % hr.rows;
+            const Index mx = (hr.cols - (ux + kx * lr.cols)) % hr.cols;
+            x[ky * r + kx] = 0.5 * (scratch[ky * r + kx] + std::conj(scratch[int(my / lr.rows) * r + int(mx / lr.cols)]));
+          }
+      }
       for (int ky = 0; ky < r; ++ky)
-        for (int kx = 0; kx < r; ++kx) X(uy + ky * lr.rows, ux + kx * lr.cols) = s.x[ky * r + kx];
+        for (int kx = 0; kx < r; ++kx) {
+          const Index fy = uy + ky * lr.rows, fx = ux + kx * lr.cols;
+          if (fx < half_cols) X(fy, fx) = x[ky * r + kx];
+          const Index my = (hr.rows - fy) % hr.rows, mx = (hr.cols - fx) % hr.cols;
+          if (mx < half_cols) X(my, mx) = std::conj(x[ky * r + kx]);
+        }
     }
-  f.residual2 /= double(bins_.size());
+  });
+  Fit f;
+  for (Index uy = 0; uy < lr.rows; ++uy) {
+    f.residual2 += row_residual[uy];
+    f.woodbury_bins += row_woodbury[uy];
+  }
+  f.residual2 /= double(bins_.size());  // Parseval, as in Evaluate
   if (fit) *fit = f;
-  Image x = FftInverse(X).real();
+  Image x = FftC2R(X, hr.cols);
   if (!AllFinite(x)) throw NumericalError("Tikhonov Fourier solve produced non-finite values");
   return x;
 }

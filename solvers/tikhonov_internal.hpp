@@ -69,6 +69,9 @@ class FourierSystem {
   enum class Path { kWoodbury, kNormal, kMinimumNorm };
   Path Choose(const Bin& b, double w) const;
   BinSolution SolveBin(const Bin& b, double w, bool want_trace) const;
+  // SolveBin's Woodbury or normal-equations path on caller scratch (max(r⁴, N² + N) values) without
+  // allocation; false where the Cholesky fails (the caller falls back as SolveBin does).
+  bool SolveBinInPlace(const Bin& b, double w, Path path, Complex* x, Complex* scratch) const;
   Eigen::MatrixXcd InverseBin(const Bin& b, double w, bool* proper, bool* woodbury) const;
 
   // EvaluateSpectral's per-bin decomposition (empty until first use; `direct` lists the bins solved directly).
