@@ -5,8 +5,11 @@
 #include <ceres/gradient_problem_solver.h>
 #include <ceres/iteration_callback.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <tuple>
+#include <utility>
 #include <limits>
 #include <memory>
 
@@ -77,6 +80,8 @@ bool MapOptions::IsValid(std::string* why) const {
     return fail("likelihood must be kGaussian or kPoisson");
   if (prior != MapPrior::kTikhonov && prior != MapPrior::kCharbonnierTv && prior != MapPrior::kHuberTv)
     return fail("prior must be kTikhonov, kCharbonnierTv or kHuberTv");
+  if (preconditioner != MapPreconditioner::kNone && preconditioner != MapPreconditioner::kFourier)
+    return fail("preconditioner must be kNone or kFourier");
   if (positivity != MapPositivity::kNone && positivity != MapPositivity::kSoftplus)
     return fail("positivity must be kNone or kSoftplus");
   if (prior == MapPrior::kTikhonov && tikhonov_operator != TikhonovPrior::kIdentity &&
@@ -344,18 +349,20 @@ struct Tracker {
 // recorded so that the callback below aborts the solve.
 class CeresObjective : public ceres::FirstOrderFunction {
  public:
-  CeresObjective(const MapObjective& objective, Tracker* tracker)
-      : objective_(objective), tracker_(tracker) {}
+  // `c` (optional): the preconditioner; Ceres then works on u with z = C u and ∂F/∂u = C ∂F/∂z (C = Cᵀ).
+  CeresObjective(const MapObjective& objective, Tracker* tracker, OperatorPtr c = nullptr)
+      : objective_(objective), tracker_(tracker), c_(std::move(c)) {}
 
   bool Evaluate(const double* parameters, double* cost, double* gradient) const override {
-    const Eigen::Map<const Vector> z(parameters, objective_.num_parameters());
+    const Eigen::Map<const Vector> u(parameters, objective_.num_parameters());
+    const Vector z = c_ ? c_->Apply(u) : Vector(u);
     Vector g;
     const MapObjective::Value v = objective_.Evaluate(z, gradient ? &g : nullptr);
     ++(gradient ? tracker_->gradient_evaluations : tracker_->cost_evaluations);
     if (!v.finite) tracker_->non_finite = true;
     if (!v.ok()) return false;
     *cost = v.total;
-    if (gradient) Eigen::Map<Vector>(gradient, g.size()) = g;
+    if (gradient) Eigen::Map<Vector>(gradient, g.size()) = c_ ? c_->Apply(g) : g;
     if (v.total < tracker_->best_cost) {
       tracker_->best_cost = v.total;
       tracker_->best_z = z;
@@ -367,7 +374,66 @@ class CeresObjective : public ceres::FirstOrderFunction {
  private:
   const MapObjective& objective_;
   Tracker* tracker_;
+  OperatorPtr c_;
 };
+
+// C = M^(-1/2) and C⁻¹ = M^(1/2) as Fourier multipliers (MapOptions::preconditioner), M from the problem, the
+// options and the warm start x0.
+std::pair<OperatorPtr, OperatorPtr> FourierPreconditioner(const ReconstructionProblem& problem,
+                                                          const MapOptions& options, const Image& x0) {
+  const MultiFrameModel& model = *problem.model;
+  const Shape hr = model.hr_shape();
+  const int r = model.r();
+  // Mean data curvature per modelled pixel.
+  double sum = 0, count = 0;
+  const double s2 = options.read_noise * options.read_noise;
+  for (int i = 0; i < problem.frame_count(); ++i) {
+    const Image w = problem.Weight(i);
+    for (Index p = 0; p < w.size(); ++p) {
+      if (!(w.data()[p] > 0)) continue;
+      sum += options.likelihood == MapLikelihood::kGaussian
+                 ? w.data()[p]
+                 : 1.0 / std::max(problem.frames[i].data()[p] + s2, 1.0);
+      count += 1;
+    }
+  }
+  const double wbar = count > 0 ? sum / count : 1.0;
+  // κ: the prior's curvature scale at the warm start.
+  double kappa = 1.0;
+  TikhonovPrior gamma = options.tikhonov_operator;
+  if (options.prior != MapPrior::kTikhonov) {
+    gamma = TikhonovPrior::kGradient;
+    const Vector g = Gradient(hr, Boundary::kPeriodic)->Apply(AsVector(x0));
+    const Index n = hr.size();
+    std::vector<double> k(n);
+    for (Index p = 0; p < n; ++p) {
+      const double t = std::hypot(g[p], g[n + p]);
+      k[p] = options.prior == MapPrior::kCharbonnierTv ? 1.0 / std::sqrt(t * t + options.epsilon * options.epsilon)
+                                                       : 1.0 / std::max(t, options.delta);
+    }
+    std::nth_element(k.begin(), k.begin() + n / 2, k.end());
+    kappa = k[n / 2];
+  }
+  ComplexImage m(hr.rows, hr.cols / 2 + 1);
+  double m_max = 0;
+  for (Index fy = 0; fy < hr.rows; ++fy)
+    for (Index fx = 0; fx < m.cols(); ++fx) {
+      double data = 0;
+      for (int i = 0; i < model.frames(); ++i) data += std::norm(model.PixelTransfer(fy, fx) * model.Otf(i, fy, fx));
+      const double value = wbar * data / double(r * r) +
+                           options.lambda * kappa * TikhonovPriorSymbol(gamma, hr, fy, fx);
+      m(fy, fx) = value;
+      m_max = std::max(m_max, value);
+    }
+  const double floor = 1e-12 * (m_max > 0 ? m_max : 1.0);
+  ComplexImage c(m.rows(), m.cols()), c_inv(m.rows(), m.cols());
+  for (Index k = 0; k < m.size(); ++k) {
+    const double v = std::max(m.data()[k].real(), floor);
+    c.data()[k] = 1.0 / std::sqrt(v);
+    c_inv.data()[k] = std::sqrt(v);
+  }
+  return {PeriodicConvolution(hr, c), PeriodicConvolution(hr, c_inv)};
+}
 
 class AbortOnNonFinite : public ceres::IterationCallback {
  public:
@@ -486,12 +552,19 @@ MapResult MapReconstruct(const ReconstructionProblem& problem, const MapOptions&
           &ceres_why))  // our IsValid should make this unreachable; never hand Ceres bad input
     throw InvalidArgument("MapReconstruct: options rejected by Ceres: " + ceres_why);
 
-  ceres::GradientProblem ceres_problem(new CeresObjective(objective, &tracker));  // owns the function
+  OperatorPtr c, c_inv;
+  if (options.preconditioner == MapPreconditioner::kFourier) {
+    std::tie(c, c_inv) = FourierPreconditioner(problem, options, x0);
+    // Ceres' gradient rule is absolute: relative to the initial gradient in u, as without preconditioning.
+    ceres_options.gradient_tolerance = options.gradient_tolerance * c->Apply(g0).lpNorm<Eigen::Infinity>();
+  }
+  ceres::GradientProblem ceres_problem(new CeresObjective(objective, &tracker, c));  // owns the function
   ceres::GradientProblemSolver::Summary ceres_summary;
   tracker.best_cost = v0.total;
   tracker.best_z = z;
-  Vector z_solved = z;
-  ceres::Solve(ceres_options, ceres_problem, z_solved.data(), &ceres_summary);
+  Vector u_solved = c_inv ? c_inv->Apply(z) : z;
+  ceres::Solve(ceres_options, ceres_problem, u_solved.data(), &ceres_summary);
+  const Vector z_solved = c ? c->Apply(u_solved) : u_solved;
 
   s.iterations = std::max<int>(0, static_cast<int>(ceres_summary.iterations.size()) - 1);
   s.cost_evaluations = tracker.cost_evaluations;

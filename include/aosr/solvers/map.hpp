@@ -70,6 +70,9 @@ namespace aosr {
 enum class MapLikelihood { kGaussian, kPoisson };
 enum class MapPrior { kTikhonov, kCharbonnierTv, kHuberTv };
 enum class MapPositivity { kNone, kSoftplus };
+// Preconditioning of L-BFGS by a change of variables z = C u, C = M^(-1/2) a Fourier multiplier, M(f) the
+// Fourier diagonal of the objective's curvature at the start (see MapOptions::preconditioner).
+enum class MapPreconditioner { kNone, kFourier };
 
 const char* ToString(MapLikelihood l);
 const char* ToString(MapPrior p);
@@ -132,6 +135,17 @@ struct MapOptions {
   // test) the unscaled L-BFGS stalls (zero line-search step) at a cost 0.3% above the scaled run's minimum,
   // relative error 0.338 instead of 0.331.
   bool lbfgs_eigenvalue_scaling = true;
+  // kFourier: L-BFGS runs on u with z = C u, C = M^(-1/2) applied by FFTs, where M(f) is the diagonal of the
+  // objective's curvature in Fourier space at the warm start:
+  //   M(f) = w̄ Σ_i |B(f) H_i(f)|² / r²  +  λ κ P(f)  (+ a floor of 1e-12 max M),
+  // w̄ the mean positive weight (kPoisson: the mean of 1/max(c, 1)), P the symbol of the prior's ΓᵀΓ (∇ᵀ∇ for
+  // the TV priors), κ = 1 for kTikhonov and, for the TV priors, the median over pixels of their curvature
+  // φ'(t)/t at the warm start (1/sqrt(t² + ε²), 1/max(t, δ)). The objective and its minimiser are unchanged;
+  // the problem L-BFGS sees is better scaled (the data term's curvature spans the OTF's dynamic range).
+  // Costs 4 HR FFTs per evaluation. The iteration count and the tolerances then refer to u. Default kFourier:
+  // measured on paper-sim-r4 (512², r = 4, N = 4, the automatic λ), it lowered F after 10 and 30 iterations
+  // (PSNR 22.80 -> 23.03 dB and 23.73 -> 24.73 dB); κ scaled by 0.1 or 10 changed F at 30 iterations by < 0.2 %.
+  MapPreconditioner preconditioner = MapPreconditioner::kFourier;
 
   // Called after L-BFGS iterations (a Ceres IterationCallback; core/progress.hpp: at most every 0.2 s, always
   // the first and the last) with stage "map", total = max_iterations and value = F ("cost"). Returning false
