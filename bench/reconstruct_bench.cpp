@@ -54,7 +54,9 @@
 #include <vector>
 
 #include "aosr/core/fft.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/core/metrics.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/io/plot.hpp"
@@ -241,7 +243,11 @@ void RunConfig(const Config& c, bool quick, std::vector<Row>* rows, std::vector<
     }
   }
   double last_regularisation = 0;
-  const auto add = [&](aosr::ReconstructionMethod m, int cap, double fixed_lambda = 0) {
+  // One row: method m at iteration cap `cap` (0: none), optionally at a fixed λ, on problem `q` (default p),
+  // with `threads` threads. Returns the image (to compare thread counts bit for bit).
+  const auto run = [&](aosr::ReconstructionMethod m, int cap, double fixed_lambda, const aosr::ReconstructionProblem& q,
+                       int threads, const std::string& suffix, const Image* reference) {
+    aosr::SetDefaultThreads(threads);
     aosr::ReconstructOptions o;
     o.method = m;
     if (fixed_lambda > 0) {
@@ -253,14 +259,15 @@ void RunConfig(const Config& c, bool quick, std::vector<Row>* rows, std::vector<
       o.map.max_iterations = cap;
     }
     const std::uint64_t f0 = aosr::FftExecutionCount();
-    const aosr::Reconstruction rec = aosr::Reconstruct(p, o);
+    const aosr::Reconstruction rec = aosr::Reconstruct(q, o);
+    aosr::SetDefaultThreads(1);
     Row row;
     row.ffts = aosr::FftExecutionCount() - f0;
     row.scene = name;
     row.hr = hr;
     row.r = r;
     row.n = p.frame_count();
-    row.method = std::string(aosr::ToString(m)) + (fixed_lambda > 0 ? " (λ fixed)" : "");
+    row.method = std::string(aosr::ToString(m)) + (fixed_lambda > 0 ? " (λ fixed)" : "") + suffix;
     row.cap = cap;
     row.iterations = rec.summary.iterations;
     row.termination = aosr::ToString(rec.summary.termination);
@@ -268,23 +275,57 @@ void RunConfig(const Config& c, bool quick, std::vector<Row>* rows, std::vector<
     row.floor = double(row.ffts) * fft_s;
     row.regularisation = rec.regularisation;
     row.note = rec.summary.method;
+    if (reference)
+      row.note += (rec.image.rows() == reference->rows() && (rec.image == *reference).all())
+                      ? "; bit-identical to 1 thread"
+                      : "; DIFFERS from 1 thread";
     if (rec.summary.message.find("GCV minimum at the") != std::string::npos)
       row.note += rec.summary.message.find("smallest") != std::string::npos ? " (GCV at the grid's smallest lambda)"
                                                                            : " (GCV at the grid's largest lambda)";
-    const aosr::ImageMetrics q = aosr::CompareImages(truth, rec.image, metric);
-    row.psnr = q.psnr;
-    row.ssim = q.ssim;
+    const aosr::ImageMetrics score = aosr::CompareImages(truth, rec.image, metric);
+    row.psnr = score.psnr;
+    row.ssim = score.ssim;
     rows->push_back(row);
     last_regularisation = rec.regularisation;
     std::fprintf(stderr, "  %-17s cap %4d: %6.2f dB  SSIM %.3f  %8.3f s  %7llu FFTs  floor %.3f s  (%s, %d it)\n",
                  row.method.c_str(), cap, row.psnr, row.ssim, row.seconds, (unsigned long long)row.ffts, row.floor,
                  row.termination.c_str(), row.iterations);
+    return rec.image;
+  };
+  const auto add = [&](aosr::ReconstructionMethod m, int cap, double fixed_lambda = 0) {
+    return run(m, cap, fixed_lambda, p, 1, "", nullptr);
   };
   using M = aosr::ReconstructionMethod;
-  for (M m : {M::kShiftAddMean, M::kShiftAddMedian, M::kDrizzle, M::kTikhonov}) add(m, 0);
-  add(M::kTikhonov, 0, last_regularisation);  // the same λ without the GCV search: what the solve itself costs
-  for (int cap : c.caps) add(M::kTotalVariation, cap);
-  for (int cap : c.caps) add(M::kMap, cap);
+  for (M m : {M::kShiftAddMean, M::kShiftAddMedian, M::kDrizzle}) add(m, 0);
+  const Image tikhonov_1 = add(M::kTikhonov, 0);
+  const double gcv_lambda = last_regularisation;
+  add(M::kTikhonov, 0, gcv_lambda);  // the same λ without the GCV search: what the solve itself costs
+  Image tv_100;
+  for (int cap : c.caps) {
+    Image x = add(M::kTotalVariation, cap);
+    if (cap == 100) tv_100 = x;
+  }
+  Image map_30;
+  for (int cap : c.caps) {
+    Image x = add(M::kMap, cap);
+    if (cap == 30) map_30 = x;
+  }
+  // Two threads (the per-bin loops and the frames' FFTs in parallel): the speed-up, and the same bytes.
+  if (hr >= 512 || quick) {
+    run(M::kTikhonov, 0, 0, p, 2, " (2 threads)", &tikhonov_1);
+    if (tv_100.size()) run(M::kTotalVariation, 100, 0, p, 2, " (2 threads)", &tv_100);
+    if (map_30.size()) run(M::kMap, 30, 0, p, 2, " (2 threads)", &map_30);
+  }
+  // Non-uniform weights (photon noise): the same frames with uniform weights on the valid pixels, the
+  // comparison the weighted fast path is measured by (issue 15: weighted <= 2x uniform).
+  if (!p.HasUniformWeights()) {
+    aosr::DatasetProblemOptions uo;
+    uo.weights = aosr::DatasetWeights::kMask;
+    const aosr::DatasetProblem uniform = aosr::ProblemFromDataset(d, uo);
+    run(M::kTikhonov, 0, 0, uniform.problem, 1, " (uniform weights)", nullptr);
+    for (int cap : c.caps) run(M::kTotalVariation, cap, 0, uniform.problem, 1, " (uniform weights)", nullptr);
+  }
+  log->back() += "; peak RSS after this configuration " + Fmt("%.0f", aosr::PeakResidentBytes() / 1048576.0) + " MiB";
 #ifdef AOSR_HAVE_OPENCV_SUPERRES
   // 10, 30, 100 iterations (the 100-iteration run only up to HR 256: at 1024² it takes ~1.5 min and gains nothing).
   for (int it : quick ? std::vector<int>{10} : hr <= 256 ? std::vector<int>{10, 30, 100} : std::vector<int>{10, 30}) {
@@ -397,7 +438,8 @@ int main(int argc, char** argv) {
     configs = {{"demo.json", 0, 2, caps},          {"demo.json", 0, 4, caps},
                {"demo.json", 0, 8, caps},          {"paper-sim-r2.json", 0, 4, caps},
                {"paper-sim-r4.json", 0, 2, caps},  {"paper-sim-r4.json", 0, 4, caps},
-               {"paper-sim-r4.json", 0, 8, caps},  {"paper-sim-r8.json", 0, 4, caps_1024}};
+               {"paper-sim-r4.json", 0, 8, caps},  {"paper-sim-r8.json", 0, 4, caps_1024},
+               {"crowded-stars.json", 0, 0, caps}};
   }
   std::vector<Row> rows;
   std::vector<std::string> log;
@@ -415,7 +457,7 @@ int main(int argc, char** argv) {
   md << "<!-- produced by: " << command << " -->\n"
      << "# Reconstruction: accuracy against wall time\n\n"
      << "Command: `" << command << "` (Release build). Machine: " << std::thread::hardware_concurrency()
-     << " hardware threads; one thread per solver (FFTW single-threaded"
+     << " hardware threads; one thread per solver except the (2 threads) rows (FFTW single-threaded"
 #ifdef AOSR_HAVE_OPENCV_SUPERRES
      << ", cv::setNumThreads(1)"
 #endif
@@ -430,7 +472,10 @@ int main(int argc, char** argv) {
         "termination max-iterations means the cap stopped it. FFTs = FftExecutionCount() difference; floor = "
         "FFTs x one out-of-place r2c FFTW transform of the HR grid (FFTW_MEASURE), so LR-size transforms are "
         "over-counted (~r^2 cheaper) and complex HR ones under-counted (~2x dearer). `tikhonov (λ fixed)` reruns "
-        "the GCV λ without the search: the difference is the GCV grid (33 per-bin passes). The model PSFs are "
+        "the GCV λ without the search: the difference is the λ search (one SVD per bin, then sums over singular "
+        "values). Rows marked (2 threads) rerun a configuration's tikhonov, tv-100 and map-30 on 2 threads and say "
+        "whether the image is bit-identical to the 1-thread one; rows marked (uniform weights) rerun a dataset "
+        "with photon-noise weights with uniform weights on its valid pixels. The model PSFs are "
         "the simulation's own (the dataset's psfs: an oracle model; see `aosr reconstruct --model-psfs nominal` "
         "for a mismatched one).\n\n"
         "OpenCV BTV-L1 (`cv::superres::createSuperResolution_BTVL1`, OpenCV 4.6 from Debian 12's "
