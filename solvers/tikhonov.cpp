@@ -221,15 +221,45 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
     if (sv2[i].size()) sv2_max = std::max(sv2_max, sv2[i].maxCoeff());
   }
   // A Gram matrix holds σ² only to about n ε σ_max(u)² absolutely (n its size), so a value that close to the
-  // rank floor cannot be classified from it. Such bins (strong bins with a zero of the pixel box, or
-  // degenerate frames) get the SVD of A(u) itself, which resolves σ to ε σ_max(u): the rank at any
-  // rank_tolerance is then what an SVD of every bin would say, at the cost of a few SVDs.
+  // rank floor cannot be classified from it. Such bins (strong bins with aliases beyond the optical cutoff or
+  // on a zero of the pixel box, or degenerate frames) are looked at again without their negligible columns:
+  // columns whose squared norms sum to at most 1e-4 floor² move no singular value by more than 1 % of the
+  // floor (Weyl), so only a σ within 1 % of the floor could be classified differently from an SVD of A(u).
+  // The reduced Gram usually decides; if not, the SVD of the reduced matrix does (it resolves σ to ε σ_max).
   const double floor2_all = std::pow(rank_tolerance, 2) * sv2_max;
+  const auto ambiguous = [&](const Eigen::VectorXd& values) {
+    if (values.size() == 0) return false;
+    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(values.size()) * values.maxCoeff();
+    return ((values.array() - floor2_all).abs() <= noise).any();
+  };
   ParallelFor(Index(bins_.size()), [&](Index i) {
-    if (sv2[i].size() == 0) return;
-    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(sv2[i].size()) * sv2[i].maxCoeff();
-    if (((sv2[i].array() - floor2_all).abs() <= noise).any())
-      sv2[i] = Eigen::JacobiSVD<Eigen::MatrixXcd>(bins_[i].a).singularValues().array().square().matrix();
+    if (!ambiguous(sv2[i])) return;
+    const Eigen::MatrixXcd& a = bins_[i].a;
+    const Eigen::VectorXd norms = a.colwise().squaredNorm().transpose();
+    std::vector<Index> order(norms.size());
+    for (Index k = 0; k < norms.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(), [&](Index x, Index y) { return norms[x] < norms[y] || (norms[x] == norms[y] && x < y); });
+    double dropped = 0;
+    std::vector<Index> keep;
+    for (Index k : order) {
+      if (dropped + norms[k] <= 1e-4 * floor2_all) {
+        dropped += norms[k];
+      } else {
+        keep.push_back(k);
+      }
+    }
+    std::sort(keep.begin(), keep.end());
+    Eigen::MatrixXcd reduced(a.rows(), Index(keep.size()));
+    for (std::size_t c = 0; c < keep.size(); ++c) reduced.col(Index(c)) = a.col(keep[c]);
+    if (reduced.cols() == 0) {
+      sv2[i] = Eigen::VectorXd::Zero(1);
+      return;
+    }
+    const Eigen::MatrixXcd g = reduced.rows() <= reduced.cols() ? Eigen::MatrixXcd(reduced * reduced.adjoint())
+                                                                : Eigen::MatrixXcd(reduced.adjoint() * reduced);
+    sv2[i] = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().cwiseMax(0.0);
+    if (ambiguous(sv2[i]))
+      sv2[i] = Eigen::JacobiSVD<Eigen::MatrixXcd>(reduced).singularValues().array().square().matrix();
   });
   sv_floor_ = rank_tolerance * std::sqrt(sv2_max);
   const double floor2 = sv_floor_ * sv_floor_;
