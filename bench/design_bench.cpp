@@ -44,12 +44,12 @@
 #include <vector>
 
 #include "aosr/core/fft.hpp"
+#include "aosr/design/design_objective.hpp"
+#include "aosr/design/design_optimizer.hpp"
+#include "aosr/design/design_parameterisation.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/scene/scene_spec.hpp"
 #include "aosr/scene/telescope.hpp"
-#include "aosr/solvers/design_objective.hpp"
-#include "aosr/solvers/design_optimizer.hpp"
-#include "aosr/solvers/design_parameterisation.hpp"
 
 namespace {
 

@@ -1,4 +1,4 @@
-#include "aosr/solvers/design_empirical.hpp"
+#include "aosr/design/design_empirical.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -16,7 +16,7 @@
 #include "aosr/scene/image_object.hpp"
 #include "aosr/solvers/tikhonov.hpp"
 #include "design_internal.hpp"
-#include "tikhonov_internal.hpp"
+#include "solvers/tikhonov_internal.hpp"  // solvers-private: CMakeLists.txt gives aosr_design the root
 
 namespace aosr {
 

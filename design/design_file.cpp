@@ -1,13 +1,13 @@
-#include "aosr/solvers/design_file.hpp"
+#include "aosr/design/design_file.hpp"
 
 #include <cmath>
 #include <fstream>
 
 #include "aosr/ao/shack_hartmann.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/design/design_empirical.hpp"
+#include "aosr/design/design_objective.hpp"
 #include "aosr/io/atomic_file.hpp"
-#include "aosr/solvers/design_empirical.hpp"
-#include "aosr/solvers/design_objective.hpp"
 
 namespace aosr {
 namespace {
@@ -63,7 +63,7 @@ nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, c
   if (const auto* a = dynamic_cast<const DesignObjective*>(&objective)) {
     const DesignObjectiveOptions& oo = a->options();
     d["comment"] = "objective A: closed-form expected MSE of the Tikhonov/Wiener reconstructor, averaged over AO PSF "
-                   "realisations (solvers/design_objective.hpp)";
+                   "realisations (design/design_objective.hpp)";
     d["reconstructor"] = {{"prior", ToString(oo.reconstructor.prior)},
                           {"lambda", oo.reconstructor.lambda},
                           {"noise_sigma", oo.noise_sigma},
@@ -72,7 +72,7 @@ nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, c
   } else if (const auto* b = dynamic_cast<const EmpiricalDesignObjective*>(&objective)) {
     const EmpiricalDesignOptions& ob = b->options();
     d["comment"] = "objective B: mean loss of the MAP reconstructor over training scenes x AO PSF realisations, "
-                   "gradient by implicit differentiation (solvers/design_empirical.hpp)";
+                   "gradient by implicit differentiation (design/design_empirical.hpp)";
     d["reconstructor"] = {{"method", "map"},
                           {"prior", ToString(ob.map.prior)},
                           {"lambda", ob.map.lambda},

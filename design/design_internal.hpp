@@ -1,4 +1,4 @@
-// Helpers shared by the phase-design sources (not installed: solvers/ only).
+// Helpers shared by the phase-design sources (not installed: design/ only).
 #pragma once
 
 #include <algorithm>

@@ -1,4 +1,4 @@
-#include "aosr/solvers/design_objective.hpp"
+#include "aosr/design/design_objective.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>

@@ -1,4 +1,4 @@
-#include "aosr/solvers/design_optimizer.hpp"
+#include "aosr/design/design_optimizer.hpp"
 
 #include <ceres/first_order_function.h>
 #include <ceres/gradient_problem.h>

@@ -1,4 +1,4 @@
-#include "aosr/solvers/design_parameterisation.hpp"
+#include "aosr/design/design_parameterisation.hpp"
 
 #include <cmath>
 

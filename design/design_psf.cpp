@@ -1,4 +1,4 @@
-#include "aosr/solvers/design_psf.hpp"
+#include "aosr/design/design_psf.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "aosr/solvers/power_spectrum_fit.hpp"
+#include "aosr/design/power_spectrum_fit.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>

@@ -21,12 +21,13 @@ build_dir=${BUILD_DIR:-build-sanitize}
 jobs=${JOBS:-$(nproc 2>/dev/null || echo 2)}
 
 # The test executables the run covers: the unit, errors and stability suites of every layer but cli, except
-# solvers_unit_tests, whose 12 files cost about a quarter of the whole sanitizer build (the solvers' code is
+# solvers_unit_tests, whose 10 files cost a large share of the whole sanitizer build (the solvers' code is
 # still run here by solvers_stability_tests, which drives every reconstructor through Reconstruct() on hard
-# inputs, by solvers_errors_tests, and by the fuzz dataset target). SANITIZE_FULL=1 adds it (local runs).
+# inputs, by solvers_errors_tests, by the design suites, and by the fuzz dataset target). SANITIZE_FULL=1 adds
+# it (local runs).
 COVERED=(core_unit_tests core_errors_tests io_unit_tests io_errors_tests optics_unit_tests optics_errors_tests
          ao_unit_tests ao_errors_tests scene_unit_tests scene_errors_tests solvers_stability_tests
-         solvers_errors_tests calib_unit_tests calib_errors_tests)
+         solvers_errors_tests design_unit_tests design_errors_tests calib_unit_tests calib_errors_tests)
 if [ "${SANITIZE_FULL:-0}" = 1 ]; then COVERED+=(solvers_unit_tests); fi
 COVERED_LABELS=(unit errors stability)
 # Wall-time cap of each fuzz target's mutation phase here (fuzz/CMakeLists.txt AOSR_FUZZ_MAX_SECONDS; the

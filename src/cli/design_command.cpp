@@ -1,7 +1,7 @@
 // `aosr design SCENE`: the N per-exposure DM offsets that minimise the expected reconstruction MSE (objective A,
-// solvers/design_objective.hpp) or the mean MAP reconstruction loss over training scenes (objective B,
-// solvers/design_empirical.hpp) for the scene's telescope, AO system, camera, r and N, written as a design file
-// (solvers/design_file.hpp) that a scene loads with "offsets": {"type": "design", "file": ...}.
+// design/design_objective.hpp) or the mean MAP reconstruction loss over training scenes (objective B,
+// design/design_empirical.hpp) for the scene's telescope, AO system, camera, r and N, written as a design file
+// (design/design_file.hpp) that a scene loads with "offsets": {"type": "design", "file": ...}.
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -11,13 +11,13 @@
 
 #include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/design/design_empirical.hpp"
+#include "aosr/design/design_file.hpp"
+#include "aosr/design/design_objective.hpp"
+#include "aosr/design/design_optimizer.hpp"
+#include "aosr/design/design_parameterisation.hpp"
+#include "aosr/design/power_spectrum_fit.hpp"
 #include "aosr/scene/scene_spec.hpp"
-#include "aosr/solvers/design_empirical.hpp"
-#include "aosr/solvers/design_file.hpp"
-#include "aosr/solvers/design_objective.hpp"
-#include "aosr/solvers/design_optimizer.hpp"
-#include "aosr/solvers/design_parameterisation.hpp"
-#include "aosr/solvers/power_spectrum_fit.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
 

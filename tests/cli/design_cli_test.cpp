@@ -9,8 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "aosr/design/power_spectrum_fit.hpp"
 #include "aosr/io/fits.hpp"
-#include "aosr/solvers/power_spectrum_fit.hpp"
 #include "support/testing.hpp"
 
 namespace {

@@ -2,8 +2,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include "aosr/solvers/design_empirical.hpp"
-#include "solvers/design_fixture.hpp"
+#include "aosr/design/design_empirical.hpp"
+#include "design/design_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {

@@ -2,7 +2,7 @@
 // and without PSF mismatch, the Tikhonov / L2 special case against the closed-form Tikhonov reconstruction of the
 // same frames, convergence reports (adjoint residual), failures reported and never silent, independence of the
 // warm-start history, training scenes from files, and the optimiser running on it.
-#include "aosr/solvers/design_empirical.hpp"
+#include "aosr/design/design_empirical.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -11,10 +11,10 @@
 #include <filesystem>
 #include <random>
 
+#include "aosr/design/design_optimizer.hpp"
 #include "aosr/io/image_io.hpp"
-#include "aosr/solvers/design_optimizer.hpp"
 #include "aosr/solvers/tikhonov.hpp"
-#include "solvers/design_fixture.hpp"
+#include "design/design_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {

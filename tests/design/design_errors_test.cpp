@@ -3,10 +3,10 @@
 #include <gtest/gtest.h>
 
 #include "aosr/core/memory.hpp"
-#include "aosr/solvers/design_objective.hpp"
-#include "aosr/solvers/design_optimizer.hpp"
-#include "aosr/solvers/design_parameterisation.hpp"
-#include "solvers/design_fixture.hpp"
+#include "aosr/design/design_objective.hpp"
+#include "aosr/design/design_optimizer.hpp"
+#include "aosr/design/design_parameterisation.hpp"
+#include "design/design_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {

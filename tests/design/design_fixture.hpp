@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "aosr/design/design_objective.hpp"
+#include "aosr/design/design_parameterisation.hpp"
 #include "aosr/optics/pupil.hpp"
-#include "aosr/solvers/design_objective.hpp"
-#include "aosr/solvers/design_parameterisation.hpp"
 
 namespace aosr::design_test {
 

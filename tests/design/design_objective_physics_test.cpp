@@ -6,10 +6,10 @@
 #include <random>
 
 #include "aosr/core/fft.hpp"
-#include "aosr/solvers/design_objective.hpp"
-#include "aosr/solvers/design_optimizer.hpp"
+#include "aosr/design/design_objective.hpp"
+#include "aosr/design/design_optimizer.hpp"
 #include "aosr/solvers/tikhonov.hpp"
-#include "solvers/design_fixture.hpp"
+#include "design/design_fixture.hpp"
 
 namespace aosr {
 namespace {

@@ -1,6 +1,6 @@
 // Objective A (design_objective.hpp): Taylor tests of its gradient through every parameterisation, the
 // special case A = A0 against the Tikhonov posterior variance, and the objective's structure.
-#include "aosr/solvers/design_objective.hpp"
+#include "aosr/design/design_objective.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -9,7 +9,7 @@
 
 #include "aosr/core/fft.hpp"
 #include "aosr/solvers/tikhonov.hpp"
-#include "solvers/design_fixture.hpp"
+#include "design/design_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {

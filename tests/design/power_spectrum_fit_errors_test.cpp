@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "aosr/solvers/power_spectrum_fit.hpp"
+#include "aosr/design/power_spectrum_fit.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {

@@ -9,8 +9,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "aosr/design/power_spectrum_fit.hpp"
 #include "aosr/scene/dead_leaves.hpp"
-#include "aosr/solvers/power_spectrum_fit.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {

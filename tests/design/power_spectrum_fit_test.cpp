@@ -1,6 +1,6 @@
 // Unit tests of power_spectrum_fit.hpp: the model grid, the random-field generator, the periodogram's
 // bookkeeping (patches, window normalisation, scaling, Parseval) and the mapping to the Tikhonov/Wiener prior.
-#include "aosr/solvers/power_spectrum_fit.hpp"
+#include "aosr/design/power_spectrum_fit.hpp"
 
 #include <gtest/gtest.h>
 
@@ -8,9 +8,9 @@
 #include <filesystem>
 
 #include "aosr/core/fft.hpp"
+#include "aosr/design/design_objective.hpp"
 #include "aosr/io/fits.hpp"
-#include "aosr/solvers/design_objective.hpp"
-#include "solvers/design_fixture.hpp"
+#include "design/design_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {

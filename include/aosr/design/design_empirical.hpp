@@ -88,8 +88,8 @@
 #include <vector>
 
 #include "aosr/core/image.hpp"
+#include "aosr/design/design_psf.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
-#include "aosr/solvers/design_psf.hpp"
 #include "aosr/solvers/map.hpp"
 #include "aosr/solvers/summary.hpp"
 

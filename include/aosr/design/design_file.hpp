@@ -27,8 +27,8 @@
 #include <string>
 #include <vector>
 
+#include "aosr/design/design_optimizer.hpp"
 #include "aosr/scene/scene_spec.hpp"
-#include "aosr/solvers/design_optimizer.hpp"
 
 namespace aosr {
 

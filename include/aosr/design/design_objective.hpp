@@ -68,7 +68,7 @@
 
 #include "aosr/core/forward_model.hpp"
 #include "aosr/core/image.hpp"
-#include "aosr/solvers/design_psf.hpp"
+#include "aosr/design/design_psf.hpp"
 #include "aosr/solvers/tikhonov.hpp"
 
 namespace aosr {

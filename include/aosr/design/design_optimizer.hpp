@@ -22,8 +22,8 @@
 #include <string>
 #include <vector>
 
-#include "aosr/solvers/design_psf.hpp"
-#include "aosr/solvers/design_parameterisation.hpp"
+#include "aosr/design/design_parameterisation.hpp"
+#include "aosr/design/design_psf.hpp"
 #include "aosr/solvers/summary.hpp"
 
 namespace aosr {
