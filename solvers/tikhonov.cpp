@@ -194,31 +194,63 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
   const Shape lr = model.lr_shape();
   const int r = model.r(), rr = r * r;
   bins_.resize(lr.size());
-  // σ(A(u))² as the eigenvalues of the smaller Gram matrix (N x N or r² x r²): the rank needs only the values,
-  // and this is several times cheaper than an SVD of the N x r² matrix. Bins are independent: each task
-  // writes its own entries, and the sums below run in bin order (the same bits for any thread count).
-  std::vector<Eigen::VectorXd> sv2(bins_.size());
+  // Ranks. σ(A(u))² are the eigenvalues of the smaller Gram matrix G (n x n, n = min(N, r²)). Most bins are
+  // certified full-rank without computing them: G's Cholesky factor gives tr G⁻¹ = ||L⁻¹||²_F, and
+  // λ_min(G) >= 1 / tr G⁻¹, so a bound above the floor proves rank n at the cost of two small triangular
+  // passes. The rest get the eigenvalues (and the checks below). The largest σ² over all bins (which sets
+  // the floor) needs exact eigenvalues only where λ_max can be largest: λ_max(G) lies in [tr G / n, tr G].
+  // Bins are independent: each task writes its own entries; reductions run in bin order afterwards (the
+  // same bits for any thread count).
+  const int n_frames = model.frames();
+  const int n_gram = std::min(n_frames, rr);
+  std::vector<Complex> grams(bins_.size() * n_gram * n_gram);
+  std::vector<double> traces(bins_.size(), 0.0);
   ParallelFor(lr.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr.cols; ++ux) {
-      Bin& b = bins_[uy * lr.cols + ux];
+      const Index i = uy * lr.cols + ux;
+      Bin& b = bins_[i];
       b.a = model.AliasedSystem(uy, ux);
-      b.y = Eigen::VectorXcd::Zero(model.frames());
+      b.y = Eigen::VectorXcd::Zero(n_frames);
       b.prior.resize(rr);
       for (int ky = 0; ky < r; ++ky)
         for (int kx = 0; kx < r; ++kx)
           b.prior[ky * r + kx] = prior_symbol(uy + ky * lr.rows, ux + kx * lr.cols);
       b.prior_positive = (b.prior.array() > 0).all();
-      const Eigen::MatrixXcd g =
-          b.a.rows() <= b.a.cols() ? Eigen::MatrixXcd(b.a * b.a.adjoint()) : Eigen::MatrixXcd(b.a.adjoint() * b.a);
-      sv2[uy * lr.cols + ux] =
-          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().cwiseMax(0.0);
+      Complex* g = &grams[i * n_gram * n_gram];
+      const Complex* a = b.a.data();  // column-major N x r²
+      const bool rows = n_frames <= rr;  // G = A Aᴴ (N x N), else Aᴴ A (r² x r²)
+      for (int p = 0; p < n_gram; ++p)
+        for (int q = 0; q <= p; ++q) {
+          Complex sum = 0;
+          if (rows) {
+            for (int c = 0; c < rr; ++c) sum += a[c * n_frames + p] * std::conj(a[c * n_frames + q]);
+          } else {
+            for (int f = 0; f < n_frames; ++f) sum += std::conj(a[p * n_frames + f]) * a[q * n_frames + f];
+          }
+          g[p * n_gram + q] = sum;
+          g[q * n_gram + p] = std::conj(sum);
+        }
+      for (int p = 0; p < n_gram; ++p) traces[i] += g[p * n_gram + p].real();
     }
+  });
+  double trace_max_over_n = 0;
+  for (double t : traces) trace_max_over_n = std::max(trace_max_over_n, t / double(n_gram));
+  const auto gram_eigenvalues = [&](Index i) {
+    const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> g(
+        &grams[i * n_gram * n_gram], n_gram, n_gram);
+    return Eigen::VectorXd(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(Eigen::MatrixXcd(g), Eigen::EigenvaluesOnly)
+                               .eigenvalues()
+                               .cwiseMax(0.0));
+  };
+  std::vector<double> lambda_max(bins_.size(), 0.0);
+  ParallelFor(Index(bins_.size()), [&](Index i) {
+    if (n_gram > 0 && traces[i] >= trace_max_over_n) lambda_max[i] = gram_eigenvalues(i).maxCoeff();
   });
   double trace_ata = 0, trace_p = 0, sv2_max = 0;
   for (std::size_t i = 0; i < bins_.size(); ++i) {
-    trace_ata += bins_[i].a.squaredNorm();
+    trace_ata += traces[i];  // tr G = ||A(u)||²_F
     trace_p += bins_[i].prior.sum();
-    if (sv2[i].size()) sv2_max = std::max(sv2_max, sv2[i].maxCoeff());
+    sv2_max = std::max(sv2_max, lambda_max[i]);
   }
   // A Gram matrix holds σ² only to about n ε σ_max(u)² absolutely (n its size), so a value that close to the
   // rank floor cannot be classified from it. Such bins (strong bins with aliases beyond the optical cutoff or
@@ -232,8 +264,36 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
     const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(values.size()) * values.maxCoeff();
     return ((values.array() - floor2_all).abs() <= noise).any();
   };
+  std::vector<Eigen::VectorXd> sv2(bins_.size());
+  std::vector<char> certified(bins_.size(), 0);
+  ParallelFor(lr.rows, [&](Index uy) {
+    std::vector<Complex> l(n_gram * n_gram), w(n_gram);
+    for (Index ux = 0; ux < lr.cols; ++ux) {
+      const Index i = uy * lr.cols + ux;
+      if (n_gram == 0) continue;
+      // The certificate: λ_min >= 1 / ||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding.
+      std::copy(&grams[i * n_gram * n_gram], &grams[(i + 1) * n_gram * n_gram], l.begin());
+      const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(n_gram) * traces[i];
+      if (bins::CholeskyInPlace(l.data(), n_gram, noise)) {
+        double inv_trace = 0;  // ||L⁻¹||²_F, column by column of L⁻¹ (forward substitution of e_j)
+        for (int j = 0; j < n_gram; ++j) {
+          for (int p = 0; p < n_gram; ++p) {
+            Complex sum = p == j ? 1.0 : 0.0;
+            for (int q = j; q < p; ++q) sum -= l[p * n_gram + q] * w[q];
+            w[p] = p < j ? 0.0 : sum * l[p * n_gram + p].real();
+            if (p >= j) inv_trace += std::norm(w[p]);
+          }
+        }
+        if (inv_trace > 0 && 1.0 / inv_trace > 4.0 * (floor2_all + noise)) {
+          certified[i] = 1;
+          continue;
+        }
+      }
+      sv2[i] = gram_eigenvalues(i);
+    }
+  });
   ParallelFor(Index(bins_.size()), [&](Index i) {
-    if (!ambiguous(sv2[i])) return;
+    if (certified[i] || !ambiguous(sv2[i])) return;
     const Eigen::MatrixXcd& a = bins_[i].a;
     const Eigen::VectorXd norms = a.colwise().squaredNorm().transpose();
     std::vector<Index> order(norms.size());
@@ -264,7 +324,7 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
   sv_floor_ = rank_tolerance * std::sqrt(sv2_max);
   const double floor2 = sv_floor_ * sv_floor_;
   for (std::size_t i = 0; i < bins_.size(); ++i) {
-    bins_[i].rank = int((sv2[i].array() > floor2).count());
+    bins_[i].rank = certified[i] ? n_gram : int((sv2[i].array() > floor2).count());
     if (bins_[i].rank < rr) {
       ++deficient_;
       unconstrained_ += rr - bins_[i].rank;
