@@ -264,13 +264,16 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
     const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(values.size()) * values.maxCoeff();
     return ((values.array() - floor2_all).abs() <= noise).any();
   };
+  // Bins u and −u have conjugate systems, hence the same rank: one of each pair is classified.
+  const auto mirror = [&](Index i) { return MirrorBin(i); };
+  const auto canonical = [&](Index i) { return CanonicalBin(i); };
   std::vector<Eigen::VectorXd> sv2(bins_.size());
   std::vector<char> certified(bins_.size(), 0);
   ParallelFor(lr.rows, [&](Index uy) {
     std::vector<Complex> l(n_gram * n_gram), w(n_gram);
     for (Index ux = 0; ux < lr.cols; ++ux) {
       const Index i = uy * lr.cols + ux;
-      if (n_gram == 0) continue;
+      if (n_gram == 0 || !canonical(i)) continue;
       // The certificate: λ_min >= 1 / ||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding.
       std::copy(&grams[i * n_gram * n_gram], &grams[(i + 1) * n_gram * n_gram], l.begin());
       const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(n_gram) * traces[i];
@@ -293,7 +296,7 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
     }
   });
   ParallelFor(Index(bins_.size()), [&](Index i) {
-    if (certified[i] || !ambiguous(sv2[i])) return;
+    if (!canonical(i) || certified[i] || !ambiguous(sv2[i])) return;
     const Eigen::MatrixXcd& a = bins_[i].a;
     const Eigen::VectorXd norms = a.colwise().squaredNorm().transpose();
     std::vector<Index> order(norms.size());
@@ -323,8 +326,10 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
   });
   sv_floor_ = rank_tolerance * std::sqrt(sv2_max);
   const double floor2 = sv_floor_ * sv_floor_;
-  for (std::size_t i = 0; i < bins_.size(); ++i) {
-    bins_[i].rank = certified[i] ? n_gram : int((sv2[i].array() > floor2).count());
+  for (Index i = 0; i < Index(bins_.size()); ++i)
+    if (canonical(i)) bins_[i].rank = certified[i] ? n_gram : int((sv2[i].array() > floor2).count());
+  for (Index i = 0; i < Index(bins_.size()); ++i) {
+    if (!canonical(i)) bins_[i].rank = bins_[mirror(i)].rank;
     if (bins_[i].rank < rr) {
       ++deficient_;
       unconstrained_ += rr - bins_[i].rank;
@@ -471,6 +476,18 @@ FourierSystem::Fit FourierSystem::Evaluate(double lambda, bool want_trace) const
   return f;
 }
 
+Index FourierSystem::MirrorBin(Index bin) const {
+  const Shape lr = model_.lr_shape();
+  const Index uy = bin / lr.cols, ux = bin % lr.cols;
+  return ((lr.rows - uy) % lr.rows) * lr.cols + (lr.cols - ux) % lr.cols;
+}
+
+bool FourierSystem::CanonicalBin(Index bin) const {
+  const Shape lr = model_.lr_shape();
+  const Index m = MirrorBin(bin), ux = bin % lr.cols, mux = m % lr.cols;
+  return ux < mux || (ux == mux && bin / lr.cols <= m / lr.cols);
+}
+
 void FourierSystem::MakeSpectral() const {
   auto sp = std::make_unique<Spectral>();
   const Index nb = Index(bins_.size());
@@ -484,10 +501,14 @@ void FourierSystem::MakeSpectral() const {
   sp->s2.resize(sp->offset[nb]);
   sp->c.resize(sp->offset[nb]);
   sp->perp = Eigen::VectorXd::Zero(nb);
-  // One SVD per bin, in parallel: each bin writes only its own segment.
+  // One SVD per mirror pair of bins, in parallel: each task writes only its own segment. The bins u and −u
+  // have conjugate systems and data (real frames, real PSFs, an even prior), hence the same singular values
+  // and the same |UᴴY|²: the second of each pair copies the first.
+  const auto mirror = [&](Index i) { return MirrorBin(i); };
+  const auto canonical = [&](Index i) { return CanonicalBin(i); };
   ParallelFor(nb, [&](Index i) {
     const Bin& b = bins_[i];
-    if (!b.prior_positive) return;
+    if (!b.prior_positive || !canonical(i)) return;
     const Index q = sp->offset[i + 1] - sp->offset[i];
     // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's range,
     // so the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||² that would cancel
@@ -499,6 +520,13 @@ void FourierSystem::MakeSpectral() const {
     sp->s2.segment(sp->offset[i], q) = svd.singularValues().array().square().matrix();
     sp->c.segment(sp->offset[i], q) = uy.head(q).cwiseAbs2();
     sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
+  });
+  ParallelFor(nb, [&](Index i) {
+    if (!bins_[i].prior_positive || canonical(i)) return;
+    const Index m = mirror(i), q = sp->offset[i + 1] - sp->offset[i];
+    sp->s2.segment(sp->offset[i], q) = sp->s2.segment(sp->offset[m], q);
+    sp->c.segment(sp->offset[i], q) = sp->c.segment(sp->offset[m], q);
+    sp->perp[i] = sp->perp[m];
   });
   spectral_ = std::move(sp);
 }

@@ -83,6 +83,10 @@ class FourierSystem {
     std::vector<Index> direct;  // bins with a zero of the prior
   };
   void MakeSpectral() const;
+  // The bin of −u (LR frequencies), and whether `bin` is the one of its pair {u, −u} that is computed (the
+  // other is its conjugate: real frames, real PSFs, an even prior).
+  Index MirrorBin(Index bin) const;
+  bool CanonicalBin(Index bin) const;
   mutable std::unique_ptr<Spectral> spectral_;
 
   const MultiFrameModel& model_;

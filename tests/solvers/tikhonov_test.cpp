@@ -502,7 +502,9 @@ TEST(TikhonovTest, FastBinKernelsAgreeWithTheDensePath) {
         const double res = (normal->Apply(AsVector(x)) - aty).norm() / aty.norm();
         const double res_reference = (normal->Apply(reference) - aty).norm() / aty.norm();
         EXPECT_LT(res, std::max(1e-11, 2 * res_reference)) << what << " (dense path: " << res_reference << ")";
-        if (t >= 0) EXPECT_LT((AsVector(x) - reference).norm(), 1e-10 * reference.norm()) << what;
+        if (t >= 0) {
+          EXPECT_LT((AsVector(x) - reference).norm(), 1e-10 * reference.norm()) << what;
+        }
         // The residual nearly cancels at tiny λ (the data are almost fitted): 1e-9 relative, 1e-7 at 1e-8 λ₀.
         EXPECT_NEAR(fit.residual2, sys.Evaluate(lambda, false).residual2,
                     (t >= -4 ? 1e-9 : 1e-7) * fit.residual2 + 1e-14) << what;
