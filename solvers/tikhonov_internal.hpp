@@ -1,5 +1,6 @@
-// Private to solvers/tikhonov*.cpp: the per-bin Fourier engine of tikhonov.hpp and the λ searches, shared
-// by the Fourier path and the conjugate-gradient path (whose preconditioner is this engine's inverse).
+// Private to the library (not installed): the per-bin Fourier engine of tikhonov.hpp and the λ searches, shared
+// by the Fourier path and the conjugate-gradient path (whose preconditioner is this engine's inverse), and used
+// by design/design_empirical.cpp (objective B's preconditioner) and the tests.
 #pragma once
 
 #include <Eigen/Dense>
