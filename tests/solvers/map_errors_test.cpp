@@ -46,6 +46,7 @@ TEST(MapErrorsTest, InvalidOptionsAreRejectedNamingTheField) {
       {[](MapOptions& o) { o.prior = static_cast<MapPrior>(7); }, "prior"},
       {[](MapOptions& o) { o.likelihood = static_cast<MapLikelihood>(7); }, "likelihood"},
       {[](MapOptions& o) { o.positivity = static_cast<MapPositivity>(7); }, "positivity"},
+      {[](MapOptions& o) { o.preconditioner = static_cast<MapPreconditioner>(7); }, "preconditioner"},
       {[](MapOptions& o) {
          o.prior = MapPrior::kTikhonov, o.tikhonov_operator = static_cast<TikhonovPrior>(9);
        },
