@@ -198,14 +198,15 @@ std::vector<T> Flatten(const ImageStack& planes) {
   return out;
 }
 
-void WriteCube(const char* function, const std::string& path, const ImageStack& planes,
-               const FitsHeader& header, FitsType type, int naxis) {
-  CheckArgument(!planes.empty(), function, "planes", "0 planes", "at least one plane");
+// Checks one HDU's planes before anything is written: non-empty, one shape, float32's range when asked.
+void CheckPlanes(const char* function, const std::string& what, const ImageStack& planes, FitsType type) {
+  const auto label = [&what](const std::string& x) { return what.empty() ? x : what + " " + x; };
+  CheckArgument(!planes.empty(), function, label("planes"), "0 planes", "at least one plane");
   const Shape shape = ShapeOf(planes.front());
-  CheckArgument(shape.size() > 0, function, "image shape", ToString(shape), "non-empty");
+  CheckArgument(shape.size() > 0, function, label("image shape"), ToString(shape), "non-empty");
   for (size_t p = 0; p < planes.size(); ++p) {
     if (ShapeOf(planes[p]) != shape) {
-      throw InvalidArgument(function, "plane " + std::to_string(p) + " shape", ToString(ShapeOf(planes[p])),
+      throw InvalidArgument(function, label("plane " + std::to_string(p) + " shape"), ToString(ShapeOf(planes[p])),
                             "the shape of plane 0, " + ToString(shape));
     }
   }
@@ -214,33 +215,47 @@ void WriteCube(const char* function, const std::string& path, const ImageStack& 
       for (Index i = 0; i < p.size(); ++i) {
         const double v = p.data()[i];
         if (std::isfinite(v) && std::abs(v) > FLT_MAX) {
-          throw InvalidArgument(function, "pixel value", ToString(v),
+          throw InvalidArgument(function, label("pixel value"), ToString(v),
                                 "|v| <= 3.4e38 for float32 (write with FitsType::kFloat64)");
         }
       }
     }
   }
+}
 
+// Appends one image HDU (the primary one if the file is empty, else an IMAGE extension) to an open file:
+// axes, the header's keywords (then EXTNAME when given), the pixels. The planes were checked.
+void WriteHdu(fitsfile* f, const std::string& path, const ImageStack& planes, const FitsHeader& header,
+              FitsType type, int naxis, const std::string& extname = "") {
+  const Shape shape = ShapeOf(planes.front());
+  int status = 0;
+  LONGLONG axes[3] = {shape.cols, shape.rows, static_cast<LONGLONG>(planes.size())};  // x fastest.
+  const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
+  if (fits_create_imgll(f, bitpix, naxis, axes, &status)) {
+    ThrowFits(path, status, extname.empty() ? "cannot create the image HDU" : "cannot create extension " + extname);
+  }
+  for (const FitsKeyword& k : header.keywords()) WriteKeyword(f, k, path);
+  if (!extname.empty()) WriteKeyword(f, {"EXTNAME", extname, "name of this extension"}, path);
+  const LONGLONG n = static_cast<LONGLONG>(planes.size()) * shape.size();
+  if (type == FitsType::kFloat32) {
+    std::vector<float> data = Flatten<float>(planes);
+    fits_write_img(f, TFLOAT, 1, n, data.data(), &status);
+  } else {
+    std::vector<double> data = Flatten<double>(planes);
+    fits_write_img(f, TDOUBLE, 1, n, data.data(), &status);
+  }
+  if (status) ThrowFits(path, status, extname.empty() ? "cannot write the pixels" : "cannot write the pixels of " + extname);
+}
+
+void WriteCube(const char* function, const std::string& path, const ImageStack& planes,
+               const FitsHeader& header, FitsType type, int naxis) {
+  CheckPlanes(function, "", planes, type);
   AtomicWrite(path, [&](const std::string& tmp) {
     ClearFitsMessages();
     FitsFile file;
     int status = 0;
     if (fits_create_diskfile(file.out(), tmp.c_str(), &status)) ThrowFits(path, status, "cannot create");
-    LONGLONG axes[3] = {shape.cols, shape.rows, static_cast<LONGLONG>(planes.size())};  // x fastest.
-    const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
-    if (fits_create_imgll(file.get(), bitpix, naxis, axes, &status)) {
-      ThrowFits(path, status, "cannot create the image HDU");
-    }
-    for (const FitsKeyword& k : header.keywords()) WriteKeyword(file.get(), k, path);
-    const LONGLONG n = static_cast<LONGLONG>(planes.size()) * shape.size();
-    if (type == FitsType::kFloat32) {
-      std::vector<float> data = Flatten<float>(planes);
-      fits_write_img(file.get(), TFLOAT, 1, n, data.data(), &status);
-    } else {
-      std::vector<double> data = Flatten<double>(planes);
-      fits_write_img(file.get(), TDOUBLE, 1, n, data.data(), &status);
-    }
-    if (status) ThrowFits(path, status, "cannot write the pixels");
+    WriteHdu(file.get(), path, planes, header, type, naxis);
     file.Close(path);
     ClearFitsMessages();
   });
@@ -373,20 +388,28 @@ void WriteFitsCube(const std::string& path, const ImageStack& planes, const Fits
   WriteCube("WriteFitsCube", path, planes, header, type, 3);
 }
 
-FitsData ReadFits(const std::string& path) {
+namespace {
+
+void CheckReadablePath(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) throw IoError(path, "no such file");
   if (std::filesystem::is_directory(path, ec)) throw IoError(path, "is a directory, not a FITS file");
   // A device or FIFO (/dev/zero) never ends: reading it would not either.
   if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "is not a regular file (a device, FIFO or socket)");
+}
 
+void OpenForReading(FitsFile* file, const std::string& path) {
+  CheckReadablePath(path);
   ClearFitsMessages();
-  FitsFile file;
   int status = 0;
-  if (fits_open_diskfile(file.out(), path.c_str(), READONLY, &status)) {
+  if (fits_open_diskfile(file->out(), path.c_str(), READONLY, &status)) {
     ThrowFits(path, status, "cannot open as FITS");
   }
-  const ImageInfo info = FindImage(file.get(), path);
+}
+
+// Reads the current HDU's image (described by `info`) and its header, after the memory and truncation checks.
+FitsData ReadCurrentImage(fitsfile* f, const std::string& path, const ImageInfo& info) {
+  int status = 0;
   const std::vector<LONGLONG>& axes = info.axes;
   const Index cols = axes[0], rows = axes[1];
   const Index planes = axes.size() == 3 ? axes[2] : 1;
@@ -396,9 +419,9 @@ FitsData ReadFits(const std::string& path) {
               path + ": a FITS image of " + std::to_string(planes) + " plane(s) of " + std::to_string(rows) + "x" +
                   std::to_string(cols) + " pixels");
   {
-    int compressed = fits_is_compressed_image(file.get(), &status);
+    int compressed = fits_is_compressed_image(f, &status);
     LONGLONG head = 0, data_start = 0, data_end = 0;
-    if (!compressed && fits_get_hduaddrll(file.get(), &head, &data_start, &data_end, &status) == 0) {
+    if (!compressed && fits_get_hduaddrll(f, &head, &data_start, &data_end, &status) == 0) {
       std::error_code ec;
       const auto size = std::filesystem::file_size(path, ec);
       const double needed = double(std::abs(info.bitpix) / 8) * double(rows) * double(cols) * double(planes);
@@ -417,7 +440,7 @@ FitsData ReadFits(const std::string& path) {
   }
 
   FitsData data;
-  data.header = ReadHeader(file.get(), path);
+  data.header = ReadHeader(f, path);
   data.planes.reserve(planes);
   // Integer data: pixels equal to BLANK become NaN. Float data: no null checking, because cfitsio
   // would treat every IEEE special value (Inf as well as NaN) as null; NaN and Inf pass unchanged.
@@ -426,17 +449,134 @@ FitsData ReadFits(const std::string& path) {
   for (Index p = 0; p < planes; ++p) {
     Image plane(rows, cols);
     int any_null = 0;
-    if (fits_read_img(file.get(), TDOUBLE, 1 + p * rows * cols, rows * cols, null_value, plane.data(),
-                      &any_null, &status)) {
+    if (fits_read_img(f, TDOUBLE, 1 + p * rows * cols, rows * cols, null_value, plane.data(), &any_null, &status)) {
       ThrowFits(path, status,
                 "cannot read plane " + std::to_string(p) + " of " + std::to_string(planes) + " (" +
                     std::to_string(rows) + "x" + std::to_string(cols) + ")");
     }
     data.planes.push_back(std::move(plane));
   }
+  return data;
+}
+
+// The EXTNAME of the current HDU, "" when it has none.
+std::string CurrentExtname(fitsfile* f) {
+  char value[FLEN_VALUE] = {0};
+  int status = 0;
+  fits_write_errmark();
+  if (fits_read_key(f, TSTRING, "EXTNAME", value, nullptr, &status)) {
+    fits_clear_errmark();
+    return "";
+  }
+  return value;
+}
+
+}  // namespace
+
+FitsData ReadFits(const std::string& path) {
+  FitsFile file;
+  OpenForReading(&file, path);
+  const ImageInfo info = FindImage(file.get(), path);
+  FitsData data = ReadCurrentImage(file.get(), path, info);
   file.Close(path);
   ClearFitsMessages();
   return data;
+}
+
+std::vector<std::string> FitsExtensionNames(const std::string& path) {
+  FitsFile file;
+  OpenForReading(&file, path);
+  int status = 0, hdus = 0;
+  if (fits_get_num_hdus(file.get(), &hdus, &status)) ThrowFits(path, status, "cannot count the HDUs");
+  std::vector<std::string> names;
+  for (int h = 2; h <= hdus; ++h) {
+    int type = 0;
+    if (fits_movabs_hdu(file.get(), h, &type, &status)) ThrowFits(path, status, "cannot move to HDU " + std::to_string(h));
+    const std::string name = CurrentExtname(file.get());
+    if (!name.empty()) names.push_back(name);
+  }
+  file.Close(path);
+  ClearFitsMessages();
+  return names;
+}
+
+FitsData ReadFitsExtension(const std::string& path, const std::string& name) {
+  CheckArgument(!name.empty(), "ReadFitsExtension", "name", "\"\"", "an EXTNAME");
+  FitsFile file;
+  OpenForReading(&file, path);
+  int status = 0, hdus = 0;
+  if (fits_get_num_hdus(file.get(), &hdus, &status)) ThrowFits(path, status, "cannot count the HDUs");
+  // Walk the extensions ourselves: the match is case-insensitive and the error can list what is there.
+  std::vector<std::string> names;
+  int found = 0;
+  for (int h = 2; h <= hdus && !found; ++h) {
+    int type = 0;
+    if (fits_movabs_hdu(file.get(), h, &type, &status)) ThrowFits(path, status, "cannot move to HDU " + std::to_string(h));
+    const std::string extname = CurrentExtname(file.get());
+    if (extname.empty()) continue;
+    names.push_back(extname);
+    if (Upper(extname) == Upper(name)) {
+      if (type != IMAGE_HDU) throw IoError(path, "extension " + extname + " is a table, not an image");
+      found = h;
+    }
+  }
+  if (!found) {
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+    throw IoError(path, "no extension named " + name + " (its extensions: " + (list.empty() ? "none" : list) + ")");
+  }
+  int bitpix = 0, naxis = 0;
+  LONGLONG naxes[3] = {0, 0, 0};
+  if (fits_get_img_paramll(file.get(), 3, &bitpix, &naxis, naxes, &status))
+    ThrowFits(path, status, "cannot read the image parameters of extension " + name);
+  if (naxis < 2 || naxis > 3)
+    throw IoError(path, "extension " + name + " has NAXIS = " + std::to_string(naxis) +
+                            "; aosr reads 2-D images and 3-D cubes only");
+  std::vector<LONGLONG> axes(naxes, naxes + naxis);
+  if (std::find(axes.begin(), axes.end(), 0) != axes.end()) throw IoError(path, "extension " + name + " holds no data");
+  FitsData data = ReadCurrentImage(file.get(), path, {bitpix, axes});
+  file.Close(path);
+  ClearFitsMessages();
+  return data;
+}
+
+void WriteFitsWithExtensions(const std::string& path, const Image& primary, const FitsHeader& header,
+                             const std::vector<FitsExtension>& extensions, FitsType type) {
+  const char* fn = "WriteFitsWithExtensions";
+  CheckPlanes(fn, "primary", ImageStack{primary}, type);
+  std::vector<std::string> seen;
+  for (size_t e = 0; e < extensions.size(); ++e) {
+    const FitsExtension& x = extensions[e];
+    const std::string label = "extension " + std::to_string(e);
+    CheckArgument(!x.name.empty() && x.name.size() <= 68 && IsPrintableAscii(x.name) &&
+                      x.name.find('\'') == std::string::npos && x.name.front() != ' ',
+                  fn, label + " name", "'" + x.name + "'", "1..68 printable ASCII characters without quotes");
+    const std::string upper = Upper(x.name);
+    CheckArgument(std::find(seen.begin(), seen.end(), upper) == seen.end(), fn, label + " name", x.name,
+                  "a name not used by another extension (EXTNAME is matched ignoring case)");
+    seen.push_back(upper);
+    if (const FitsKeyword* k = x.header.Find("EXTNAME")) {
+      const std::string* v = std::get_if<std::string>(&k->value);
+      CheckArgument(v != nullptr && *v == x.name, fn, "extension " + x.name + " header EXTNAME",
+                    v ? *v : std::string("(not a string)"), "absent or equal to the extension's name");
+    }
+    CheckPlanes(fn, "extension " + x.name, x.planes, x.type);
+  }
+  AtomicWrite(path, [&](const std::string& tmp) {
+    ClearFitsMessages();
+    FitsFile file;
+    int status = 0;
+    if (fits_create_diskfile(file.out(), tmp.c_str(), &status)) ThrowFits(path, status, "cannot create");
+    WriteHdu(file.get(), path, ImageStack{primary}, header, type, 2);
+    for (const FitsExtension& x : extensions) {
+      FitsHeader h;
+      for (const FitsKeyword& k : x.header.keywords())
+        if (k.name != "EXTNAME") h.Set(k.name, k.value, k.comment);
+      WriteHdu(file.get(), path, x.planes, h, x.type, x.planes.size() == 1 ? 2 : 3, x.name);
+    }
+    file.Close(path);
+    ClearFitsMessages();
+  });
 }
 
 Image ReadFitsImage(const std::string& path) {

@@ -261,6 +261,48 @@ TEST(FitsTest, WritesAtomicallyAndLeavesNoTemporaryFiles) {
   EXPECT_EQ(ReadFitsImage(dir.File("a.fits")).cols(), 5);
 }
 
+TEST(FitsTest, PrimaryImageWithNamedExtensionsInOneFile) {
+  TempDir dir;
+  const std::string path = dir.File("rec.fits");
+  FitsHeader h;
+  h.Set("METHOD", "linear");
+  FitsExtension psf{"PSF", {Coded(5, 5)}, {}, FitsType::kFloat64};
+  psf.header.Set("COMMENTS", "effective PSF");
+  FitsExtension corr{"NOISE_CORR", {Coded(3, 3), Coded(3, 3) * 2.0}, {}, FitsType::kFloat32};
+  WriteFitsWithExtensions(path, Coded(4, 6), h, {psf, corr}, FitsType::kFloat64);
+  EXPECT_EQ(dir.List(), std::vector<std::string>{"rec.fits"});  // one atomic write, no temporary left
+
+  // ReadFits still reads the primary image, with its own header only.
+  const FitsData primary = ReadFits(path);
+  ASSERT_EQ(primary.planes.size(), 1u);
+  EXPECT_TRUE((primary.planes[0] == Coded(4, 6)).all());
+  EXPECT_EQ(primary.header.GetString("METHOD"), "linear");
+  EXPECT_FALSE(primary.header.Has("EXTNAME"));
+
+  EXPECT_EQ(FitsExtensionNames(path), (std::vector<std::string>{"PSF", "NOISE_CORR"}));
+  const FitsData p = ReadFitsExtension(path, "psf");  // EXTNAME matches ignoring case
+  ASSERT_EQ(p.planes.size(), 1u);
+  EXPECT_TRUE((p.planes[0] == Coded(5, 5)).all());  // float64: exact
+  EXPECT_EQ(p.header.GetString("EXTNAME"), "PSF");
+  EXPECT_EQ(p.header.GetString("COMMENTS"), "effective PSF");
+  const FitsData c = ReadFitsExtension(path, "NOISE_CORR");
+  ASSERT_EQ(c.planes.size(), 2u);  // a cube extension
+  EXPECT_TRUE((c.planes[1] == (Coded(3, 3) * 2.0).cast<float>().cast<double>()).all());
+
+  // The layout by hand: the primary header says EXTEND, the first extension starts on a block boundary
+  // after the primary's data with XTENSION = 'IMAGE'.
+  const std::string bytes = ReadBytes(path);
+  const std::size_t primary_end = 2880 + ((4 * 6 * 8 + 2879) / 2880) * 2880;
+  ASSERT_GT(bytes.size(), primary_end + 80);
+  EXPECT_EQ(bytes.substr(primary_end, 20), "XTENSION= 'IMAGE   '");
+
+  // No extensions: the same file WriteFits writes.
+  WriteFitsWithExtensions(dir.File("plain.fits"), Coded(4, 6), h, {}, FitsType::kFloat64);
+  WriteFits(dir.File("ref.fits"), Coded(4, 6), h, FitsType::kFloat64);
+  EXPECT_EQ(ReadBytes(dir.File("plain.fits")), ReadBytes(dir.File("ref.fits")));
+  EXPECT_TRUE(FitsExtensionNames(dir.File("ref.fits")).empty());
+}
+
 TEST(FitsTest, PathsWithBracketsArePlainFileNames) {
   // cfitsio would parse "x[1].fits" as extended syntax; the diskfile calls must not.
   TempDir dir;

@@ -3,12 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <functional>
 #include <limits>
 
 #include "aosr/core/error.hpp"
 #include "aosr/io/atomic_file.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/io/image_io.hpp"
+#include "aosr/io/wcs.hpp"
 #include "temp_dir.hpp"
 #include "support/testing.hpp"
 
@@ -268,6 +270,122 @@ TEST(AtomicFileErrorsTest, CheckNotSameFileSeesThroughRelativePaths) {
   std::filesystem::create_symlink(input, dir.File("link.fits"));
   EXPECT_THROW(CheckNotSameFile(dir.File("link.fits"), {input}), InvalidArgument);
   EXPECT_NO_THROW(CheckNotSameFile(dir.File("out.fits"), {input}));
+}
+
+
+// ---- FITS extensions -------------------------------------------------------------------------------------
+
+TEST(FitsExtensionErrorsTest, BadExtensionsAreNamedAndNothingIsWritten) {
+  TempDir dir;
+  const std::string path = dir.File("x.fits");
+  const FitsExtension good{"PSF", {Small()}, {}, FitsType::kFloat32};
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsWithExtensions(path, Small(), {}, {good, good}); }),
+              HasSubstr("not used by another extension"));
+  FitsExtension lower = good;
+  lower.name = "psf";
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsWithExtensions(path, Small(), {}, {good, lower}); }),
+              HasSubstr("ignoring case"));
+  FitsExtension unnamed = good;
+  unnamed.name = "";
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsWithExtensions(path, Small(), {}, {unnamed}); }),
+              HasSubstr("extension 0 name"));
+  FitsExtension empty{"NOISE_CORR", {}, {}, FitsType::kFloat32};
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsWithExtensions(path, Small(), {}, {empty}); }),
+              HasSubstr("extension NOISE_CORR planes"));
+  FitsExtension mixed{"NOISE_CORR", {Small(), Image::Zero(2, 2)}, {}, FitsType::kFloat32};
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsWithExtensions(path, Small(), {}, {mixed}); }),
+              HasSubstr("extension NOISE_CORR plane 1 shape"));
+  FitsExtension renamed = good;
+  renamed.header.Set("EXTNAME", "OTHER");
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsWithExtensions(path, Small(), {}, {renamed}); }),
+              HasSubstr("EXTNAME = OTHER"));
+  FitsExtension huge{"BIG", {Image::Constant(2, 2, 1e300)}, {}, FitsType::kFloat32};
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteFitsWithExtensions(path, Small(), {}, {huge}); }),
+              HasSubstr("extension BIG pixel value"));
+  EXPECT_TRUE(dir.List().empty());
+}
+
+TEST(FitsExtensionErrorsTest, AMissingExtensionNamesThePathAndWhatIsThere) {
+  TempDir dir;
+  const std::string path = dir.File("x.fits");
+  WriteFitsWithExtensions(path, Small(), {}, {{"PSF", {Small()}, {}, FitsType::kFloat32}});
+  const std::string m = ErrorOf<IoError>([&] { ReadFitsExtension(path, "NOISE_CORR"); });
+  EXPECT_THAT(m, HasSubstr(path));
+  EXPECT_THAT(m, HasSubstr("no extension named NOISE_CORR (its extensions: PSF)"));
+  WriteFits(dir.File("plain.fits"), Small());
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadFitsExtension(dir.File("plain.fits"), "PSF"); }), HasSubstr("extensions: none"));
+  EXPECT_THAT(ErrorOf<IoError>([&] { ReadFitsExtension(dir.File("nowhere.fits"), "PSF"); }), HasSubstr("no such file"));
+}
+
+// ---- WCS ---------------------------------------------------------------------------------------------------
+
+FitsHeader TanHeader() {
+  FitsHeader h;
+  h.Set("CTYPE1", "RA---TAN");
+  h.Set("CTYPE2", "DEC--TAN");
+  h.Set("CRPIX1", 10.0);
+  h.Set("CRPIX2", 10.0);
+  h.Set("CRVAL1", 150.0);
+  h.Set("CRVAL2", 2.0);
+  h.Set("CD1_1", -1e-5);
+  h.Set("CD2_2", 1e-5);
+  return h;
+}
+
+std::string WcsError(const std::function<void(FitsHeader&)>& edit) {
+  FitsHeader h = TanHeader();
+  edit(h);
+  return ErrorOf<InvalidArgument>([&] { WcsFromHeader(h); });
+}
+
+TEST(WcsErrorsTest, UnsupportedProjectionsAndDistortionsAreRefusedByName) {
+  EXPECT_NO_THROW(WcsFromHeader(TanHeader()));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CTYPE1", "RA---SIN"); }),
+              HasSubstr("CTYPE1 = 'RA---SIN'; allowed: 'RA---TAN': only the gnomonic TAN projection is supported, not SIN"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CTYPE2", "DEC--TAN-SIP"); }),
+              HasSubstr("-SIP is not supported"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("A_ORDER", 3); }), HasSubstr("SIP is not supported"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("PV2_1", 0.1); }), HasSubstr("TPV distortion"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CPDIS1", "LOOKUP"); }), HasSubstr("distortion tables"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CTYPE1", "GLON-TAN"); }), HasSubstr("CTYPE1 = 'GLON-TAN'"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CTYPE1", "DEC--TAN"); }), HasSubstr("in this order"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CUNIT1", "rad"); }), HasSubstr("CUNIT1 = 'RAD'"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("LONPOLE", 0.0); }), HasSubstr("LONPOLE"));
+}
+
+TEST(WcsErrorsTest, MissingAndInconsistentKeywordsAreNamed) {
+  EXPECT_THAT(ErrorOf<InvalidArgument>([] { WcsFromHeader(FitsHeader{}); }), HasSubstr("CTYPE1 = (missing)"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CRPIX2", "ten"); }), HasSubstr("CRPIX2 = 'ten'; allowed: a real"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CRVAL2", 95.0); }), HasSubstr("CRVAL2 = 95"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("PC1_1", 1.0); }), HasSubstr("either a CDi_j matrix or PCi_j"));
+  EXPECT_THAT(WcsError([](FitsHeader& h) { h.Set("CD2_2", 0.0); }), HasSubstr("invertible"));
+  FitsHeader pc;
+  const FitsHeader tan = TanHeader();
+  for (const FitsKeyword& k : tan.keywords())
+    if (k.name.rfind("CD", 0) != 0) pc.Set(k.name, k.value);
+  pc.Set("PC1_1", 1.0);
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WcsFromHeader(pc); }), HasSubstr("CDELT1 = (missing)"));
+  pc.Set("CDELT1", -1e-5);
+  pc.Set("CDELT2", 1e-5);
+  EXPECT_NO_THROW(WcsFromHeader(pc));
+  pc.Set("CROTA2", 10.0);
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WcsFromHeader(pc); }), HasSubstr("either PCi_j or CROTA2"));
+}
+
+TEST(WcsErrorsTest, EntryPointsNameTheirArguments) {
+  const Wcs w = WcsFromHeader(TanHeader());
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { SkyToPixel(w, {330.0, -2.0}); }), HasSubstr("less than 90 deg"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { SkyToPixel(w, {150.0, 91.0}); }), HasSubstr("sky.dec_deg = 91"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { PixelToSky(w, {std::nan(""), 0}); }), HasSubstr("PixelToSky: invalid pixel"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([] { TangentPlaneWcs(0, 0, 0.0, 0, {0, 0}); }), HasSubstr("pixel_rad = 0"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([] { TangentPlaneWcs(0, -91, 1e-8, 0, {0, 0}); }), HasSubstr("dec_deg = -91"));
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { HrWcs(w, 0); }), HasSubstr("HrWcs: invalid r = 0"));
+  Wcs singular = w;
+  singular.cd[0][0] = singular.cd[1][1] = 0;
+  FitsHeader h;
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteWcs(singular, &h); }), HasSubstr("WriteWcs: invalid CD matrix determinant"));
+  h.Set("CDELT1", 1.0);
+  EXPECT_THAT(ErrorOf<InvalidArgument>([&] { WriteWcs(w, &h); }), HasSubstr("CDELT1 present"));
 }
 
 }  // namespace

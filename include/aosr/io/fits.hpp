@@ -103,6 +103,31 @@ struct FitsData {
   FitsHeader header;  // User keywords of the HDU the data came from.
 };
 
+// One named image extension (XTENSION = 'IMAGE', EXTNAME = `name`) of a multi-HDU file, e.g. the effective
+// PSF ("PSF") or the noise correlation kernel ("NOISE_CORR") stored beside a reconstruction.
+struct FitsExtension {
+  std::string name;    // EXTNAME: 1..68 printable ASCII characters without quotes, unique in the file
+  ImageStack planes;   // one plane: a 2-D image (NAXIS = 2); more: a cube (NAXIS = 3)
+  FitsHeader header;   // its own user keywords (EXTNAME is written from `name`; a different one is refused)
+  FitsType type = FitsType::kFloat32;
+};
+
+// Writes a primary 2-D image followed by the image extensions in order, as one atomic write (the file
+// appears complete or not at all). ReadFits of the result reads the primary image as before. Extension names
+// are unique ignoring case (how EXTNAME is matched). InvalidArgument naming the extension for an empty or
+// duplicate name, empty planes, planes of different shapes, an EXTNAME keyword in its header that differs
+// from its name, or (kFloat32) values beyond float32's range.
+void WriteFitsWithExtensions(const std::string& path, const Image& primary, const FitsHeader& header,
+                             const std::vector<FitsExtension>& extensions, FitsType type = FitsType::kFloat32);
+
+// Reads the image extension whose EXTNAME is `name` (case-insensitive, as cfitsio matches it); its header
+// includes EXTNAME. IoError naming the path and the names the file has when none matches, or for the
+// reasons of ReadFits (no data, NAXIS other than 2 or 3, truncated).
+FitsData ReadFitsExtension(const std::string& path, const std::string& name);
+
+// The EXTNAMEs of the file's extensions, in order (HDUs without one are skipped). IoError as ReadFits.
+std::vector<std::string> FitsExtensionNames(const std::string& path);
+
 // Reads the primary HDU, or if it has no data the first image extension that has (e.g. a
 // tile-compressed .fits.fz, or a file whose primary HDU only carries a header).
 // IoError naming `path` for: a missing/unreadable file, a file that is not FITS or is truncated,
