@@ -102,6 +102,7 @@ const char* ToString(ReconstructionMethod m) {
     case ReconstructionMethod::kShiftAddMedian: return "shift-add-median";
     case ReconstructionMethod::kDrizzle: return "drizzle";
     case ReconstructionMethod::kTikhonov: return "tikhonov";
+    case ReconstructionMethod::kLinear: return "linear";
     case ReconstructionMethod::kTotalVariation: return "tv";
     case ReconstructionMethod::kMap: return "map";
   }
@@ -111,9 +112,11 @@ const char* ToString(ReconstructionMethod m) {
 ReconstructionMethod ParseReconstructionMethod(const std::string& name) {
   for (ReconstructionMethod m : {ReconstructionMethod::kShiftAddMean, ReconstructionMethod::kShiftAddMedian,
                                  ReconstructionMethod::kDrizzle, ReconstructionMethod::kTikhonov,
-                                 ReconstructionMethod::kTotalVariation, ReconstructionMethod::kMap})
+                                 ReconstructionMethod::kLinear, ReconstructionMethod::kTotalVariation,
+                                 ReconstructionMethod::kMap})
     if (name == ToString(m)) return m;
-  throw InvalidArgument("ParseReconstructionMethod", "method", name, "shift-add | shift-add-median | drizzle | tikhonov | tv | map");
+  throw InvalidArgument("ParseReconstructionMethod", "method", name,
+                        "shift-add | shift-add-median | drizzle | tikhonov | linear | tv | map");
 }
 
 Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options) {
@@ -168,6 +171,22 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
       out.summary = r.summary;
       if (t.lambda_rule != options.tikhonov.lambda_rule)
         out.summary.message += "; λ by GCV on the unweighted frames, scaled by the mean weight";
+      break;
+    }
+    case ReconstructionMethod::kLinear: {
+      check(options.linear.IsValid(&why), "linear");
+      TargetPsfResult r = ReconstructTargetPsf(problem, options.linear);
+      out.image = std::move(r.image);
+      if (r.noise_std.size()) {
+        out.aux = std::move(r.noise_std);
+        out.aux_name = "noise-std";
+      }
+      out.effective_psf = std::move(r.effective_psf);
+      out.noise_correlation = std::move(r.noise_correlation);
+      out.leakage_spectrum = std::move(r.leakage_spectrum);
+      out.regularisation = r.summary.kappa;
+      out.summary = r.summary;
+      out.linear = r.summary;
       break;
     }
     case ReconstructionMethod::kTotalVariation: {

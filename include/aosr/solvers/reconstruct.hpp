@@ -6,6 +6,8 @@
 //   shift-add-median  ShiftAndAdd (median)                               —
 //   drizzle           Drizzle (drizzle.hpp)                              weight map W
 //   tikhonov          ReconstructTikhonov (tikhonov.hpp)                 posterior std (when computable)
+//   linear            ReconstructTargetPsf (target_psf.hpp): one chosen  noise std (exact, or probed for
+//                     output PSF, known noise                            weighted data)
 //   tv                TotalVariationAdmm (total_variation.hpp)           —
 //   map               MapReconstruct (map.hpp), warm-started by Tikhonov —
 //
@@ -24,20 +26,30 @@
 // Charbonnier ε = 10⁻³ s, s = q₉₉.₅(x̂_T) − q₅₀(x̂_T) the object's contrast. A heuristic: scan μ for science.
 #pragma once
 
+#include <optional>
 #include <string>
 
 #include "aosr/solvers/drizzle.hpp"
 #include "aosr/solvers/map.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/shift_and_add.hpp"
+#include "aosr/solvers/target_psf.hpp"
 #include "aosr/solvers/tikhonov.hpp"
 #include "aosr/solvers/total_variation.hpp"
 
 namespace aosr {
 
-enum class ReconstructionMethod { kShiftAddMean, kShiftAddMedian, kDrizzle, kTikhonov, kTotalVariation, kMap };
+enum class ReconstructionMethod {
+  kShiftAddMean,
+  kShiftAddMedian,
+  kDrizzle,
+  kTikhonov,
+  kLinear,
+  kTotalVariation,
+  kMap
+};
 const char* ToString(ReconstructionMethod m);
-// "shift-add" | "shift-add-median" | "drizzle" | "tikhonov" | "tv" | "map"; InvalidArgument otherwise.
+// "shift-add" | "shift-add-median" | "drizzle" | "tikhonov" | "linear" | "tv" | "map"; InvalidArgument otherwise.
 ReconstructionMethod ParseReconstructionMethod(const std::string& name);
 
 struct ReconstructOptions {
@@ -49,6 +61,7 @@ struct ReconstructOptions {
     t.lambda_rule = TikhonovLambdaRule::kGcv;
     return t;
   }();
+  TargetPsfOptions linear;
   TotalVariationOptions tv;
   MapOptions map;
   // tv and map: set μ (tv.mu) and λ, ε (map.lambda, map.epsilon) by the rule above, overriding the fields.
@@ -66,10 +79,16 @@ struct ReconstructOptions {
 struct Reconstruction {
   Image image;           // HR estimate, flux per HR pixel (frame units), always finite
   Image aux;             // the method's second map (see the table), or empty
-  std::string aux_name;  // "weight" | "posterior-std" | ""
+  std::string aux_name;  // "weight" | "posterior-std" | "noise-std" | ""
   SolverSummary summary;  // termination, message, iterations, final cost, seconds, per-frame residual RMS
   double regularisation = 0.0;  // λ (tikhonov, map) or μ (tv) used; 0 for the baselines
   double seconds_total = 0.0;   // including warm start and automatic regularisation
+  // linear only: the output's effective PSF (centred, unit sum), the noise covariance kernel ξ(Δ), the
+  // per-frequency leakage and the full summary (target_psf.hpp); empty / nullopt otherwise.
+  Image effective_psf;
+  Image noise_correlation;
+  Image leakage_spectrum;
+  std::optional<TargetPsfSummary> linear;
 };
 
 // Validates the problem and options (InvalidArgument names the field); never returns NaN: a non-finite
