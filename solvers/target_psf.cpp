@@ -480,6 +480,7 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   result.effective_psf = OriginToCentred(FftC2R(teff, hr.cols), {psf_side, psf_side});
   result.target_psf = OriginToCentred(FftC2R(target.half, hr.cols), {psf_side, psf_side});
   s.effective_fwhm_hr_px = KernelFwhm(result.effective_psf);
+  s.effective_psf_window_fraction = result.effective_psf.sum();
 
   // --- the estimate --------------------------------------------------------------------------------------
   Image ridge;  // the ridge part y of (1), for the residual report

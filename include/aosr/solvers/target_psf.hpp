@@ -109,6 +109,7 @@ struct TargetPsfSummary : SolverSummary {
   std::string target;               // e.g. "gaussian FWHM 4.00 HR px (auto)"
   double target_fwhm_hr_px = 0;     // FWHM of the target (measured for an image target)
   double effective_fwhm_hr_px = 0;  // FWHM of the effective PSF
+  double effective_psf_window_fraction = 1;  // sum of effective_psf: the part of the PSF inside its window
   double kappa = 0;                 // κ of (1), unit-weight Fourier units
   double leakage = 0;               // U at κ
   double leakage_unreachable = 0;   // U_min
@@ -128,7 +129,8 @@ struct TargetPsfResult {
   Image image;              // x̂ on the HR grid, frame units per HR pixel, finite
   Image noise_std;          // √var(p), same grid (empty unless compute_noise)
   Image noise_std_error;    // probing: standard error of each noise_std value; empty on the exact path
-  Image effective_psf;      // T_eff as a centred kernel (sums to 1), psf_size²
+  Image effective_psf;      // T_eff as a centred kernel, psf_size² (the whole PSF sums to 1; the window holds
+                            // summary.effective_psf_window_fraction of it)
   Image target_psf;         // the target as a centred kernel of the same size
   Image noise_correlation;  // ξ(Δ), (2R+1)² centred on (R, R), frame units² (empty unless compute_noise)
   Image leakage_spectrum;   // ℓ on the HR frequency grid, zero frequency at (M_y/2, M_x/2)
