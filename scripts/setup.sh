@@ -11,6 +11,9 @@ packages=(cmake g++ make pkg-config
           # OpenImageIO's CMake config names its command-line tools as imported targets and fails
           # when they are absent, which --no-install-recommends leaves them.
           openimageio-tools)
+# The Python package (python/, `import aosr`): pybind11 bindings built for Debian's /usr/bin/python3, numpy and
+# astropy for users and tests, Dask's distributed scheduler for aosr.distributed, pytest for the python tests.
+packages+=(pybind11-dev python3-dev python3-numpy python3-astropy python3-dask python3-distributed python3-pytest)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -26,3 +29,13 @@ fi
 jobs=$(nproc 2>/dev/null || echo 2)
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "$@"
 cmake --build build -j"$jobs"
+
+# `import aosr` for /usr/bin/python3: a .pth file in its user site-packages naming build/python, where the build
+# assembles the extension module and the package's .py files (python/CMakeLists.txt). Rewritten on every run:
+# the checkout set up last is the one Python imports.
+if [ -d build/python/aosr ]; then
+  site=$(/usr/bin/python3 -m site --user-site)
+  mkdir -p "$site"
+  echo "$PWD/build/python" > "$site/aosr.pth"
+  echo "setup: /usr/bin/python3 imports aosr from $PWD/build/python (via $site/aosr.pth)"
+fi

@@ -1,4 +1,5 @@
-// `aosr psf PRESET`: the science PSF of a telescope preset, with optional DM offsets.
+// `aosr psf PRESET`: the science PSF of a telescope preset, with optional DM offsets (the computation is the
+// library's ComputePresetPsf, scene/preset_psf.hpp, which the Python aosr.psf() calls too).
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -6,14 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "aosr/ao/analytic_ao.hpp"
-#include "aosr/ao/ao_system.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/io/fits.hpp"
-#include "aosr/optics/aperture.hpp"
-#include "aosr/optics/psf.hpp"
-#include "aosr/optics/psf_metrics.hpp"
-#include "aosr/optics/zernike.hpp"
+#include "aosr/scene/preset_psf.hpp"
 #include "aosr/scene/telescope.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
@@ -64,69 +60,36 @@ void RunPsf(const PsfArgs& args) {
   ApplyExecution(args.exec);
   const Progress progress(!args.json);
   Stopwatch clock;
-  std::vector<ZernikeOffset> offsets;
-  for (const auto& t : args.offsets) offsets.push_back(ParseOffset(t));
+  PresetPsfOptions o;
+  for (const auto& t : args.offsets) {
+    const ZernikeOffset z = ParseOffset(t);
+    o.offsets.push_back({z.j, z.nm});
+  }
+  o.mode = args.mode;
+  o.r = args.r;
+  o.pixel_lod = args.pixel_lod;
+  o.size = args.size;
+  o.sensor = ParseSensorKind(args.sensor);
+  o.exposure_s = args.exposure_s;
+  o.settling_s = args.settling_s;
+  o.seed = args.seed;
   const TelescopePreset preset = LoadTelescopePreset(args.preset);
-  std::string mode = args.mode;
-  if (mode.empty()) mode = preset.atmosphere && preset.ao ? "analytic" : "diffraction";
-  if (mode == "analytic" && !(preset.atmosphere && preset.ao))
-    throw InvalidArgument("aosr psf", "--mode", mode, "diffraction (preset " + preset.name + " has no atmosphere or AO)");
-  if (mode == "closed-loop" && !preset.ao)
-    throw InvalidArgument("aosr psf", "--mode", mode, "analytic or diffraction (preset " + preset.name + " has no AO)");
+  // Checked here too so that the message names the flag (the library checks it again).
+  const int max_size = MaxPresetPsfSize(preset, o);
+  if (args.size > max_size)
+    throw InvalidArgument("aosr psf", "--size", std::to_string(args.size),
+                          "at most " + std::to_string(max_size) + " pixels: the field must fit in the " +
+                              std::to_string(preset.pupil_px) + " lambda/D period of the " +
+                              std::to_string(preset.pupil_px) + "-pixel pupil");
   if (!args.output.empty()) CheckWritableFile(args.output);
 
-  const Index n = preset.pupil_px;
-  const double diameter = preset.aperture.pupil.diameter_m;
-  const Image amplitude = preset.PupilAmplitude();
-  Image opd = Image::Zero(n, n);
-  for (const ZernikeOffset& o : offsets) opd += o.nm * 1e-9 * Zernike(o.j, n, preset.aperture.pupil.obstruction);
-  PsfSampling sampling;
-  sampling.wavelength_m = preset.science_wavelength_m;
-  sampling.pixel_scale_rad = args.pixel_lod > 0 ? args.pixel_lod * preset.LambdaOverD() : preset.camera_pixel_rad / args.r;
-  sampling.rows = sampling.cols = args.size;
-  // The PSF of a pupil sampled by n pixels repeats every n λ/D: a wider field would show aliased copies.
-  const double field_lod = args.size * sampling.PixelScaleLambdaOverD(diameter);
-  if (field_lod > double(n))
-    throw InvalidArgument("aosr psf", "--size", std::to_string(args.size),
-                          "at most " + std::to_string(int(n / sampling.PixelScaleLambdaOverD(diameter))) +
-                              " pixels: the field (" + ToString(field_lod) + " lambda/D) must fit in the " +
-                              std::to_string(n) + " lambda/D period of the " + std::to_string(n) + "-pixel pupil");
-
-  progress.Step("computing the " + mode + " PSF of " + preset.name);
-  const PsfCalculator diffraction(n, diameter, sampling);
-  const Image perfect = diffraction.Compute(amplitude, Image::Zero(n, n));
-  Image psf;
-  double residual_nm = 0;
-  std::string loop_report;
-  if (mode == "closed-loop") {
-    const SensorKind kind = args.sensor == "ideal"       ? SensorKind::kIdeal
-                            : args.sensor == "geometric" ? SensorKind::kGeometric
-                                                         : SensorKind::kDiffractive;
-    progress.Step("calibrating the AO system (interaction and control matrices)");
-    AoSystem system = BuildAoSystem(preset.ToAoSystemSpec(kind, args.seed));
-    ClosedLoopOptions loop_options;
-    loop_options.science = sampling;
-    std::unique_ptr<ClosedLoop> loop = system.MakeLoop(loop_options);
-    progress.Step("running the loop for " + ToString(args.settling_s) + " s settling + " + ToString(args.exposure_s) + " s");
-    // The DM offset is applied as the real-time computer would: through the WFS reference slopes.
-    const ClosedLoopResult r = loop->RunSubExposures({opd}, args.exposure_s, args.settling_s).front();
-    psf = r.psf;
-    residual_nm = r.RmsResidualM() * 1e9;
-    loop_report = r.BriefReport();
-  } else if (mode == "analytic") {
-    const AnalyticAoPsfCalculator ao(preset.ToAnalyticAo(), n, sampling);
-    const AnalyticAoPsf p = ao.Compute(amplitude, opd);
-    psf = p.psf;
-    residual_nm = p.residual_rms_nm;
-  } else {
-    psf = diffraction.Compute(amplitude, opd);
-  }
-  if (psf.size() == 0 || !AllFinite(psf)) throw NumericalError("aosr psf: the " + mode + " PSF is empty or not finite");
-  const PsfStats stats = MeasurePsf(psf);
-  const double strehl = psf.maxCoeff() / perfect.maxCoeff();
-  const double lod_px = preset.LambdaOverD() / sampling.pixel_scale_rad;
-  const std::vector<double> radii = {1.0 * lod_px, 2.0 * lod_px, 5.0 * lod_px};
-  const std::vector<double> ee = EncircledEnergy(psf, radii);
+  const PresetPsf result = ComputePresetPsf(preset, o, [&progress](const std::string& m) { progress.Step(m); });
+  const std::string& mode = result.mode;
+  const Image& psf = result.psf;
+  const PsfSampling& sampling = result.sampling;
+  const double strehl = result.strehl, residual_nm = result.residual_rms_nm, lod_px = result.lambda_over_d_px;
+  const std::vector<double>& ee = result.encircled_energy;
+  const std::string& loop_report = result.loop_report;
   const double seconds = clock.Seconds();
 
   if (!args.output.empty()) {
@@ -138,8 +101,8 @@ void RunPsf(const PsfArgs& args) {
     h.Set("PIXSCALE", sampling.pixel_scale_rad, "[rad] pixel angular pitch");
     h.Set("STREHL", strehl, "peak / diffraction-limited peak");
     h.Set("NORMALIS", "whole focal plane sums to 1", "window sum = light in the window");
-    for (std::size_t i = 0; i < offsets.size(); ++i)
-      h.Set("ZOFF" + std::to_string(i), std::to_string(offsets[i].j) + "=" + ToString(offsets[i].nm) + " nm",
+    for (std::size_t i = 0; i < o.offsets.size(); ++i)
+      h.Set("ZOFF" + std::to_string(i), std::to_string(o.offsets[i].noll) + "=" + ToString(o.offsets[i].rms_nm) + " nm",
             "Noll index = wavefront OPD RMS offset");
     WriteFits(args.output, psf, h, FitsType::kFloat64);
   }
@@ -150,10 +113,10 @@ void RunPsf(const PsfArgs& args) {
                         {"pixel_scale_rad", sampling.pixel_scale_rad},
                         {"pixel_scale_lambda_over_d", 1.0 / lod_px},
                         {"strehl", strehl},
-                        {"fwhm_px", stats.fwhm_px},
-                        {"fwhm_lambda_over_d", stats.fwhm_px / lod_px},
+                        {"fwhm_px", result.fwhm_px},
+                        {"fwhm_lambda_over_d", result.fwhm_px / lod_px},
                         {"encircled_energy", {{"radius_lambda_over_d", {1, 2, 5}}, {"fraction_of_window", ee}}},
-                        {"window_sum", stats.window_sum},
+                        {"window_sum", result.window_sum},
                         {"residual_rms_nm", residual_nm},
                         {"seconds", seconds}};
     if (!args.output.empty()) j["output"] = args.output;
@@ -163,9 +126,9 @@ void RunPsf(const PsfArgs& args) {
   }
   std::printf("aosr psf %s (%s) at %.3g um, pixel %.3g lambda/D, %dx%d\n", preset.name.c_str(), mode.c_str(),
               sampling.wavelength_m * 1e6, 1.0 / lod_px, args.size, args.size);
-  std::printf("  Strehl %.4f   FWHM %.3f lambda/D   residual %.1f nm RMS\n", strehl, stats.fwhm_px / lod_px, residual_nm);
+  std::printf("  Strehl %.4f   FWHM %.3f lambda/D   residual %.1f nm RMS\n", strehl, result.fwhm_px / lod_px, residual_nm);
   std::printf("  EE(1, 2, 5 lambda/D) = %.4f, %.4f, %.4f of the window (window holds %.4f of all light)\n", ee[0],
-              ee[1], ee[2], stats.window_sum);
+              ee[1], ee[2], result.window_sum);
   if (!loop_report.empty()) std::printf("  loop (%s sensor): %s\n", args.sensor.c_str(), loop_report.c_str());
   std::printf("  %.3f s\n", seconds);
 }

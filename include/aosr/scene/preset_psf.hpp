@@ -1,0 +1,73 @@
+// The science PSF of a telescope preset with optional Zernike DM offsets: diffraction-limited, long-exposure
+// through the analytic AO residual (ao/analytic_ao.hpp), or from a closed-loop Monte-Carlo run
+// (ao/closed_loop.hpp, the offset held through the WFS reference slopes), with its Strehl ratio, FWHM and
+// encircled energy. What `aosr psf` prints and the Python aosr.psf() returns: one library call for both.
+//
+// Normalisation: the whole focal plane sums to 1, so the window's sum is the light inside it.
+// Strehl: the PSF's peak over the diffraction-limited peak of the same sampling (offsets included, so a
+// designed tilt lowers it only by the window's discretisation).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "aosr/ao/ao_system.hpp"
+#include "aosr/core/image.hpp"
+#include "aosr/optics/psf.hpp"
+#include "aosr/scene/telescope.hpp"
+
+namespace aosr {
+
+struct PresetPsfOptions {
+  // "analytic" | "diffraction" | "closed-loop"; empty: analytic when the preset has an atmosphere and AO,
+  // else diffraction. analytic needs both; closed-loop needs AO.
+  std::string mode;
+  // DM offsets: (Noll index j in 2..1000, wavefront OPD RMS in nm, finite) per term.
+  struct Offset {
+    int noll = 4;
+    double rms_nm = 0.0;
+  };
+  std::vector<Offset> offsets;
+  // Pixel = camera pixel / r (r in 1..16), unless pixel_lod > 0 gives the pitch in λ/D.
+  int r = 2;
+  double pixel_lod = 0.0;
+  // PSF side in pixels, 8..4096; the field must fit in the pupil grid's period of pupil_px λ/D.
+  int size = 128;
+  // Closed loop only: the wavefront sensor, the recorded time and the unrecorded settling time before it
+  // [s], and the atmosphere and noise seed.
+  SensorKind sensor = SensorKind::kDiffractive;
+  double exposure_s = 0.5;
+  double settling_s = 0.1;
+  std::uint64_t seed = 1;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct PresetPsf {
+  Image psf;               // size x size, centred (image.hpp), the whole focal plane sums to 1
+  std::string mode;        // the mode used
+  PsfSampling sampling;    // wavelength, pixel pitch, size
+  double lambda_over_d_px = 0.0;  // λ/D in pixels
+  double strehl = 0.0;
+  double fwhm_px = 0.0;
+  double window_sum = 0.0;        // light inside the window
+  double residual_rms_nm = 0.0;   // AO residual (analytic, closed loop); 0 for diffraction
+  std::vector<double> encircled_energy;  // at 1, 2 and 5 λ/D, fraction of the window
+  std::string loop_report;        // closed loop: the loop's BriefReport
+};
+
+// InvalidArgument (naming the option) for a bad option or a mode the preset cannot run; NumericalError if the
+// PSF comes out empty or non-finite. `progress`, when set, gets one line per long step.
+PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions& options,
+                           const std::function<void(const std::string&)>& progress = {});
+
+// The largest PSF side whose field fits in the pupil grid's period (n λ/D for an n-pixel pupil) at the
+// options' pixel pitch: larger `size` would show aliased copies of the PSF.
+int MaxPresetPsfSize(const TelescopePreset& preset, const PresetPsfOptions& options);
+
+// "ideal" | "geometric" | "diffractive"; InvalidArgument otherwise.
+SensorKind ParseSensorKind(const std::string& name);
+
+}  // namespace aosr

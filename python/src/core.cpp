@@ -1,0 +1,131 @@
+// Bindings of the core layer: the error types, execution settings (threads, FFT planner, memory limit) and
+// the image metrics.
+#include <thread>
+
+#include "aosr/core/error.hpp"
+#include "aosr/core/fft.hpp"
+#include "aosr/core/memory.hpp"
+#include "aosr/core/metrics.hpp"
+#include "aosr/core/parallel.hpp"
+#include "common.hpp"
+
+namespace aosr::python {
+namespace {
+
+// Python classes: aosr.Error(Exception) and one subclass per C++ error, each also the builtin a Python user
+// would catch for it (a bad argument is a ValueError, a file problem an OSError, ...).
+PyObject* NewException(py::module_& m, const char* name, PyObject* bases, const char* doc) {
+  const std::string qualified = std::string("aosr.") + name;
+  PyObject* type = PyErr_NewExceptionWithDoc(qualified.c_str(), doc, bases, nullptr);
+  if (!type) throw py::error_already_set();
+  m.add_object(name, py::handle(type));
+  return type;
+}
+
+MetricOptions Metrics(int crop, double peak) {
+  MetricOptions o;
+  o.crop_px = crop;
+  o.peak = peak;
+  std::string why;
+  if (!o.IsValid(&why)) throw InvalidArgument("aosr.compare_images: " + why);
+  return o;
+}
+
+}  // namespace
+
+void BindCore(py::module_& m) {
+  static PyObject* error = nullptr;
+  static PyObject* invalid = nullptr;
+  static PyObject* io = nullptr;
+  static PyObject* resource = nullptr;
+  static PyObject* numerical = nullptr;
+  error = NewException(m, "Error", PyExc_Exception, "Base class of every error aosr raises.");
+  invalid = NewException(m, "InvalidArgument", py::make_tuple(py::handle(error), py::handle(PyExc_ValueError)).release().ptr(),
+                         "A bad argument or file content; the message names the function, argument, value and what "
+                         "is allowed. Also a ValueError.");
+  io = NewException(m, "IoError", py::make_tuple(py::handle(error), py::handle(PyExc_OSError)).release().ptr(),
+                    "A file could not be read or written; the message starts with the path. Also an OSError.");
+  resource = NewException(m, "ResourceError", py::make_tuple(py::handle(error), py::handle(PyExc_MemoryError)).release().ptr(),
+                          "A request that needs more memory than the limit (set_memory_limit). Also a MemoryError.");
+  numerical = NewException(m, "NumericalError",
+                           py::make_tuple(py::handle(error), py::handle(PyExc_ArithmeticError)).release().ptr(),
+                           "A NaN/Inf that would otherwise leak into a result. Also an ArithmeticError.");
+  py::register_exception_translator([](std::exception_ptr p) {
+    if (!p) return;
+    try {
+      std::rethrow_exception(p);
+    } catch (const InvalidArgument& e) {
+      PyErr_SetString(invalid, e.what());
+    } catch (const IoError& e) {
+      // OSError(message) keeps str() equal to the C++ message; the path is an attribute too.
+      py::object exc = py::reinterpret_steal<py::object>(PyObject_CallFunction(io, "s", e.what()));
+      if (exc) {
+        exc.attr("path") = e.path();
+        PyErr_SetObject(io, exc.ptr());
+      }
+    } catch (const ResourceError& e) {
+      PyErr_SetString(resource, e.what());
+    } catch (const NumericalError& e) {
+      PyErr_SetString(numerical, e.what());
+    } catch (const Error& e) {
+      PyErr_SetString(error, e.what());
+    }
+  });
+
+  m.attr("__version__") = AOSR_VERSION;
+  m.attr("_data_dir") = AOSR_SOURCE_DATA_DIR;
+
+  m.def(
+      "set_threads", [](int threads) {
+        CheckArgument(threads >= 0 && threads <= 256, "aosr.set_threads", "threads", threads, "0 (all hardware threads) .. 256");
+        const int hw = int(std::max(1u, std::thread::hardware_concurrency()));
+        SetDefaultThreads(threads > 0 ? threads : std::min(hw, 256));
+      },
+      py::arg("threads"),
+      "Sets the threads every aosr call uses (0: all hardware threads). Results are the same bytes for any count.\n"
+      "aosr.distributed sets 1 per task, so that workers x tasks do not oversubscribe the cores.");
+  m.def("threads", &DefaultThreads, "The thread count aosr calls use (set_threads).");
+  m.def(
+      "set_fft_planner", [](const std::string& planner) {
+        FftSettings s = GetFftSettings();
+        if (planner == "estimate") s.planner = FftSettings::Planner::kEstimate;
+        else if (planner == "measure") s.planner = FftSettings::Planner::kMeasure;
+        else if (planner == "patient") s.planner = FftSettings::Planner::kPatient;
+        else throw InvalidArgument("aosr.set_fft_planner", "planner", planner, "estimate | measure | patient");
+        SetFftSettings(s);
+      },
+      py::arg("planner"),
+      "FFTW planning rigour: 'estimate' (default: reproducible bytes), 'measure' or 'patient' (may be faster; the\n"
+      "last bits of results then vary from run to run). The CLI's --fft-planner.");
+  m.def(
+      "set_memory_limit", [](const std::string& limit) { SetMemoryLimitBytes(ParseByteSize(limit, "limit")); },
+      py::arg("limit"),
+      "Refuse work whose estimated memory exceeds `limit` (e.g. '8G'), raising ResourceError before allocating.\n"
+      "The CLI's --memory-limit.");
+  m.def(
+      "compare_images",
+      [](py::handle truth, py::handle estimate, int crop, double peak) {
+        const Image t = ImageFromArray(truth, "truth"), e = ImageFromArray(estimate, "estimate");
+        const MetricOptions o = Metrics(crop, peak);
+        const ImageMetrics r = WithoutGil([&] { return CompareImages(t, e, o); });
+        py::dict d;
+        d["psnr_db"] = r.psnr;
+        d["ssim"] = r.ssim;
+        d["rmse"] = r.rmse;
+        d["crop_px"] = crop;
+        return d;
+      },
+      py::arg("truth"), py::arg("estimate"), py::kw_only(), py::arg("crop") = 0, py::arg("peak") = 0.0,
+      "PSNR [dB], SSIM and RMSE of `estimate` against `truth` (2-D arrays of one shape), ignoring `crop` pixels\n"
+      "at each border. PSNR = 10 log10(L^2 / MSE) with L = `peak`, or max - min of the cropped truth when 0\n"
+      "(include/aosr/core/metrics.hpp). Returns {'psnr_db', 'ssim', 'rmse', 'crop_px'}.");
+  m.def(
+      "psnr",
+      [](py::handle truth, py::handle estimate, int crop, double peak) {
+        return Psnr(ImageFromArray(truth, "truth"), ImageFromArray(estimate, "estimate"), Metrics(crop, peak));
+      },
+      py::arg("truth"), py::arg("estimate"), py::kw_only(), py::arg("crop") = 0, py::arg("peak") = 0.0,
+      "PSNR [dB] of `estimate` against `truth` (compare_images).");
+}
+
+}  // namespace aosr::python

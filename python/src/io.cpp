@@ -1,0 +1,100 @@
+// Bindings of the io layer: FITS images and cubes with their headers as dicts.
+//
+// Headers: {KEYWORD: value} with bool, int, float or str values, in file order: the form
+// astropy.io.fits.Header(d) accepts. Keywords longer than 8 characters are given as "HIERARCH NAME" (what
+// astropy expects for them, and what cfitsio wrote); write_fits accepts either form.
+#include "aosr/core/error.hpp"
+#include "aosr/io/fits.hpp"
+#include "common.hpp"
+
+namespace aosr::python {
+namespace {
+
+std::string PythonKey(const std::string& name) { return name.size() > 8 ? "HIERARCH " + name : name; }
+
+py::object PythonValue(const FitsValue& v) {
+  return std::visit([](const auto& x) -> py::object { return py::cast(x); }, v);
+}
+
+}  // namespace
+
+py::dict HeaderToDict(const FitsHeader& header) {
+  py::dict d;
+  for (const FitsKeyword& k : header.keywords()) d[py::str(PythonKey(k.name))] = PythonValue(k.value);
+  return d;
+}
+
+py::dict HeaderComments(const FitsHeader& header) {
+  py::dict d;
+  for (const FitsKeyword& k : header.keywords()) d[py::str(PythonKey(k.name))] = k.comment;
+  return d;
+}
+
+FitsHeader HeaderFromDict(py::handle header, py::handle comments) {
+  FitsHeader h;
+  if (header.is_none()) return h;
+  // A dict, or anything with .items() (astropy's Header yields (keyword, value) pairs).
+  if (!py::hasattr(header, "items"))
+    throw InvalidArgument("aosr.write_fits", "header", std::string(py::str(py::type::of(header))),
+                          "a dict {keyword: value} or an astropy.io.fits.Header");
+  py::dict notes = comments.is_none() ? py::dict() : py::dict(py::reinterpret_borrow<py::object>(comments));
+  for (py::handle item : header.attr("items")()) {
+    const py::tuple kv = py::reinterpret_borrow<py::tuple>(item);
+    std::string key = py::str(kv[0]);
+    const std::string comment = notes.contains(kv[0]) ? std::string(py::str(notes[kv[0]])) : std::string();
+    if (key.rfind("HIERARCH ", 0) == 0) key = key.substr(9);
+    if (key.empty() || FitsHeader::IsStructural(key)) continue;  // written by the writer itself
+    const py::handle v = kv[1];
+    if (py::isinstance<py::bool_>(v)) h.Set(key, v.cast<bool>(), comment);
+    else if (py::isinstance<py::int_>(v)) h.Set(key, v.cast<long long>(), comment);
+    else if (py::isinstance<py::float_>(v) || (py::hasattr(v, "__float__") && !py::isinstance<py::str>(v)))
+      h.Set(key, v.cast<double>(), comment);
+    else if (py::isinstance<py::str>(v)) h.Set(key, v.cast<std::string>(), comment);
+    else
+      throw InvalidArgument("aosr.write_fits", "header[" + key + "]", std::string(py::repr(v)),
+                            "a bool, int, float or str");
+  }
+  return h;
+}
+
+void BindIo(py::module_& m) {
+  m.def(
+      "read_fits",
+      [](py::object path_object, bool with_comments) -> py::tuple {
+        const std::string path = PathString(path_object);
+        FitsData data = WithoutGil([&] { return ReadFits(path); });
+        py::object array = data.planes.size() == 1 ? py::object(MoveImage(std::move(data.planes.front())))
+                                                   : py::object(StackToArray(data.planes));
+        if (with_comments) return py::make_tuple(array, HeaderToDict(data.header), HeaderComments(data.header));
+        return py::make_tuple(array, HeaderToDict(data.header));
+      },
+      py::arg("path"), py::kw_only(), py::arg("with_comments") = false,
+      "Reads a FITS image or cube (the primary HDU, or the first image extension with data).\n\n"
+      "Returns (data, header): data float64, (rows, cols) for an image or (N, rows, cols) for a cube, in\n"
+      "astropy's orientation; header a dict {KEYWORD: value} that astropy.io.fits.Header(header) accepts.\n"
+      "with_comments=True adds a third dict {KEYWORD: comment}. Raises IoError naming the path.");
+  m.def(
+      "write_fits",
+      [](py::object path_object, py::handle data, py::handle header, py::handle comments, const std::string& dtype) {
+        const std::string path = PathString(path_object);
+        FitsType type = FitsType::kFloat32;
+        if (dtype == "float64") type = FitsType::kFloat64;
+        else if (dtype != "float32") throw InvalidArgument("aosr.write_fits", "dtype", dtype, "float32 | float64");
+        const FitsHeader h = HeaderFromDict(header, comments);
+        const py::array a = py::array::ensure(data);
+        if (a && a.ndim() == 3) {
+          const ImageStack planes = StackFromArray(data, "data");
+          WithoutGil([&] { WriteFitsCube(path, planes, h, type); });
+        } else {
+          const Image img = ImageFromArray(data, "data");
+          WithoutGil([&] { WriteFits(path, img, h, type); });
+        }
+      },
+      py::arg("path"), py::arg("data"), py::arg("header") = py::none(), py::kw_only(),
+      py::arg("comments") = py::none(), py::arg("dtype") = "float32",
+      "Writes a 2-D image or an (N, rows, cols) cube as FITS, atomically (write to a temporary name, then\n"
+      "rename). header: a dict {KEYWORD: value} or an astropy Header (structural keywords are skipped);\n"
+      "comments: {KEYWORD: comment}. dtype 'float32' (default) or 'float64' (exact).");
+}
+
+}  // namespace aosr::python

@@ -1,0 +1,446 @@
+// Bindings of the solvers layer: aosr.reconstruct(dataset, method, **options) for every method of
+// include/aosr/solvers/reconstruct.hpp, and the one table that maps keyword arguments onto
+// ReconstructOptions (ReconstructTable below). A new method's options are a few lines there.
+#include "aosr/core/error.hpp"
+#include "aosr/solvers/dataset_problem.hpp"
+#include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/target_psf.hpp"
+#include "bindings.hpp"
+#include "common.hpp"
+
+namespace aosr::python {
+namespace {
+
+// ---- The option tables: one per options struct, nested into ReconstructOptions ----------------------------
+// Names are the C++ field names; help(aosr.reconstruct) and aosr.reconstruct_options() list them with their
+// defaults, and the headers (include/aosr/solvers/*.hpp) document each field's meaning, units and range.
+
+const std::vector<std::pair<std::string, TikhonovPrior>> kTikhonovPriors = {
+    {"identity", TikhonovPrior::kIdentity},
+    {"gradient", TikhonovPrior::kGradient},
+    {"laplacian", TikhonovPrior::kLaplacian},
+    {"power-spectrum", TikhonovPrior::kPowerSpectrum}};
+
+OptionTable<DrizzleOptions> DrizzleTable() {
+  OptionTable<DrizzleOptions> t;
+  t.Enum("kernel", &DrizzleOptions::kernel,
+         {{"square", DrizzleKernel::kSquare}, {"turbo", DrizzleKernel::kTurbo}, {"point", DrizzleKernel::kPoint},
+          {"gaussian", DrizzleKernel::kGaussian}, {"lanczos3", DrizzleKernel::kLanczos3}},
+         "how a drop's flux is spread over the HR pixels")
+      .Field("pixfrac", &DrizzleOptions::pixfrac, "drop size as a fraction of the camera pixel, (0, 1]")
+      .Field("fill_value", &DrizzleOptions::fill_value, "value of HR pixels no drop reaches")
+      .Enum("boundary", &DrizzleOptions::boundary,
+            {{"periodic", DrizzleBoundary::kPeriodic}, {"clip", DrizzleBoundary::kClip}}, "drops beyond the edge");
+  return t;
+}
+
+OptionTable<ConjugateGradientOptions> CgTable() {
+  OptionTable<ConjugateGradientOptions> t;
+  t.Field("max_iterations", &ConjugateGradientOptions::max_iterations, "CG iteration cap per solve, >= 1")
+      .Field("tolerance", &ConjugateGradientOptions::tolerance, "relative residual stopping rule, (0, 1)");
+  return t;
+}
+
+OptionTable<TikhonovOptions> TikhonovTable() {
+  OptionTable<TikhonovOptions> t;
+  t.Enum("prior", &TikhonovOptions::prior, kTikhonovPriors, "the prior operator")
+      .Field("spectrum_slope", &TikhonovOptions::spectrum_slope, "power-spectrum prior: slope beta, [0, 8]")
+      .Field("spectrum_corner", &TikhonovOptions::spectrum_corner,
+             "power-spectrum prior: corner f0 [cycles per HR pixel], (0, 0.5]")
+      .Custom("object_power_spectrum", "array", "power-spectrum prior: S on the full HR FFT grid (unshifted)",
+              [](TikhonovOptions& o, py::handle v) { o.object_power_spectrum = ImageFromArray(v, "tikhonov_object_power_spectrum"); },
+              [](const TikhonovOptions&) { return py::none(); })
+      .Enum("lambda_rule", &TikhonovOptions::lambda_rule,
+            {{"fixed", TikhonovLambdaRule::kFixed}, {"gcv", TikhonovLambdaRule::kGcv},
+             {"discrepancy", TikhonovLambdaRule::kDiscrepancy}},
+            "how lambda is chosen")
+      .Field("lambda", &TikhonovOptions::lambda, "lambda >= 0 for lambda_rule 'fixed'")
+      .Field("gcv_decades", &TikhonovOptions::gcv_decades, "GCV search span in decades")
+      .Field("gcv_steps_per_decade", &TikhonovOptions::gcv_steps_per_decade, "GCV grid points per decade")
+      .Field("noise_sigma", &TikhonovOptions::noise_sigma,
+             "noise sigma of a weight-1 pixel (discrepancy, std); 1 for inverse-variance weights")
+      .Field("discrepancy_factor", &TikhonovOptions::discrepancy_factor, "discrepancy tau, [0.1, 10]")
+      .Field("discrepancy_tolerance", &TikhonovOptions::discrepancy_tolerance, "relative, (0, 0.1]")
+      .Field("discrepancy_max_evaluations", &TikhonovOptions::discrepancy_max_evaluations, ">= 4")
+      .Enum("method", &TikhonovOptions::method,
+            {{"auto", TikhonovMethod::kAuto}, {"fourier", TikhonovMethod::kFourier},
+             {"conjugate-gradient", TikhonovMethod::kConjugateGradient}},
+            "exact Fourier path or PCG")
+      .Enum("bin_solver", &TikhonovOptions::bin_solver,
+            {{"auto", TikhonovBinSolver::kAuto}, {"normal-equations", TikhonovBinSolver::kNormalEquations},
+             {"woodbury", TikhonovBinSolver::kWoodbury}},
+            "per-frequency solver")
+      .Enum("boundary", &TikhonovOptions::boundary,
+            {{"periodic", TikhonovBoundary::kPeriodic}, {"padded", TikhonovBoundary::kZeroPadded}},
+            "periodic model or zero-padded boundary")
+      .Field("padding", &TikhonovOptions::padding, "padded boundary: camera pixels per side, -1: the PSFs' extent")
+      .Nested("cg", &TikhonovOptions::cg, CgTable())
+      .Field("precondition", &TikhonovOptions::precondition, "CG path: precondition by the Fourier inverse")
+      .Field("compute_std", &TikhonovOptions::compute_std, "compute the posterior std map (needs noise_sigma > 0)")
+      .Field("rank_tolerance", &TikhonovOptions::rank_tolerance, "relative singular-value floor, (0, 1)");
+  return t;
+}
+
+OptionTable<TotalVariationOptions> TvTable() {
+  OptionTable<TotalVariationOptions> t;
+  t.Field("mu", &TotalVariationOptions::mu, "TV weight (set auto_regularisation=False, or use mu=, to keep it)")
+      .Field("positivity", &TotalVariationOptions::positivity, "constrain x >= 0")
+      .Field("rho", &TotalVariationOptions::rho, "initial ADMM penalty, 0: automatic")
+      .Field("adaptive_rho", &TotalVariationOptions::adaptive_rho, "residual balancing")
+      .Field("rho_balance", &TotalVariationOptions::rho_balance, "> 1")
+      .Field("rho_factor", &TotalVariationOptions::rho_factor, "> 1")
+      .Field("max_rho_updates", &TotalVariationOptions::max_rho_updates, ">= 0")
+      .Field("relaxation", &TotalVariationOptions::relaxation, "over-relaxation alpha, [1, 1.9]")
+      .Field("absolute_tolerance", &TotalVariationOptions::absolute_tolerance, ">= 0")
+      .Field("relative_tolerance", &TotalVariationOptions::relative_tolerance, "(0, 1)")
+      .Field("change_tolerance", &TotalVariationOptions::change_tolerance, "0: off")
+      .Field("max_iterations", &TotalVariationOptions::max_iterations, ">= 1")
+      .Enum("x_update", &TotalVariationOptions::x_update,
+            {{"auto", TotalVariationXUpdate::kAuto}, {"fourier", TotalVariationXUpdate::kFourier},
+             {"fourier-split", TotalVariationXUpdate::kFourierSplit},
+             {"conjugate-gradient", TotalVariationXUpdate::kConjugateGradient}},
+            "x-update path")
+      .Field("cg_tolerance", &TotalVariationOptions::cg_tolerance, "(0, 1)")
+      .Field("cg_max_iterations", &TotalVariationOptions::cg_max_iterations, ">= 1");
+  return t;
+}
+
+OptionTable<MapOptions> MapTable() {
+  OptionTable<MapOptions> t;
+  t.Enum("likelihood", &MapOptions::likelihood,
+         {{"gaussian", MapLikelihood::kGaussian}, {"poisson", MapLikelihood::kPoisson}}, "data likelihood")
+      .Field("read_noise", &MapOptions::read_noise, "poisson: read noise [e-], >= 0")
+      .Field("background", &MapOptions::background, "background added to the model [frame units], >= 0")
+      .Enum("prior", &MapOptions::prior,
+            {{"tikhonov", MapPrior::kTikhonov}, {"charbonnier-tv", MapPrior::kCharbonnierTv}, {"huber-tv", MapPrior::kHuberTv}},
+            "the prior")
+      .Enum("tikhonov_operator", &MapOptions::tikhonov_operator, kTikhonovPriors, "prior 'tikhonov': its operator")
+      .Field("lambda", &MapOptions::lambda, "regularisation weight (with auto_regularisation=False)")
+      .Field("epsilon", &MapOptions::epsilon, "Charbonnier epsilon, > 0")
+      .Field("delta", &MapOptions::delta, "Huber delta, > 0")
+      .Enum("positivity", &MapOptions::positivity,
+            {{"none", MapPositivity::kNone}, {"softplus", MapPositivity::kSoftplus}}, "positivity")
+      .Field("softplus_scale", &MapOptions::softplus_scale, "softplus scale, 0: automatic")
+      .Field("max_iterations", &MapOptions::max_iterations, ">= 1")
+      .Field("function_tolerance", &MapOptions::function_tolerance, "[0, 1)")
+      .Field("gradient_tolerance", &MapOptions::gradient_tolerance, "[0, 1)")
+      .Field("parameter_tolerance", &MapOptions::parameter_tolerance, "[0, 1)")
+      .Field("lbfgs_memory", &MapOptions::lbfgs_memory, "1..1000")
+      .Field("lbfgs_eigenvalue_scaling", &MapOptions::lbfgs_eigenvalue_scaling, "Oren's scaling")
+      .Enum("preconditioner", &MapOptions::preconditioner,
+            {{"none", MapPreconditioner::kNone}, {"fourier", MapPreconditioner::kFourier}}, "L-BFGS preconditioner");
+  return t;
+}
+
+OptionTable<TargetPsfOptions> LinearTable() {
+  OptionTable<TargetPsfOptions> t;
+  t.Custom("target_psf", "'auto' | float FWHM [HR px] | (K, K) array",
+           "the target PSF: automatic Gaussian, a Gaussian of this FWHM, or a kernel at HR sampling (the CLI's --target-psf)",
+           [](TargetPsfOptions& o, py::handle v) {
+             if (py::isinstance<py::str>(v)) {
+               if (v.cast<std::string>() != "auto") OptionError("target_psf", py::repr(v), "'auto', a FWHM in HR px or a kernel");
+               o.kind = TargetPsfKind::kAuto;
+             } else if (py::isinstance<py::float_>(v) || (py::isinstance<py::int_>(v) && !py::isinstance<py::bool_>(v))) {
+               o.kind = TargetPsfKind::kGaussian;
+               o.fwhm_hr_px = v.cast<double>();
+             } else {
+               o.kind = TargetPsfKind::kImage;
+               o.image = ImageFromArray(v, "linear_target_psf");
+             }
+           },
+           [](const TargetPsfOptions& o) -> py::object {
+             if (o.kind == TargetPsfKind::kAuto) return py::str("auto");
+             if (o.kind == TargetPsfKind::kGaussian) return py::cast(o.fwhm_hr_px);
+             return py::str("(kernel)");
+           })
+      .Field("leakage", &TargetPsfOptions::leakage, "epsilon of the leakage bound U <= U_min + epsilon, (0, 1)")
+      .Field("noise_sigma", &TargetPsfOptions::noise_sigma, "sigma of a weight-1 pixel (1 for inverse variances), > 0")
+      .Field("compute_noise", &TargetPsfOptions::compute_noise, "compute the noise map, its kernel and RMS")
+      .Field("noise_probes", &TargetPsfOptions::noise_probes, "weighted/masked path: noise probes, >= 2")
+      .Field("seed", &TargetPsfOptions::seed, "seed of the noise probes")
+      .Nested("cg", &TargetPsfOptions::cg, CgTable())
+      .Field("psf_size", &TargetPsfOptions::psf_size, "side of the effective-PSF image (even, >= 4), 0: automatic")
+      .Field("correlation_radius", &TargetPsfOptions::correlation_radius, "noise kernel half-width [HR px], -1: 2r");
+  return t;
+}
+
+// The whole table: the CLI's options of `aosr reconstruct` under its names (they may set several fields, as
+// the CLI does), then every field of every method's options struct as <method>_<field>.
+const OptionTable<ReconstructOptions>& ReconstructTable() {
+  static const OptionTable<ReconstructOptions> table = [] {
+    using O = ReconstructOptions;
+    auto number = [](py::handle v, const char* name) {
+      if (py::isinstance<py::bool_>(v) || !(py::isinstance<py::int_>(v) || py::isinstance<py::float_>(v)))
+        OptionError(name, py::repr(v), "a number");
+      return v.cast<double>();
+    };
+    OptionTable<O> t;
+    // -- The CLI's names (aosr reconstruct --help). --
+    auto set_lambda = [number](O& o, py::handle v) {
+      o.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
+      o.tikhonov.lambda = number(v, "lambda");
+    };
+    auto get_lambda = [](const O& o) -> py::object {
+      return o.tikhonov.lambda_rule == TikhonovLambdaRule::kFixed ? py::cast(o.tikhonov.lambda) : py::none();
+    };
+    t.Custom("lambda_", "float", "Tikhonov lambda (fixes lambda_rule); default: by GCV. Also accepted as 'lambda'",
+             set_lambda, get_lambda)
+        .Custom("lambda", "float", "= lambda_ (for **{'lambda': ...})", set_lambda, get_lambda)
+        .Custom("lambda_rule", "gcv | discrepancy | fixed", "Tikhonov (and the tv/map pilot) lambda rule",
+                [](O& o, py::handle v) { TikhonovTable().Find("lambda_rule")->set(o.tikhonov, v, "lambda_rule"); },
+                [](const O& o) { return TikhonovTable().Find("lambda_rule")->get(o.tikhonov); })
+        .Custom("prior", "identity | gradient | laplacian | power-spectrum", "Tikhonov prior",
+                [](O& o, py::handle v) { TikhonovTable().Find("prior")->set(o.tikhonov, v, "prior"); },
+                [](const O& o) { return TikhonovTable().Find("prior")->get(o.tikhonov); })
+        .Custom("boundary", "periodic | padded", "Tikhonov boundary",
+                [](O& o, py::handle v) { TikhonovTable().Find("boundary")->set(o.tikhonov, v, "boundary"); },
+                [](const O& o) { return TikhonovTable().Find("boundary")->get(o.tikhonov); })
+        .Custom("std", "bool", "Tikhonov: compute the posterior std map (returned as aux)",
+                [](O& o, py::handle v) { TikhonovTable().Find("compute_std")->set(o.tikhonov, v, "std"); },
+                [](const O& o) { return py::cast(o.tikhonov.compute_std); })
+        .Custom("noise_sigma", "float", "Tikhonov std/discrepancy and linear: sigma of a weight-1 pixel (1 for inverse variances)",
+                [number](O& o, py::handle v) { o.tikhonov.noise_sigma = o.linear.noise_sigma = number(v, "noise_sigma"); },
+                [](const O& o) { return py::cast(o.tikhonov.noise_sigma); })
+        .Custom("mu", "float", "TV weight mu (map: lambda = 2 mu); turns auto_regularisation off. Default automatic",
+                [number](O& o, py::handle v) {
+                  o.auto_regularisation = false;
+                  o.tv.mu = number(v, "mu");
+                  o.map.lambda = 2 * o.tv.mu;
+                },
+                [](const O& o) { return o.auto_regularisation ? py::none() : py::cast(o.tv.mu); })
+        .Custom("iterations", "int", "iteration limit of tv and map",
+                [](O& o, py::handle v) {
+                  TvTable().Find("max_iterations")->set(o.tv, v, "iterations");
+                  o.map.max_iterations = o.tv.max_iterations;
+                },
+                [](const O& o) { return py::cast(o.tv.max_iterations); })
+        .Custom("positivity", "bool", "tv and map: constrain the image to be >= 0",
+                [](O& o, py::handle v) {
+                  TvTable().Find("positivity")->set(o.tv, v, "positivity");
+                  o.map.positivity = o.tv.positivity ? MapPositivity::kSoftplus : MapPositivity::kNone;
+                },
+                [](const O& o) { return py::cast(o.tv.positivity); })
+        .Custom("likelihood", "gaussian | poisson", "map likelihood",
+                [](O& o, py::handle v) { MapTable().Find("likelihood")->set(o.map, v, "likelihood"); },
+                [](const O& o) { return MapTable().Find("likelihood")->get(o.map); })
+        .Custom("read_noise", "float", "map poisson: read noise [e-]",
+                [](O& o, py::handle v) { MapTable().Find("read_noise")->set(o.map, v, "read_noise"); },
+                [](const O& o) { return py::cast(o.map.read_noise); })
+        .Custom("kernel", "square | turbo | point | gaussian | lanczos3", "drizzle kernel",
+                [](O& o, py::handle v) { DrizzleTable().Find("kernel")->set(o.drizzle, v, "kernel"); },
+                [](const O& o) { return DrizzleTable().Find("kernel")->get(o.drizzle); })
+        .Custom("pixfrac", "float", "drizzle drop size, (0, 1]",
+                [](O& o, py::handle v) { DrizzleTable().Find("pixfrac")->set(o.drizzle, v, "pixfrac"); },
+                [](const O& o) { return py::cast(o.drizzle.pixfrac); })
+        .Custom("target_psf", "'auto' | float | array", "linear: the target PSF (see linear_target_psf)",
+                [](O& o, py::handle v) { LinearTable().Find("target_psf")->set(o.linear, v, "target_psf"); },
+                [](const O& o) { return LinearTable().Find("target_psf")->get(o.linear); })
+        .Custom("leakage", "float", "linear: epsilon of the leakage bound",
+                [](O& o, py::handle v) { LinearTable().Find("leakage")->set(o.linear, v, "leakage"); },
+                [](const O& o) { return py::cast(o.linear.leakage); })
+        .Custom("noise_probes", "int", "linear, weighted/masked data: noise probes",
+                [](O& o, py::handle v) { LinearTable().Find("noise_probes")->set(o.linear, v, "noise_probes"); },
+                [](const O& o) { return py::cast(o.linear.noise_probes); })
+        .Field("auto_regularisation", &O::auto_regularisation,
+               "tv/map: weight from the data (reconstruct.hpp's rule), overriding tv_mu, map_lambda, map_epsilon");
+    // -- Every field, per method. A new method adds its table here: .Nested("linear", &O::linear, LinearTable()).
+    t.Nested("drizzle", &O::drizzle, DrizzleTable())
+        .Nested("tikhonov", &O::tikhonov, TikhonovTable())
+        .Nested("linear", &O::linear, LinearTable())
+        .Nested("tv", &O::tv, TvTable())
+        .Nested("map", &O::map, MapTable());
+    return t;
+  }();
+  return table;
+}
+
+// The defaults of `aosr reconstruct` (where they differ from the library's, the CLI's win: the same call
+// gives the same bits from the shell and from Python).
+ReconstructOptions CliDefaults() {
+  ReconstructOptions o;
+  o.tikhonov.noise_sigma = 1.0;        // --noise-sigma default (weights are inverse variances)
+  o.linear.noise_sigma = 1.0;
+  o.drizzle.compute_context = false;   // the CLI never writes the context map
+  return o;
+}
+
+py::dict SummaryDict(const SolverSummary& s) {
+  py::dict d;
+  d["method"] = s.method;
+  d["termination"] = ToString(s.termination);
+  d["message"] = s.message;
+  d["iterations"] = s.iterations;
+  d["final_cost"] = s.final_cost;
+  d["seconds"] = s.seconds;
+  d["frame_residual_rms"] = s.frame_residual_rms;
+  return d;
+}
+
+// What aosr.reconstruct returns: the library's Reconstruction (images viewed, not copied) and where the
+// problem's weights and offsets came from.
+struct PyReconstruction {
+  Reconstruction rec;
+  std::string method, weights_source, offsets_source;
+  bool model_psfs_replaced = false;
+  Index masked_pixels = 0;
+};
+
+}  // namespace
+
+py::dict ReconstructOptionsHelp() { return ReconstructTable().Describe(CliDefaults()); }
+
+void BindSolvers(py::module_& m) {
+  py::class_<PyReconstruction, std::shared_ptr<PyReconstruction>>(
+      m, "Reconstruction",
+      "The result of aosr.reconstruct: the HR image (e- per HR pixel per frame), the method's second map, the\n"
+      "solver summary. image and aux are views of memory this object owns (no copy).")
+      .def_property_readonly(
+          "image", [](py::object self) { return ViewImage(self.cast<PyReconstruction&>().rec.image, self, true); },
+          "HR estimate, (r*rows, r*cols) float64, always finite")
+      .def_property_readonly(
+          "aux",
+          [](py::object self) -> py::object {
+            const PyReconstruction& r = self.cast<PyReconstruction&>();
+            if (r.rec.aux.size() == 0) return py::none();
+            return ViewImage(r.rec.aux, self, true);
+          },
+          "the method's second map (drizzle: weight; tikhonov with std=True: posterior std; linear: noise std), or None")
+      .def_property_readonly("aux_name", [](const PyReconstruction& r) { return r.rec.aux_name; },
+                             "'weight' | 'posterior-std' | 'noise-std' | ''")
+      .def_property_readonly("summary", [](const PyReconstruction& r) { return SummaryDict(r.rec.summary); },
+                             "{'method', 'termination', 'message', 'iterations', 'final_cost', 'seconds', "
+                             "'frame_residual_rms'}")
+      .def_property_readonly("regularisation", [](const PyReconstruction& r) { return r.rec.regularisation; },
+                             "lambda (tikhonov, map) or mu (tv) used; 0 for the baselines")
+      .def_property_readonly("seconds_total", [](const PyReconstruction& r) { return r.rec.seconds_total; },
+                             "wall time including warm start and automatic regularisation")
+      .def_property_readonly(
+          "effective_psf",
+          [](py::object self) -> py::object {
+            const Image& p = self.cast<PyReconstruction&>().rec.effective_psf;
+            return p.size() ? py::object(ViewImage(p, self, true)) : py::none();
+          },
+          "linear: the output's effective PSF (centred, unit sum), else None")
+      .def_property_readonly(
+          "noise_correlation",
+          [](py::object self) -> py::object {
+            const Image& p = self.cast<PyReconstruction&>().rec.noise_correlation;
+            return p.size() ? py::object(ViewImage(p, self, true)) : py::none();
+          },
+          "linear: the noise covariance kernel xi(delta), else None")
+      .def_property_readonly(
+          "leakage_spectrum",
+          [](py::object self) -> py::object {
+            const Image& p = self.cast<PyReconstruction&>().rec.leakage_spectrum;
+            return p.size() ? py::object(ViewImage(p, self, true)) : py::none();
+          },
+          "linear: leakage per HR frequency (zero frequency at (M/2, M/2)), else None")
+      .def_property_readonly(
+          "linear",
+          [](const PyReconstruction& r) -> py::object {
+            if (!r.rec.linear) return py::none();
+            const TargetPsfSummary& l = *r.rec.linear;
+            py::dict d = SummaryDict(l);
+            d["target"] = l.target;
+            d["target_fwhm_hr_px"] = l.target_fwhm_hr_px;
+            d["effective_fwhm_hr_px"] = l.effective_fwhm_hr_px;
+            d["effective_psf_window_fraction"] = l.effective_psf_window_fraction;
+            d["kappa"] = l.kappa;
+            d["leakage"] = l.leakage;
+            d["leakage_unreachable"] = l.leakage_unreachable;
+            d["leakage_met"] = l.leakage_met;
+            d["leakage_max_in_band"] = l.leakage_max_in_band;
+            d["band_cycles_per_hr_px"] = l.band_cycles_per_hr_px;
+            d["unreachable_frequencies"] = l.unreachable_frequencies;
+            d["dc_transfer"] = l.dc_transfer;
+            d["noise_sigma"] = l.noise_sigma;
+            d["noise_rms"] = l.noise_rms;
+            d["noise_rms_error"] = l.noise_rms_error;
+            d["noise_probes"] = l.noise_probes;
+            d["fourier_exact"] = l.fourier_exact;
+            return d;
+          },
+          "linear: the target-PSF summary (include/aosr/solvers/target_psf.hpp) as a dict, else None")
+      .def_property_readonly("method", [](const PyReconstruction& r) { return r.method; })
+      .def_property_readonly("weights_source", [](const PyReconstruction& r) { return r.weights_source; })
+      .def_property_readonly("offsets_source", [](const PyReconstruction& r) { return r.offsets_source; })
+      .def_property_readonly("model_psfs_replaced", [](const PyReconstruction& r) { return r.model_psfs_replaced; })
+      .def_property_readonly("masked_pixels", [](const PyReconstruction& r) { return r.masked_pixels; })
+      .def("__repr__", [](const PyReconstruction& r) {
+        return "<aosr.Reconstruction " + r.method + " " + ToString(ShapeOf(r.rec.image)) + ": " +
+               ToString(r.rec.summary.termination) + ", " + std::to_string(r.rec.summary.iterations) + " iterations, " +
+               ToString(r.rec.seconds_total) + " s>";
+      });
+
+  m.def(
+      "reconstruct",
+      [](py::object dataset, const std::string& method, const std::string& weights, const std::string& offsets,
+         py::object model_psfs, py::object progress, py::kwargs kwargs) {
+        // Everything is parsed and checked before any work (as the CLI does).
+        ReconstructOptions o = CliDefaults();
+        o.method = ParseReconstructionMethod(method);
+        ReconstructTable().Apply(o, kwargs);
+        DatasetProblemOptions dpo;
+        dpo.weights = ParseDatasetWeights(weights);
+        dpo.offsets = ParseDatasetOffsets(offsets);
+        if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "nominal")
+          dpo.nominal_psfs = true;
+        else if (!model_psfs.is_none())
+          dpo.model_psfs = StackFromArray(model_psfs, "model_psfs");
+        const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, "aosr.reconstruct");
+        PythonProgress poll(progress);
+        o.progress = poll.Callback();
+        auto out = std::make_shared<PyReconstruction>();
+        out->method = ToString(o.method);
+        WithoutGil([&] {
+          const DatasetProblem dp = ProblemFromDataset(*d, dpo);
+          out->rec = Reconstruct(dp.problem, o);
+          out->weights_source = dp.weights_source;
+          out->offsets_source = dp.offsets_source;
+          out->model_psfs_replaced = dp.model_psfs_replaced;
+          out->masked_pixels = dp.masked_pixels;
+        });
+        poll.RaiseIfPending();  // Ctrl-C (KeyboardInterrupt) or the progress callable's exception
+        return out;
+      },
+      py::arg("dataset"), py::arg("method") = "tikhonov", py::kw_only(), py::arg("weights") = "auto",
+      py::arg("offsets") = "auto", py::arg("model_psfs") = py::none(), py::arg("progress") = py::none(),
+      R"doc(Super-resolves a dataset with one method: the library's Reconstruct (include/aosr/solvers/reconstruct.hpp),
+the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and the same bits.
+
+dataset     an aosr.Dataset (simulate, open_dataset, Dataset.from_arrays) or a dataset folder / manifest path
+method      'shift-add' | 'shift-add-median' | 'drizzle' | 'tikhonov' (lambda by GCV) | 'linear' (target PSF)
+            | 'tv' | 'map'
+weights     'auto' (inverse variances when the dataset has them) | 'dataset' | 'mask'
+offsets     registration offsets for shift-add/drizzle: 'auto' | 'dm' | 'centroids'
+model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) array, or 'nominal'
+progress    optional callable(dict) called during tv/map (stage, iteration, total, value, value_name,
+            elapsed_seconds); returning False cancels (termination 'cancelled')
+**options   the CLI's options under their names (lambda_, lambda_rule, prior, boundary, std, noise_sigma, mu,
+            iterations, positivity, likelihood, read_noise, kernel, pixfrac, target_psf, leakage, noise_probes,
+            auto_regularisation) and every field
+            of the methods' options structs as <method>_<field> (tikhonov_gcv_decades=6, tv_relative_tolerance=1e-6,
+            map_lbfgs_memory=10, ...) or as a dict per method (tv={'max_iterations': 50}).
+            aosr.reconstruct_options() lists them all with their defaults.
+
+Returns an aosr.Reconstruction (image, aux, aux_name, summary dict, regularisation, seconds_total).
+The GIL is released during the solve; Ctrl-C stops tv/map after the current iteration and raises
+KeyboardInterrupt. Errors: InvalidArgument (a ValueError) naming the option, IoError for unreadable files.)doc");
+
+  m.def("reconstruct_options", &ReconstructOptionsHelp,
+        "{option: {'type', 'default', 'doc'}} for every keyword option of aosr.reconstruct (defaults as the CLI's).");
+  m.def(
+      "methods",
+      [] {
+        std::vector<std::string> names;
+        for (ReconstructionMethod mth :
+             {ReconstructionMethod::kShiftAddMean, ReconstructionMethod::kShiftAddMedian, ReconstructionMethod::kDrizzle,
+              ReconstructionMethod::kTikhonov, ReconstructionMethod::kLinear, ReconstructionMethod::kTotalVariation,
+              ReconstructionMethod::kMap})
+          names.push_back(ToString(mth));
+        return names;
+      },
+      "The reconstruction methods aosr.reconstruct accepts.");
+}
+
+}  // namespace aosr::python

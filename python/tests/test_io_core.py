@@ -1,0 +1,92 @@
+"""FITS headers as dicts (astropy reads them), errors as exceptions, evaluate/psf/calibrate against the CLI."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+import aosr
+from conftest import bits_equal
+
+
+def test_fits_round_trip_and_astropy(tmp_path):
+    fits = pytest.importorskip("astropy.io.fits")
+    data = np.arange(12.0).reshape(3, 4) / 7
+    header = {"OBJECT": "M31", "EXPTIME": 1.5, "NFRAMES": 4, "FLAG": True, "HIERARCH LONGKEYWORD": "x"}
+    aosr.write_fits(tmp_path / "a.fits", data, header, comments={"EXPTIME": "[s]"}, dtype="float64")
+    back, h, c = aosr.read_fits(tmp_path / "a.fits", with_comments=True)
+    assert bits_equal(back, data) and h == header and c["EXPTIME"] == "[s]"
+    with fits.open(tmp_path / "a.fits") as f:
+        assert bits_equal(f[0].data, data)
+        assert f[0].header["EXPTIME"] == 1.5 and f[0].header["LONGKEYWORD"] == "x"
+    assert fits.Header(h)["OBJECT"] == "M31"
+    # An astropy header is accepted too; its structural keywords are the writer's.
+    aosr.write_fits(tmp_path / "b.fits", np.ones((2, 3, 4)), fits.getheader(tmp_path / "a.fits"))
+    cube, h2 = aosr.read_fits(tmp_path / "b.fits")
+    assert cube.shape == (2, 3, 4) and h2["OBJECT"] == "M31"
+
+
+def test_errors_map_to_exceptions(tmp_path):
+    assert issubclass(aosr.InvalidArgument, ValueError) and issubclass(aosr.InvalidArgument, aosr.Error)
+    assert issubclass(aosr.IoError, OSError) and issubclass(aosr.ResourceError, MemoryError)
+    with pytest.raises(aosr.IoError) as e:
+        aosr.read_fits(tmp_path / "nope.fits")
+    assert e.value.path == str(tmp_path / "nope.fits") and str(e.value).startswith(str(tmp_path / "nope.fits"))
+    with pytest.raises(aosr.InvalidArgument, match="dtype"):
+        aosr.write_fits(tmp_path / "x.fits", np.ones((2, 2)), dtype="int8")
+    with pytest.raises(aosr.InvalidArgument, match="2-D"):
+        aosr.compare_images(np.ones(3), np.ones(3))
+    with pytest.raises(aosr.InvalidArgument, match="threads"):
+        aosr.set_threads(-1)
+    with pytest.raises(aosr.ResourceError):
+        aosr.set_memory_limit("1M")
+        try:
+            aosr.simulate(aosr.load_scene(aosr.data_path("scenes", "paper-sim-r4.json")))
+        finally:
+            aosr.set_memory_limit("1T")
+
+
+def test_evaluate_matches_cli(demo_dir, cli, tmp_path):
+    rec = aosr.reconstruct(demo_dir, "drizzle")
+    aosr.write_fits(tmp_path / "e.fits", rec.image, dtype="float64")
+    j = json.loads(cli("evaluate", "--manifest", demo_dir, "--estimate", tmp_path / "e.fits", "--json").stdout)
+    m = aosr.evaluate(tmp_path / "e.fits", dataset=demo_dir)
+    for k in ("psnr_db", "ssim", "rmse", "crop_px"):
+        assert m[k] == j[k], k
+    truth = os.path.join(demo_dir, "truth.fits")
+    j = json.loads(cli("evaluate", "--truth", truth, "--estimate", tmp_path / "e.fits", "--crop", 8, "--json").stdout)
+    m = aosr.evaluate(rec.image, truth=truth, crop=8)
+    assert (m["psnr_db"], m["ssim"]) == (j["psnr_db"], j["ssim"])
+    c = aosr.compare_images(aosr.read_fits(truth)[0], rec.image, crop=8)
+    assert c["psnr_db"] == j["psnr_db"]
+    with pytest.raises(aosr.InvalidArgument, match="exactly one"):
+        aosr.evaluate(rec.image)
+
+
+def test_psf_matches_cli(cli, tmp_path):
+    out = tmp_path / "p.fits"
+    j = json.loads(cli("psf", "paper-8m", "--size", 64, "--offset", "4=100", "-o", out, "--json").stdout)
+    p = aosr.psf("paper-8m", size=64, offsets={4: 100})
+    assert bits_equal(p["psf"], aosr.read_fits(out)[0])
+    for k in ("mode", "strehl", "fwhm_px", "window_sum", "residual_rms_nm", "encircled_energy"):
+        assert p[k] == j[k], k
+    with pytest.raises(aosr.InvalidArgument, match="size"):
+        aosr.psf("paper-bench", size=4000)
+    with pytest.raises(aosr.InvalidArgument, match="sensor"):
+        aosr.psf("paper-8m", sensor="magic")
+
+
+def test_calibrate_matches_cli(cli, tmp_path):
+    spec = tmp_path / "small.json"
+    spec.write_text(json.dumps({"telescope": "paper-bench", "calibration": {
+        "pixel_lambda_over_d": 0.3115, "window_px": [32, 32], "modes": [4, 5], "gains": [0.9, 1.1],
+        "amplitudes_nm": [40, 80], "references_per_mode": 1, "static_nm": {"4": 10}, "seed": 3}}))
+    cli("calibrate", "--synthesize", spec, "-o", tmp_path / "set")
+    cli("calibrate", tmp_path / "set", "-o", tmp_path / "cal", "--threads", 2, "--static-max-noll", 4)
+    expected = json.loads((tmp_path / "cal" / "calibration.json").read_text())
+    s = aosr.synthesize_calibration(spec)
+    assert bits_equal(s.frames, aosr.CalibrationSet.load(tmp_path / "set").frames)
+    got = aosr.calibrate(tmp_path / "set", threads=2, static_max_noll=4)
+    assert got["modes"] == expected["modes"]
+    in_memory = aosr.calibrate(s, threads=1, static_max_noll=4)
+    assert [m["gain"] for m in in_memory["modes"]] == [m["gain"] for m in expected["modes"]]

@@ -1,0 +1,182 @@
+"""aosr.reconstruct against the same library call in C++ (bit for bit), its options table, progress, Ctrl-C,
+zero copy and the GIL."""
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import aosr
+from conftest import bits_equal
+
+# Every method; tv and map capped so that the suite stays quick (the same cap on both sides).
+METHODS = [("shift-add", None), ("shift-add-median", None), ("drizzle", None), ("tikhonov", None),
+           ("linear", None), ("tv", 15), ("map", 15)]
+
+
+@pytest.mark.parametrize("method,iterations", METHODS)
+def test_reconstruct_matches_cpp_bit_for_bit(method, iterations, demo_dir, reference, tmp_path):
+    out = tmp_path / f"{method}.fits"
+    args = ["reconstruct", demo_dir, method, out] + (["--iterations", iterations] if iterations else [])
+    ref = reference(*args)
+    expected, _ = aosr.read_fits(out)
+    options = {"iterations": iterations} if iterations else {}
+    rec = aosr.reconstruct(demo_dir, method, **options)
+    assert bits_equal(rec.image, expected)
+    assert rec.regularisation == ref["regularisation"]
+    assert rec.summary["iterations"] == ref["iterations"]
+    assert rec.summary["termination"] == ref["termination"]
+    if os.path.exists(str(out) + ".aux.fits"):
+        aux, _ = aosr.read_fits(str(out) + ".aux.fits")
+        assert bits_equal(rec.aux, aux)
+    # The same through an opened dataset object.
+    assert bits_equal(aosr.reconstruct(aosr.open_dataset(demo_dir), method, **options).image, expected)
+
+
+def test_cli_summary_agrees(demo_dir, cli, tmp_path):
+    import json
+    p = cli("reconstruct", demo_dir, "-m", "tikhonov", "-o", tmp_path / "t.fits", "--json")
+    j = json.loads(p.stdout)
+    rec = aosr.reconstruct(demo_dir, "tikhonov")
+    assert rec.regularisation == j["regularisation"]
+    assert rec.weights_source == j["weights"]
+    assert rec.summary["message"] == j["summary"]["message"]
+    m = aosr.evaluate(rec.image, dataset=demo_dir)
+    assert m["psnr_db"] == j["against_truth"]["psnr_db"]
+    assert m["ssim"] == j["against_truth"]["ssim"]
+
+
+def test_options_table(demo_dir):
+    ds = aosr.open_dataset(demo_dir)
+    a = aosr.reconstruct(ds, "tv", tv_max_iterations=5, tv_relative_tolerance=1e-6)
+    b = aosr.reconstruct(ds, "tv", tv={"max_iterations": 5, "relative_tolerance": 1e-6})
+    assert bits_equal(a.image, b.image) and a.summary["iterations"] == 5
+    fixed = aosr.reconstruct(ds, "tikhonov", lambda_=0.5)
+    assert fixed.regularisation == 0.5
+    assert aosr.reconstruct(ds, "tikhonov", **{"lambda": 0.5}).regularisation == 0.5
+    assert aosr.reconstruct(ds, "tv", mu=2.0, iterations=3).regularisation == 2.0
+    std = aosr.reconstruct(ds, "tikhonov", std=True, weights="mask")
+    assert std.aux_name == "posterior-std" and std.aux.shape == std.image.shape
+    help_ = aosr.reconstruct_options()
+    assert help_["tv_max_iterations"]["default"] == 1000
+    assert help_["noise_sigma"]["default"] == 1.0  # the CLI's default
+    assert "linear_leakage" in help_
+
+
+@pytest.mark.parametrize("kwargs,needle", [
+    ({"bogus": 1}, "bogus"),
+    ({"tv_max_iterations": 2.5}, "tv_max_iterations"),
+    ({"tv_positivity": 1}, "True or False"),
+    ({"prior": "smooth"}, "identity | gradient"),
+    ({"tv": {"nope": 1}}, "nope"),
+])
+def test_bad_options_raise_invalid_argument(demo_dir, kwargs, needle):
+    with pytest.raises(aosr.InvalidArgument, match=needle) as e:
+        aosr.reconstruct(demo_dir, "tv", **kwargs)
+    assert isinstance(e.value, ValueError)
+
+
+def test_progress_callback_and_cancel(demo_dir):
+    ds = aosr.open_dataset(demo_dir)
+    seen = []
+    full = aosr.reconstruct(ds, "tv", iterations=8, progress=lambda p: seen.append(p) or True)
+    assert {"pilot", "tv"} <= {p["stage"] for p in seen}
+    assert bits_equal(full.image, aosr.reconstruct(ds, "tv", iterations=8).image)  # a callback changes nothing
+    cancelled = aosr.reconstruct(ds, "tv", iterations=1000, progress=lambda p: p["stage"] != "tv")
+    assert cancelled.summary["termination"] == "cancelled"
+    assert np.isfinite(cancelled.image).all()
+
+    def boom(p):
+        raise RuntimeError("from the callback")
+    with pytest.raises(RuntimeError, match="from the callback"):
+        aosr.reconstruct(ds, "map", iterations=50, progress=boom)
+
+
+def test_ctrl_c_interrupts_a_long_solve(demo_dir):
+    """A real SIGINT during a long TV solve: KeyboardInterrupt within a second or two, process still sane."""
+    script = textwrap.dedent(f"""
+        import sys, time, aosr
+        ds = aosr.open_dataset({demo_dir!r})
+        print("ready", flush=True)
+        t = time.time()
+        try:
+            aosr.reconstruct(ds, "tv", iterations=1000000, tv_relative_tolerance=1e-15, tv_absolute_tolerance=0.0)
+        except KeyboardInterrupt:
+            print("interrupted after %.2f s" % (time.time() - t), flush=True)
+            rec = aosr.reconstruct(ds, "shift-add")   # the library is still usable
+            print("ok", rec.summary["termination"], flush=True)
+            sys.exit(0)
+        print("not interrupted", flush=True)
+        sys.exit(1)
+    """)
+    p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True, env=os.environ)
+    assert p.stdout.readline().strip() == "ready"
+    time.sleep(1.0)
+    p.send_signal(signal.SIGINT)
+    out, _ = p.communicate(timeout=60)
+    assert p.returncode == 0, out
+    assert "interrupted after" in out and "ok converged" in out
+    seconds = float(out.split("interrupted after ")[1].split()[0])
+    assert seconds < 10
+
+
+def test_zero_copy_out_and_read_only_views(demo_dir):
+    ds = aosr.open_dataset(demo_dir)
+    rec = aosr.reconstruct(ds, "tikhonov")
+    a, b = rec.image, rec.image
+    assert np.shares_memory(a, b)                  # two views of the one C++ image
+    assert a.flags.c_contiguous and a.dtype == np.float64 and a.flags.writeable
+    a[0, 0] += 1.0
+    assert b[0, 0] == a[0, 0]
+    assert np.shares_memory(ds.truth, ds.truth) and not ds.truth.flags.writeable
+    assert ds.frames is ds.frames and not ds.frames.flags.writeable   # stacks: one cached copy
+    del rec
+    assert np.isfinite(a).all()                    # the view keeps the C++ result alive
+    p = aosr.psf("paper-8m", mode="diffraction", size=32)["psf"]
+    assert p.base is not None and p.flags.owndata is False  # moved out of C++, not copied
+
+
+def test_inputs_are_copied_once_and_never_modified(demo_dir):
+    ds = aosr.open_dataset(demo_dir)
+    frames = np.array(ds.frames)
+    mine = aosr.Dataset.from_arrays(frames, ds.psfs, r=ds.r, gain=ds.gain, bias=ds.bias, valid=ds.valid,
+                                    weights=ds.weights, truth=ds.truth)
+    assert not np.shares_memory(mine.frames, frames)
+    before = frames.copy()
+    aosr.reconstruct(mine, "tikhonov")
+    assert bits_equal(frames, before)
+    # Any dtype/layout is accepted (converted), with the same result as float64 C order.
+    fortran = [np.asfortranarray(f) for f in frames]
+    again = aosr.Dataset.from_arrays(fortran, ds.psfs.astype(np.float64), r=ds.r, gain=ds.gain, bias=ds.bias,
+                                     valid=ds.valid.astype(np.int32), weights=ds.weights)
+    assert bits_equal(aosr.reconstruct(again, "tikhonov").image, aosr.reconstruct(mine, "tikhonov").image)
+
+
+def test_gil_released_during_solve(demo_dir):
+    ds = aosr.open_dataset(demo_dir)
+    ticks = 0
+    done = threading.Event()
+
+    def solve():
+        aosr.reconstruct(ds, "tv", iterations=60)
+        done.set()
+    t = threading.Thread(target=solve)
+    t.start()
+    while not done.is_set():
+        ticks += 1
+        time.sleep(0.001)
+    t.join()
+    assert ticks > 10   # the main thread ran while the solve did
+
+
+def test_reconstruct_rejects_a_bad_dataset_argument():
+    with pytest.raises(aosr.InvalidArgument, match="aosr.Dataset or a dataset folder"):
+        aosr.reconstruct(42, "tikhonov")
+    with pytest.raises(aosr.IoError) as e:
+        aosr.reconstruct("/nonexistent/folder", "tikhonov")
+    assert isinstance(e.value, OSError) and "/nonexistent/folder" in str(e.value)

@@ -1,0 +1,121 @@
+#include "aosr/scene/preset_psf.hpp"
+
+#include <cmath>
+#include <memory>
+
+#include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/closed_loop.hpp"
+#include "aosr/core/error.hpp"
+#include "aosr/optics/psf_metrics.hpp"
+#include "aosr/optics/zernike.hpp"
+
+namespace aosr {
+
+bool PresetPsfOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (!mode.empty() && mode != "analytic" && mode != "diffraction" && mode != "closed-loop")
+    return fail("mode = " + mode + "; allowed: analytic | diffraction | closed-loop (or empty: automatic)");
+  for (const Offset& o : offsets)
+    if (o.noll < 2 || o.noll > 1000 || !std::isfinite(o.rms_nm))
+      return fail("offset " + std::to_string(o.noll) + "=" + ToString(o.rms_nm) +
+                  "; allowed: Noll index 2..1000 and a finite coefficient in nm RMS");
+  if (r < 1 || r > 16) return fail("r = " + std::to_string(r) + "; allowed: 1..16");
+  if (!(pixel_lod >= 0) || !std::isfinite(pixel_lod)) return fail("pixel_lod = " + ToString(pixel_lod) + "; allowed: >= 0 (0: camera pixel / r)");
+  if (size < 8 || size > 4096) return fail("size = " + std::to_string(size) + "; allowed: 8..4096");
+  if (!(exposure_s >= 1e-4 && exposure_s <= 3600)) return fail("exposure_s = " + ToString(exposure_s) + "; allowed: 1e-4..3600");
+  if (!(settling_s >= 0) || !std::isfinite(settling_s)) return fail("settling_s = " + ToString(settling_s) + "; allowed: >= 0");
+  return true;
+}
+
+namespace {
+
+PsfSampling Sampling(const TelescopePreset& preset, const PresetPsfOptions& o) {
+  PsfSampling s;
+  s.wavelength_m = preset.science_wavelength_m;
+  s.pixel_scale_rad = o.pixel_lod > 0 ? o.pixel_lod * preset.LambdaOverD() : preset.camera_pixel_rad / o.r;
+  s.rows = s.cols = o.size;
+  return s;
+}
+
+}  // namespace
+
+int MaxPresetPsfSize(const TelescopePreset& preset, const PresetPsfOptions& options) {
+  const double pitch_lod = Sampling(preset, options).PixelScaleLambdaOverD(preset.aperture.pupil.diameter_m);
+  return int(double(preset.pupil_px) / pitch_lod);
+}
+
+SensorKind ParseSensorKind(const std::string& name) {
+  if (name == "ideal") return SensorKind::kIdeal;
+  if (name == "geometric") return SensorKind::kGeometric;
+  if (name == "diffractive") return SensorKind::kDiffractive;
+  throw InvalidArgument("ParseSensorKind", "sensor", name, "ideal | geometric | diffractive");
+}
+
+PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions& o,
+                           const std::function<void(const std::string&)>& progress) {
+  std::string why;
+  if (!o.IsValid(&why)) throw InvalidArgument("ComputePresetPsf: invalid " + why);
+  auto step = [&progress](const std::string& m) {
+    if (progress) progress(m);
+  };
+  PresetPsf out;
+  out.mode = o.mode.empty() ? (preset.atmosphere && preset.ao ? "analytic" : "diffraction") : o.mode;
+  if (out.mode == "analytic" && !(preset.atmosphere && preset.ao))
+    throw InvalidArgument("ComputePresetPsf", "mode", out.mode, "diffraction (preset " + preset.name + " has no atmosphere or AO)");
+  if (out.mode == "closed-loop" && !preset.ao)
+    throw InvalidArgument("ComputePresetPsf", "mode", out.mode, "analytic or diffraction (preset " + preset.name + " has no AO)");
+
+  const Index n = preset.pupil_px;
+  const double diameter = preset.aperture.pupil.diameter_m;
+  const Image amplitude = preset.PupilAmplitude();
+  Image opd = Image::Zero(n, n);
+  for (const PresetPsfOptions::Offset& z : o.offsets)
+    opd += z.rms_nm * 1e-9 * Zernike(z.noll, n, preset.aperture.pupil.obstruction);
+  out.sampling = Sampling(preset, o);
+  const PsfSampling& sampling = out.sampling;
+  // The PSF of a pupil sampled by n pixels repeats every n λ/D: a wider field would show aliased copies.
+  const double field_lod = o.size * sampling.PixelScaleLambdaOverD(diameter);
+  if (field_lod > double(n))
+    throw InvalidArgument("ComputePresetPsf", "size", std::to_string(o.size),
+                          "at most " + std::to_string(int(n / sampling.PixelScaleLambdaOverD(diameter))) +
+                              " pixels: the field (" + ToString(field_lod) + " lambda/D) must fit in the " +
+                              std::to_string(n) + " lambda/D period of the " + std::to_string(n) + "-pixel pupil");
+
+  step("computing the " + out.mode + " PSF of " + preset.name);
+  const PsfCalculator diffraction(n, diameter, sampling);
+  const Image perfect = diffraction.Compute(amplitude, Image::Zero(n, n));
+  if (out.mode == "closed-loop") {
+    step("calibrating the AO system (interaction and control matrices)");
+    AoSystem system = BuildAoSystem(preset.ToAoSystemSpec(o.sensor, o.seed));
+    ClosedLoopOptions loop_options;
+    loop_options.science = sampling;
+    std::unique_ptr<ClosedLoop> loop = system.MakeLoop(loop_options);
+    step("running the loop for " + ToString(o.settling_s) + " s settling + " + ToString(o.exposure_s) + " s");
+    // The DM offset is applied as the real-time computer would: through the WFS reference slopes.
+    const ClosedLoopResult r = loop->RunSubExposures({opd}, o.exposure_s, o.settling_s).front();
+    out.psf = r.psf;
+    out.residual_rms_nm = r.RmsResidualM() * 1e9;
+    out.loop_report = r.BriefReport();
+  } else if (out.mode == "analytic") {
+    const AnalyticAoPsfCalculator ao(preset.ToAnalyticAo(), n, sampling);
+    const AnalyticAoPsf p = ao.Compute(amplitude, opd);
+    out.psf = p.psf;
+    out.residual_rms_nm = p.residual_rms_nm;
+  } else {
+    out.psf = diffraction.Compute(amplitude, opd);
+  }
+  if (out.psf.size() == 0 || !AllFinite(out.psf))
+    throw NumericalError("ComputePresetPsf: the " + out.mode + " PSF is empty or not finite");
+  const PsfStats stats = MeasurePsf(out.psf);
+  out.strehl = out.psf.maxCoeff() / perfect.maxCoeff();
+  out.lambda_over_d_px = preset.LambdaOverD() / sampling.pixel_scale_rad;
+  out.fwhm_px = stats.fwhm_px;
+  out.window_sum = stats.window_sum;
+  out.encircled_energy = EncircledEnergy(out.psf, {1.0 * out.lambda_over_d_px, 2.0 * out.lambda_over_d_px, 5.0 * out.lambda_over_d_px});
+  return out;
+}
+
+}  // namespace aosr
