@@ -181,4 +181,17 @@ DmOffset DmResponse(const DmOffset& command, const Calibration& cal, std::vector
   return ScaleByGains(command, cal, false, notes);
 }
 
+void ApplyCalibrationToDesignFile(const std::string& calibration_path, const std::vector<DmOffset>& designed,
+                                  nlohmann::json* file, std::vector<std::string>* notes) {
+  CheckArgument(file != nullptr && file->contains("frames") && (*file)["frames"].size() == designed.size(),
+                "ApplyCalibrationToDesignFile", "design_file", file ? std::to_string((*file)["frames"].size()) + " frames" : "null",
+                "a design file with one frame per designed offset (" + std::to_string(designed.size()) + ")");
+  const Calibration cal = LoadCalibration(calibration_path);
+  std::vector<std::string> local;
+  std::vector<std::string>& n = notes ? *notes : local;
+  const nlohmann::json designed_frames = (*file)["frames"];
+  for (std::size_t i = 0; i < designed.size(); ++i) (*file)["frames"][i] = DmOffsetToJson(ApplyCalibration(designed[i], cal, &n));
+  (*file)["design"]["calibration"] = {{"file", calibration_path}, {"applied_frames", designed_frames}, {"notes", n}};
+}
+
 }  // namespace aosr

@@ -228,6 +228,7 @@ def reconstruct_many(datasets, output_dir, method="tikhonov", *, client=None, na
 
 def _design_task(config):
     config = dict(config)
+    config.setdefault("threads", 1)
     aosr.set_threads(1)
     scene = config.pop("scene")
     return {"config": {"scene": os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else scene.source,
@@ -240,7 +241,7 @@ def design_sweep(configs, *, client=None, progress=False, n_workers=2):
 
     configs: dicts of aosr.design's arguments with a "scene" (a scene path or aosr.Scene), e.g. a grid over
     parameterisations and seeds: ``[{"scene": s, "param": p, "seed": k, "threads": 1} for p in ... for k in ...]``
-    (threads: the design's own threads per task; 1 lets the cluster provide the parallelism). A config's
+    (threads: the design's own threads per task, default 1: the cluster provides the parallelism). A config's
     "output" writes its design file (atomically, by the library). Returns ``[{"config", "design"}]`` in
     input order, "design" being what aosr.design returns.
     """

@@ -114,8 +114,12 @@ void BindScene(py::module_& m) {
         return py::make_tuple(h.rows, h.cols);
       })
       .def_property_readonly("seed", [](const PyScene& s) { return s.spec->seed; })
+      .def("_spec_json", [](const PyScene& s) { return py::make_tuple(FromJson(s.json), s.source); },
+           "(json, source): what the scene was parsed from (for functions that re-parse it)")
       .def_property_readonly("json", [](const PyScene& s) { return FromJson(s.json); },
                              "the scene's JSON as read (a copy: edit it and make a new Scene)")
+      .def(py::pickle([](const PyScene& s) { return py::make_tuple(FromJson(s.json), s.source); },
+                      [](py::tuple t) { return MakeScene(ToJson(t[0]), t[1].cast<std::string>()); }))
       .def("plan", [](const PyScene& s) { return ScenePipeline(*s.spec).PlanReport(); },
            "The compiled pipeline (`aosr simulate --plan`): stages, estimated time and memory.")
       .def("__repr__", [](const PyScene& s) {

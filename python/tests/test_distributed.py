@@ -168,3 +168,14 @@ def test_calibration_trials_on_workers_equal_serial(cluster, tmp_path):
     assert [[m["gain"] for m in t["calibration"]["modes"]] for t in on_workers] == \
         [[m["gain"] for m in t["calibration"]["modes"]] for t in in_loop]
     assert [m["gain"] for m in on_workers[0]["truth"]["modes"]] == [0.9]
+
+
+def test_design_sweep_on_workers_equals_serial(cluster):
+    client, _ = cluster
+    scene = aosr.load_scene(aosr.data_path("scenes", "paper-sim-r2.json"))
+    configs = [{"scene": scene, "param": "tiptilt", "starts": 1, "iterations": 3, "realisations": 1, "seed": seed,
+                "validation_realisations": 0} for seed in (1, 2)]
+    on_workers = ad.design_sweep(configs, client=client)
+    in_loop = ad.design_sweep(configs, client="serial")
+    assert [r["design"]["design"] for r in on_workers] == [r["design"]["design"] for r in in_loop]
+    assert [r["config"]["seed"] for r in on_workers] == [1, 2]

@@ -6,17 +6,12 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
-#include "aosr/design/design_empirical.hpp"
 #include "aosr/design/design_file.hpp"
-#include "aosr/design/design_objective.hpp"
-#include "aosr/design/design_optimizer.hpp"
-#include "aosr/design/design_parameterisation.hpp"
-#include "aosr/design/power_spectrum_fit.hpp"
+#include "aosr/design/design_study.hpp"
 #include "aosr/scene/scene_spec.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
@@ -78,166 +73,46 @@ void RunDesign(const DesignArgs& a) {
   if (!a.output.empty()) CheckWritableFile(a.output);
   const SceneSpec scene = LoadScene(a.scene);
 
-  DesignParameterisationOptions po;
-  po.kind = ParseDesignParameterisation(a.param);
-  po.zernike_modes = a.modes;
-  po.rms_max_m = a.rms_max_nm * 1e-9;
-  po.strehl_min = a.strehl_min;
-  DesignObjectiveOptions oo;
-  oo.reconstructor.prior = ParseTikhonovPrior(a.prior);
-  oo.reconstructor.lambda = a.lambda;
-  oo.realisations = a.realisations;
-  oo.screens = a.screens;
-  oo.seed = a.seed;
-  oo.threads = a.threads;
-  DesignOptimizerOptions opt;
-  opt.starts = a.starts;
-  opt.max_iterations = a.iterations;
-  opt.seed = a.seed;
-  opt.progress = [&progress](const std::string& m) { progress.Step(m); };
-
-  progress.Step("building the design model of " + scene.name + ": N = " + std::to_string(scene.frames) +
-                ", r = " + std::to_string(scene.r));
-  const DesignOptics optics = DesignOpticsFromScene(scene);
-  std::unique_ptr<DesignCriterion> criterion;
-  const EmpiricalDesignObjective* empirical = nullptr;
-  nlohmann::json spectrum_record;  // objective A with --training: the fitted spectrum, for the file and --json
-  EmpiricalDesignOptions eo;       // objective B's options (also its validation's)
-  if (a.objective == "A") {
-    if (!a.training.empty()) {
-      // The Wiener variant: the object spectrum fitted to the training images (peak 1, their pixels as HR
-      // pixels) and the Tikhonov power-spectrum prior that is its Wiener reconstructor for this noise.
-      PowerSpectrumFitOptions fo;
-      fo.grid = optics.grid;
-      fo.scaling = TrainingScaling::kPeak;
-      fo.scale_value = 1.0;
-      const PowerSpectrumFit fit = FitPowerSpectrum(LoadTrainingImages(a.training), fo);
-      oo.reconstructor = WienerPriorOptions(fit.model, a.noise_sigma, {optics.grid, optics.grid});
-      oo.noise_sigma = a.noise_sigma;
-      progress.Step("objective A, Wiener: spectrum of " + std::to_string(a.training.size()) + " training image(s): " +
-                    fit.BriefReport());
-      spectrum_record = {{"files", a.training},     {"amplitude", fit.model.amplitude}, {"corner", fit.model.corner},
-                         {"slope", fit.model.slope}, {"residual_rms", fit.residual_rms},  {"patches", fit.patches},
-                         {"noise_sigma", a.noise_sigma}, {"lambda", oo.reconstructor.lambda}};
-    }
-    criterion = std::make_unique<DesignObjective>(optics, scene.frames, oo);
-  } else {
-    const Shape hr{optics.grid, optics.grid};
-    eo.training_scenes = a.training.empty() ? DefaultTrainingScenes(hr, a.training_scenes, a.seed)
-                                            : TrainingScenesFromFiles(a.training, hr, a.training_zoom);
-    eo.noise_sigma = a.noise_sigma;
-    eo.noise_seed = a.seed;
-    eo.loss = ParseDesignLoss(a.loss);
-    eo.map.prior = ParseMapPrior(a.map_prior);
-    // Automatic λ: the weight `aosr reconstruct -m map` chooses for such frames (reconstruct.hpp: λ = 2μ,
-    // μ = 0.5 ρ √w̄ with whitened residuals ρ ≈ 1 and w̄ = 1/σ²) is 1/σ for the TV prior in these peak-1 units
-    // (TV is 1-homogeneous), so the design is made for the reconstructor that will be run. (λ = 1, the
-    // library's default, is ~30x weaker at the paper's noise; a design made for it lost 0.1-0.4 dB on held-out
-    // scenes under the automatic weights: bench/results/design_tables.md.) The Tikhonov prior keeps λ = 1.
-    eo.map.lambda = a.map_lambda >= 0 ? a.map_lambda
-                                      : (ParseMapPrior(a.map_prior) == MapPrior::kCharbonnierTv ? 1.0 / a.noise_sigma : 1.0);
-    eo.map.epsilon = a.epsilon;
-    eo.realisations = a.realisations;
-    eo.screens = a.screens;
-    eo.seed = a.seed;
-    eo.threads = a.threads;
-    std::string why;
-    if (!eo.IsValid(&why)) throw InvalidArgument("aosr design: objective B: " + why);
-    progress.Step("objective B: " + std::to_string(eo.training_scenes.size()) + " training scene(s) of " +
-                  ToString(hr) + (a.training.empty() ? " (dead leaves)" : " (files)") + ", loss " + a.loss +
-                  ", MAP " + a.map_prior + " lambda " + ToString(eo.map.lambda));
-    auto b = std::make_unique<EmpiricalDesignObjective>(optics, scene.frames, eo);
-    empirical = b.get();
-    criterion = std::move(b);
-  }
-  const DesignCriterion& objective = *criterion;
-  const DesignParameterisation parameterisation(DesignPupilFromScene(scene), scene.frames, scene.r, po);
-  DesignResult result = OptimizeDesign(objective, parameterisation, opt);
-  // The optimiser only sees the sample it was built with (R realisations; for objective B also K scenes and
-  // one noise draw each): a design can fit that sample's particulars. The design and the raster are re-judged
-  // on a fresh sample (objective A: fresh realisations; B: also fresh noise and three fresh dead-leaves scenes)
-  // and the raster is kept unless the design wins there too.
-  nlohmann::json validation;
-  const bool validate = a.validation_realisations > 0 && result.summary.improved &&
-                        (a.objective == "B" || oo.realisations > 0);
-  if (validate) {
-    const std::uint64_t fresh = a.seed + 1000003;
-    std::unique_ptr<DesignCriterion> check;
-    if (a.objective == "A") {
-      DesignObjectiveOptions vo = oo;
-      vo.realisations = a.validation_realisations;
-      vo.seed = fresh;
-      check = std::make_unique<DesignObjective>(optics, scene.frames, vo);
-    } else {
-      EmpiricalDesignOptions ve = eo;
-      ve.training_scenes = DefaultTrainingScenes({optics.grid, optics.grid}, 3, fresh);
-      ve.noise_seed = fresh;
-      ve.seed = fresh;
-      if (ve.realisations > 0) ve.realisations = a.validation_realisations;
-      check = std::make_unique<EmpiricalDesignObjective>(optics, scene.frames, ve);
-    }
-    const Vector raster_theta = parameterisation.RasterParameters();
-    const double j_raster = check->Evaluate(parameterisation.Opds(raster_theta));
-    const double j_design = check->Evaluate(result.opds);
-    const bool keep = j_design < j_raster;
-    validation = {{"realisations", check->realisations()}, {"seed", fresh}, {"objective_raster", j_raster},
-                  {"objective_design", j_design}, {"kept", keep ? "design" : "raster"}};
-    if (a.objective == "B") validation["scenes"] = "3 dead-leaves scenes (fresh seed), fresh noise";
-    progress.Step("validation on a fresh sample: J raster " + ToString(j_raster) + ", design " +
-                  ToString(j_design) + (keep ? ": design kept" : ": raster kept"));
-    if (!keep) {
-      result.parameters = raster_theta;
-      result.coefficients = parameterisation.Coefficients(raster_theta);
-      result.offsets = parameterisation.Offsets(raster_theta);
-      result.opds = parameterisation.Opds(raster_theta);
-      result.summary.final_objective = result.summary.final_cost = result.summary.initial_objective;
-      result.summary.improved = false;
-      result.summary.message += "; the design did not beat the raster on fresh realisations: raster kept";
-    }
-  }
-  const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds);
-  const std::string name = scene.name + "-" + a.param;
-  nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
-  if (!validation.is_null()) file["design"]["validation"] = validation;
-  if (!spectrum_record.is_null()) file["design"]["object_spectrum"] = spectrum_record;
+  DesignStudyOptions so;
+  so.param = a.param;
+  so.modes = a.modes;
+  so.rms_max_nm = a.rms_max_nm;
+  so.strehl_min = a.strehl_min;
+  so.starts = a.starts;
+  so.realisations = a.realisations;
+  so.screens = a.screens;
+  so.lambda = a.lambda;
+  so.prior = a.prior;
+  so.iterations = a.iterations;
+  so.threads = a.threads;
+  so.seed = a.seed;
+  so.objective = a.objective;
+  so.loss = a.loss;
+  so.training_scenes = a.training_scenes;
+  so.training = a.training;
+  so.training_zoom = a.training_zoom;
+  so.noise_sigma = a.noise_sigma;
+  so.validation_realisations = a.validation_realisations;
+  so.map_lambda = a.map_lambda;
+  so.epsilon = a.epsilon;
+  so.map_prior = a.map_prior;
+  // The study itself is the library's (design/design_study.hpp), shared with the Python aosr.design().
+  DesignStudy study = RunDesignStudy(scene, so, [&progress](const std::string& m) { progress.Step(m); });
+  const DesignResult& result = study.result;
+  const std::vector<DesignFrameReport>& reports = study.reports;
+  nlohmann::json& file = study.file;
   if (!a.calibration.empty()) {
     // The frames become the commands that make a DM with the calibrated gains apply the design; the designed
     // (applied) offsets stay in the provenance.
-    const Calibration cal = LoadCalibration(a.calibration);
     std::vector<std::string> notes;
-    nlohmann::json designed = file["frames"];
-    for (std::size_t i = 0; i < result.offsets.size(); ++i)
-      file["frames"][i] = DmOffsetToJson(ApplyCalibration(result.offsets[i], cal, &notes));
-    file["design"]["calibration"] = {{"file", a.calibration}, {"applied_frames", designed}, {"notes", notes}};
+    ApplyCalibrationToDesignFile(a.calibration, result.offsets, &file, &notes);
     for (const std::string& n : notes) progress.Step("calibration: " + n);
   }
   if (!a.output.empty()) WriteDesignFile(a.output, file);
   const DesignSummary& s = result.summary;
 
   if (a.json) {
-    nlohmann::json j;
-    j["scene"] = scene.source;
-    j["parameterisation"] = s.parameterisation;
-    j["parameters"] = s.parameters;
-    j["frames"] = scene.frames;
-    j["r"] = scene.r;
-    j["ao_model"] = optics.ao ? "analytic" : "none";
-    j["objective"] = a.objective;
-    j["method"] = objective.method();
-    if (empirical) j["last_evaluation"] = empirical->last_evaluation().BriefReport();
-    j["realisations"] = objective.realisations();
-    j["objective_raster"] = s.raster_objective;
-    j["objective_start"] = s.initial_objective;
-    j["objective_final"] = s.final_objective;
-    j["improved"] = s.improved;
-    j["validation"] = validation;
-    j["object_spectrum"] = spectrum_record;
-    j["starts"] = s.start_objectives;
-    j["iterations"] = s.iterations;
-    j["evaluations"] = s.evaluations;
-    j["termination"] = ToString(s.termination);
-    j["message"] = s.message;
-    j["optimise_seconds"] = s.seconds;
+    nlohmann::json j = study.summary;
     j["total_seconds"] = clock.Seconds();
     j["output"] = a.output.empty() ? nlohmann::json() : nlohmann::json(a.output);
     j["design"] = file;
@@ -246,11 +121,11 @@ void RunDesign(const DesignArgs& a) {
   }
   std::printf("aosr design: scene %s, N = %d, r = %d, %s offsets, AO model %s, %d realisation(s) x %d screens, "
               "grid %lld HR px\n",
-              scene.name.c_str(), scene.frames, scene.r, s.parameterisation.c_str(), optics.ao ? "analytic" : "none",
-              objective.realisations(), oo.screens, static_cast<long long>(optics.grid));
-  std::printf("objective %s (%s)\n%s\n%s\n", a.objective.c_str(), objective.method(), s.FullReport().c_str(),
+              scene.name.c_str(), scene.frames, scene.r, s.parameterisation.c_str(), study.ao ? "analytic" : "none",
+              study.realisations, a.screens, static_cast<long long>(study.grid));
+  std::printf("objective %s (%s)\n%s\n%s\n", a.objective.c_str(), study.method.c_str(), s.FullReport().c_str(),
               s.message.c_str());
-  if (empirical) std::printf("last evaluation: %s\n", empirical->last_evaluation().BriefReport().c_str());
+  if (!study.last_evaluation.empty()) std::printf("last evaluation: %s\n", study.last_evaluation.c_str());
   std::printf("%-6s %10s %10s %9s %9s %10s\n", "frame", "dy [px]", "dx [px]", "rms [nm]", "Strehl", "zernikes");
   for (std::size_t i = 0; i < result.offsets.size(); ++i) {
     const DmOffset& o = result.offsets[i];

@@ -57,4 +57,12 @@ DmOffset ApplyCalibration(const DmOffset& design, const Calibration& calibration
 // to simulate the real DM; `aosr design --calibration` writes ApplyCalibration's commands.
 DmOffset DmResponse(const DmOffset& command, const Calibration& calibration, std::vector<std::string>* notes = nullptr);
 
+// A design file (design/design_file.hpp) whose frames become the commands that make a DM with the calibrated
+// gains of `calibration_path` apply `designed` (the file's own offsets, one per frame): each frame is
+// ApplyCalibration's command, and the designed frames, the file and the notes go to design.calibration for the
+// record. What `aosr design --calibration` writes and aosr.design(calibration=...) returns. `notes` (may be null)
+// receives ApplyCalibration's notes.
+void ApplyCalibrationToDesignFile(const std::string& calibration_path, const std::vector<DmOffset>& designed,
+                                  nlohmann::json* design_file, std::vector<std::string>* notes = nullptr);
+
 }  // namespace aosr
