@@ -163,35 +163,6 @@ void CheckOptions(const char* fn, const PowerSpectrumFitOptions& o) {
 
 }  // namespace
 
-double PowerSpectrumModel::operator()(double f) const {
-  return amplitude * std::pow(corner * corner + f * f, -0.5 * slope) + floor;
-}
-
-bool PowerSpectrumModel::IsValid(std::string* why) const {
-  auto fail = [why](const std::string& m) {
-    if (why) *why = m;
-    return false;
-  };
-  if (!(std::isfinite(amplitude) && amplitude > 0)) return fail("amplitude must be finite and > 0, got " + ToString(amplitude));
-  if (!(std::isfinite(corner) && corner > 0)) return fail("corner must be finite and > 0, got " + ToString(corner));
-  if (!(slope >= kMinSlope && slope <= kMaxSlope)) return fail("slope must be in [-2, 12], got " + ToString(slope));
-  if (!(std::isfinite(floor) && floor >= 0)) return fail("floor must be finite and >= 0, got " + ToString(floor));
-  return true;
-}
-
-Image PowerSpectrumGrid(const PowerSpectrumModel& model, Shape grid) {
-  const char* fn = "PowerSpectrumGrid";
-  std::string why;
-  if (!model.IsValid(&why)) throw InvalidArgument(std::string(fn) + ": model." + why);
-  CheckArgument(grid.rows >= 1 && grid.cols >= 1, fn, "grid", ToString(grid), "both sides >= 1");
-  Image s(grid.rows, grid.cols);
-  for (Index ky = 0; ky < grid.rows; ++ky)
-    for (Index kx = 0; kx < grid.cols; ++kx) s(ky, kx) = model(std::sqrt(FrequencySquared(ky, kx, grid)));
-  if (!AllFinite(s) || !(s.minCoeff() > 0))
-    throw InvalidArgument(fn, "model", "a spectrum that is not finite and > 0 on the grid", "finite, > 0 values");
-  return s;
-}
-
 Image GaussianRandomField(Shape shape, const PowerSpectrumModel& model, std::uint64_t seed) {
   const char* fn = "GaussianRandomField";
   CheckArgument(shape.rows >= 2 && shape.cols >= 2, fn, "shape", ToString(shape), "both sides >= 2");

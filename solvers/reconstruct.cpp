@@ -20,24 +20,29 @@ double Quantile(const Image& x, double q) {
   return v[k];
 }
 
-// GCV needs a Fourier-exact problem (tikhonov.hpp). For weighted or masked data choose λ by GCV on the same
-// frames with uniform weights, then scale it by the mean positive weight (λ and the weights enter (1)
-// together). Masked pixels enter that choice as zeros: harmless for the λ of a few bad pixels.
+// GCV, the L-curve and UPRE need a Fourier-exact problem (tikhonov.hpp). For weighted or masked data choose λ
+// by the rule on the same frames with uniform weights, then scale it by the mean positive weight (λ and the
+// weights enter (1) together). Masked pixels enter that choice as zeros: harmless for the λ of a few bad
+// pixels. UPRE's noise level on the unweighted frames is the mean pixel variance, σ²·mean(1/w).
 TikhonovOptions WithGcvLambda(const ReconstructionProblem& problem, TikhonovOptions t) {
-  if (t.lambda_rule != TikhonovLambdaRule::kGcv || problem.HasUniformWeights()) return t;
+  const bool searched = t.lambda_rule == TikhonovLambdaRule::kGcv || t.lambda_rule == TikhonovLambdaRule::kLcurve ||
+                        t.lambda_rule == TikhonovLambdaRule::kUpre;
+  if (!searched || problem.HasUniformWeights()) return t;
+  double sum = 0, inv_sum = 0;
+  Index count = 0;
+  for (int i = 0; i < problem.frame_count(); ++i) {
+    const Image w = problem.Weight(i);
+    sum += (w > 0).select(w, 0.0).sum();
+    inv_sum += (w > 0).select(1.0 / w.max(1e-300), 0.0).sum();
+    count += (w > 0).count();
+  }
   ReconstructionProblem uniform = problem;
   uniform.frames = problem.CleanFrames();
   uniform.weights.clear();
   TikhonovOptions g = t;
   g.compute_std = false;
+  if (count > 0) g.noise_sigma = t.noise_sigma * std::sqrt(inv_sum / double(count));
   const double lambda_uniform = ReconstructTikhonov(uniform, g).summary.lambda;
-  double sum = 0;
-  Index count = 0;
-  for (int i = 0; i < problem.frame_count(); ++i) {
-    const Image w = problem.Weight(i);
-    sum += (w > 0).select(w, 0.0).sum();
-    count += (w > 0).count();
-  }
   t.lambda_rule = TikhonovLambdaRule::kFixed;
   t.lambda = lambda_uniform * (count > 0 ? sum / double(count) : 1.0);
   return t;
@@ -170,7 +175,11 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
       out.regularisation = r.summary.lambda;
       out.summary = r.summary;
       if (t.lambda_rule != options.tikhonov.lambda_rule)
-        out.summary.message += "; λ by GCV on the unweighted frames, scaled by the mean weight";
+        out.summary.message += std::string("; λ by ") +
+                               (options.tikhonov.lambda_rule == TikhonovLambdaRule::kGcv      ? "GCV"
+                                : options.tikhonov.lambda_rule == TikhonovLambdaRule::kLcurve ? "the L-curve"
+                                                                                              : "UPRE") +
+                               " on the unweighted frames, scaled by the mean weight";
       break;
     }
     case ReconstructionMethod::kLinear: {

@@ -25,6 +25,8 @@ const char* ToString(TikhonovPrior p) {
       return "laplacian";
     case TikhonovPrior::kPowerSpectrum:
       return "power-spectrum";
+    case TikhonovPrior::kFitted:
+      return "fitted";
   }
   return "unknown";
 }
@@ -34,8 +36,9 @@ TikhonovPrior ParseTikhonovPrior(const std::string& name) {
   if (name == "gradient") return TikhonovPrior::kGradient;
   if (name == "laplacian") return TikhonovPrior::kLaplacian;
   if (name == "power-spectrum") return TikhonovPrior::kPowerSpectrum;
+  if (name == "fitted") return TikhonovPrior::kFitted;
   throw InvalidArgument("ParseTikhonovPrior", "prior", name,
-                        "identity, gradient or laplacian, or power-spectrum");
+                        "identity, gradient, laplacian, power-spectrum or fitted");
 }
 
 const char* ToString(TikhonovLambdaRule rule) {
@@ -46,8 +49,22 @@ const char* ToString(TikhonovLambdaRule rule) {
       return "gcv";
     case TikhonovLambdaRule::kDiscrepancy:
       return "discrepancy";
+    case TikhonovLambdaRule::kLcurve:
+      return "lcurve";
+    case TikhonovLambdaRule::kUpre:
+      return "upre";
+    case TikhonovLambdaRule::kWiener:
+      return "wiener";
   }
   return "unknown";
+}
+
+TikhonovLambdaRule ParseTikhonovLambdaRule(const std::string& name) {
+  for (TikhonovLambdaRule r : {TikhonovLambdaRule::kFixed, TikhonovLambdaRule::kGcv, TikhonovLambdaRule::kDiscrepancy,
+                               TikhonovLambdaRule::kLcurve, TikhonovLambdaRule::kUpre, TikhonovLambdaRule::kWiener})
+    if (name == ToString(r)) return r;
+  throw InvalidArgument("ParseTikhonovLambdaRule", "lambda_rule", name,
+                        "fixed, gcv, discrepancy, lcurve, upre or wiener");
 }
 
 bool TikhonovOptions::IsValid(std::string* why) const {
@@ -59,7 +76,9 @@ bool TikhonovOptions::IsValid(std::string* why) const {
     return fail("lambda must be finite and >= 0, got " + ToString(lambda));
   if (!(rank_tolerance > 0 && rank_tolerance < 1))
     return fail("rank_tolerance must be in (0, 1), got " + ToString(rank_tolerance));
-  if (lambda_rule == TikhonovLambdaRule::kGcv &&
+  const bool searched = lambda_rule == TikhonovLambdaRule::kGcv || lambda_rule == TikhonovLambdaRule::kLcurve ||
+                        lambda_rule == TikhonovLambdaRule::kUpre;
+  if (searched &&
       !(gcv_decades > 0 && gcv_decades <= 20 && gcv_steps_per_decade >= 1 && gcv_steps_per_decade <= 20))
     return fail("gcv_decades must be in (0, 20] and gcv_steps_per_decade in 1..20");
   if (!(spectrum_slope >= 0 && spectrum_slope <= 8))
@@ -89,6 +108,17 @@ bool TikhonovOptions::IsValid(std::string* why) const {
     return fail("noise_sigma must be finite and >= 0, got " + ToString(noise_sigma));
   if (lambda_rule == TikhonovLambdaRule::kDiscrepancy && !(noise_sigma > 0))
     return fail("noise_sigma must be > 0 for the discrepancy rule (it sets the target residual)");
+  if (lambda_rule == TikhonovLambdaRule::kUpre && !(noise_sigma > 0))
+    return fail("noise_sigma must be > 0 for the upre rule (it weighs the trace term; 1 for inverse-variance weights)");
+  if (lambda_rule == TikhonovLambdaRule::kWiener && prior != TikhonovPrior::kFitted)
+    return fail("lambda_rule kWiener needs prior kFitted (lambda = sigma^2 / s(0) of the spectrum fitted to the "
+                "frames), got prior " + std::string(aosr::ToString(prior)));
+  if (prior == TikhonovPrior::kFitted) {
+    if (object_power_spectrum.size() > 0)
+      return fail("object_power_spectrum must be empty for prior kFitted (the spectrum is fitted to the frames)");
+    std::string fit_why;
+    if (!spectrum_fit.IsValid(&fit_why)) return fail("spectrum_fit." + fit_why);
+  }
   if (compute_std && !(noise_sigma > 0))
     return fail("noise_sigma must be > 0 for compute_std (it scales the map)");
   if (lambda_rule == TikhonovLambdaRule::kDiscrepancy) {
@@ -137,6 +167,7 @@ double TikhonovPriorSymbol(const TikhonovOptions& options, Shape hr, Index fy, I
       return options.prior == TikhonovPrior::kGradient ? g : g * g;
     }
     case TikhonovPrior::kPowerSpectrum:
+    case TikhonovPrior::kFitted:
       if (options.object_power_spectrum.size() > 0) {
         if (ShapeOf(options.object_power_spectrum) != hr)
           throw InvalidArgument("TikhonovPriorSymbol", "options.object_power_spectrum shape",
@@ -162,7 +193,8 @@ OperatorPtr TikhonovPriorOperator(Shape hr, const TikhonovOptions& options) {
       return Gradient(hr, Boundary::kPeriodic);
     case TikhonovPrior::kLaplacian:
       return Normal(Gradient(hr, Boundary::kPeriodic));  // ∇ᵀ∇
-    case TikhonovPrior::kPowerSpectrum: {
+    case TikhonovPrior::kPowerSpectrum:
+    case TikhonovPrior::kFitted: {
       // Γ = S^(−½)⊛: a real, even transfer function, so a real symmetric kernel.
       ComplexImage t(hr.rows, hr.cols / 2 + 1);
       for (Index fy = 0; fy < hr.rows; ++fy)
@@ -531,12 +563,14 @@ void FourierSystem::MakeSpectral() const {
   spectral_ = std::move(sp);
 }
 
-FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda) const {
+FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prior) const {
   if (!spectral_) MakeSpectral();
   const Spectral& sp = *spectral_;
-  const double w = lambda / double(model_.r() * model_.r());
+  const double rr = double(model_.r() * model_.r());
+  const double w = lambda / rr;
   const Index n = model_.frames();
   Fit f;
+  double prior = 0, dprior = 0;  // Σ_u ||P^½ X||² and its derivative by w
   for (Index i = 0; i + 1 < Index(sp.offset.size()); ++i) {
     const Index q = sp.offset[i + 1] - sp.offset[i];
     if (q == 0) continue;  // a direct bin, below
@@ -547,16 +581,36 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda) const {
       const double g = d > 0 ? w / d : 1.0;
       res += g * g * sp.c[k];
       dof += g;
+      if (want_prior && d > 0) {
+        // z = P^½ X = s/(s² + w) (uᴴY) v: ||z||² = s² c/(s² + w)², d/dw = −2 s² c/(s² + w)³.
+        const double e = sp.s2[k] * sp.c[k] / (d * d);
+        prior += e;
+        dprior -= 2.0 * e / d;
+      }
     }
     f.residual2 += res;
     f.dof += dof;
   }
   for (Index i : sp.direct) {
-    const BinSolution s = SolveBin(bins_[i], w, true);
+    const Bin& b = bins_[i];
+    const BinSolution s = SolveBin(b, w, true);
     f.residual2 += s.residual2;
     f.dof += s.dof;
+    if (want_prior) {
+      // dX/dw = −G⁻¹ P X, so d||P^½X||²/dw = −2 Re (PX)ᴴ G⁻¹ (PX).
+      const Eigen::VectorXcd px = b.prior.cast<Complex>().cwiseProduct(s.x);
+      prior += (s.x.conjugate().cwiseProduct(px)).sum().real();
+      bool proper = true, woodbury = false;
+      const Eigen::MatrixXcd g = InverseBin(b, w, &proper, &woodbury);
+      dprior -= 2.0 * (px.adjoint() * g * px)(0, 0).real();
+    }
   }
   f.residual2 /= double(bins_.size());  // Parseval, as in Evaluate
+  if (want_prior) {
+    // ||Γx||² = (1/M²) Σ_u ||P^½ X(u)||², M² = m² r²; dη/dλ = (dη/dw)/r².
+    f.prior2 = prior / (double(bins_.size()) * rr);
+    f.dprior2 = dprior / (double(bins_.size()) * rr * rr);
+  }
   return f;
 }
 
@@ -819,33 +873,25 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
   return out;
 }
 
-double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations,
-                 std::string* edge) {
-  // GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² (Golub, Heath & Wahba 1979), exactly per bin. Each value is a
-  // sum over the bins' singular values (FourierSystem::EvaluateSpectral), so the search costs one
-  // decomposition per bin: a log grid finds the basin, golden-section search on log λ then finds the minimum
-  // between the grid neighbours of the best point to 1e-4 decades (continuous, not a grid point).
-  const double n_data = double(sys.model().frames()) * double(sys.bins());
-  const int steps = int(std::lround(options.gcv_decades * options.gcv_steps_per_decade));
-  const double dt = 1.0 / options.gcv_steps_per_decade;
-  auto lambda_at = [&](double t) { return sys.lambda0() * std::pow(10.0, t); };  // t = log10(λ/λ₀)
-  int evaluated = 0;
-  auto gcv = [&](double t) {
-    const FourierSystem::Fit f = sys.EvaluateSpectral(lambda_at(t));
-    ++evaluated;
-    return f.dof > 0 ? n_data * f.residual2 / (f.dof * f.dof) : std::numeric_limits<double>::infinity();
+LogGridMinimum MinimiseOnLogGrid(const std::function<double(double)>& f, double decades, int steps_per_decade) {
+  LogGridMinimum out;
+  const int steps = int(std::lround(decades * steps_per_decade));
+  const double dt = 1.0 / steps_per_decade;
+  auto eval = [&](double t) {
+    ++out.evaluations;
+    return f(t);
   };
-  auto grid_t = [&](int k) { return -options.gcv_decades + double(k) * dt; };
+  auto grid_t = [&](int k) { return -decades + double(k) * dt; };
   double best = std::numeric_limits<double>::infinity();
   int best_k = steps;
   auto visit = [&](int k) {
-    const double g = gcv(grid_t(k));
+    const double g = eval(grid_t(k));
     if (g < best) best = g, best_k = k;
   };
   for (int k = 0; k <= steps; ++k) visit(k);
   // A minimum at the top of the grid means the data want more smoothing than λ₀ (weak data: strong blur,
-  // N < r², faint object): walk on upwards, up to gcv_decades more, until the score turns. (A minimum at the
-  // bottom is GCV's known undersmoothing failure; walking down would only deepen it, so it is reported.)
+  // N < r², faint object): walk on upwards, up to `decades` more, until the score turns. (A minimum at the
+  // bottom is, for GCV, its known undersmoothing failure; walking down would only deepen it, so it is reported.)
   int top = steps;
   while (best_k == top && top < 2 * steps) visit(++top);
   double t_best = grid_t(best_k);
@@ -855,30 +901,147 @@ double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, doubl
     const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
     double a = grid_t(best_k - 1), b = grid_t(best_k + 1);
     double c = b - phi * (b - a), d = a + phi * (b - a);
-    double gc = gcv(c), gd = gcv(d);
+    double gc = eval(c), gd = eval(d);
     while (b - a > 1e-4) {
       if (gc <= gd) {
         b = d, d = c, gd = gc;
-        c = b - phi * (b - a), gc = gcv(c);
+        c = b - phi * (b - a), gc = eval(c);
       } else {
         a = c, c = d, gc = gd;
-        d = a + phi * (b - a), gd = gcv(d);
+        d = a + phi * (b - a), gd = eval(d);
       }
     }
-    const double t_mid = 0.5 * (a + b), g_mid = gcv(t_mid);
+    const double t_mid = 0.5 * (a + b), g_mid = eval(t_mid);
     if (g_mid < best) best = g_mid, t_best = t_mid;  // never worse than the best grid point
   }
-  *score = best;
+  out.t = t_best;
+  out.value = best;
+  out.edge = at_edge ? (best_k == 0 ? -1 : +1) : 0;
+  return out;
+}
+
+namespace {
+
+// "; GCV minimum at the smallest lambda searched (...): a bound, not a GCV minimiser (advice)".
+std::string EdgeNote(const char* what, const char* optimiser, int edge, const char* bottom_advice) {
+  if (edge == 0) return "";
+  return std::string("; ") + what + " at the " + (edge < 0 ? "smallest" : "largest") +
+         " lambda searched (lambda0 x 10^[-gcv_decades, " + (edge < 0 ? "0" : "gcv_decades") +
+         "]): a bound, not a " + optimiser + (edge < 0 ? bottom_advice : "");
+}
+
+}  // namespace
+
+double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations,
+                 std::string* edge) {
+  // GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)² (Golub, Heath & Wahba 1979), exactly per bin. Each value is a
+  // sum over the bins' singular values (FourierSystem::EvaluateSpectral), so the search costs one
+  // decomposition per bin: a log grid finds the basin, golden-section search on log λ then finds the minimum
+  // between the grid neighbours of the best point to 1e-4 decades (continuous, not a grid point).
+  const double n_data = double(sys.model().frames()) * double(sys.bins());
+  const LogGridMinimum m = MinimiseOnLogGrid(
+      [&](double t) {
+        const FourierSystem::Fit f = sys.EvaluateSpectral(sys.lambda0() * std::pow(10.0, t));
+        return f.dof > 0 ? n_data * f.residual2 / (f.dof * f.dof) : std::numeric_limits<double>::infinity();
+      },
+      options.gcv_decades, options.gcv_steps_per_decade);
+  *score = m.value;
+  *evaluations = m.evaluations;
+  if (edge)
+    *edge = EdgeNote("GCV minimum", "GCV minimiser", m.edge, " (GCV undersmooths here: prefer the discrepancy rule or a fixed lambda)");
+  return sys.lambda0() * std::pow(10.0, m.t);
+}
+
+double LcurveCurvature(const FourierSystem& sys, double lambda) {
+  // κ of the curve (ln ρ, ln η) in terms of ρ, η and η' (tikhonov.hpp, kLcurve): the second derivatives cancel
+  // because dρ/dλ = −λ dη/dλ at the exact minimiser.
+  const FourierSystem::Fit f = sys.EvaluateSpectral(lambda, true);
+  const double rho = f.residual2, eta = f.prior2, d = f.dprior2, mu = lambda;
+  if (!(rho > 0 && eta > 0 && d < 0 && mu > 0)) return -std::numeric_limits<double>::infinity();
+  const double num = 1.0 / (rho * eta) + mu * d * (1.0 / (rho * eta * eta) + mu / (rho * rho * eta));
+  const double den = -d * std::pow(mu * mu / (rho * rho) + 1.0 / (eta * eta), 1.5);
+  const double k = num / den;
+  return std::isfinite(k) ? k : -std::numeric_limits<double>::infinity();
+}
+
+double LcurveSearch(const FourierSystem& sys, const TikhonovOptions& options, double* curvature, int* evaluations,
+                    std::string* edge) {
+  // The corner is the positive local maximum of κ at the largest λ: the turn from the over-smoothed (flat)
+  // branch into the steep one. Further maxima at smaller λ lie where the curve comes to rest at the
+  // least-squares end (ρ and η both saturate; a short arc turning a little has a large κ): not an L corner
+  // (Hansen 2001, "The L-curve and its use in the numerical treatment of inverse problems", restricts the
+  // curve for the same reason). Grid t = log10(λ/λ₀) from +gcv_decades/2 down to −gcv_decades (walking on up
+  // to +gcv_decades while κ still rises at the top), then golden-section on [t_{k−1}, t_{k+1}].
+  const double dt = 1.0 / options.gcv_steps_per_decade;
+  int evaluated = 0;
+  auto kappa = [&](double t) {
+    ++evaluated;
+    return LcurveCurvature(sys, sys.lambda0() * std::pow(10.0, t));
+  };
+  const int below = int(std::lround(options.gcv_decades * options.gcv_steps_per_decade));
+  int above = std::max(1, below / 2);
+  std::vector<double> k_of;  // κ at t_j = (j − below)·dt, j = 0 .. below + above
+  for (int j = 0; j <= below + above; ++j) k_of.push_back(kappa(double(j - below) * dt));
+  while (k_of.back() > k_of[k_of.size() - 2] && above < 2 * below) {
+    ++above;
+    k_of.push_back(kappa(double(int(k_of.size()) - below) * dt));
+  }
+  const int top = int(k_of.size()) - 1;
+  int best = -1;
+  for (int j = top - 1; j >= 1 && best < 0; --j)
+    if (k_of[j] > 0 && k_of[j] >= k_of[j - 1] && k_of[j] >= k_of[j + 1]) best = j;
+  int edge_side = 0;
+  if (best < 0) {  // no interior corner: the largest κ on the grid, reported as a bound
+    best = int(std::max_element(k_of.begin(), k_of.end()) - k_of.begin());
+    edge_side = best == 0 ? -1 : best == top ? +1 : 0;
+    if (edge_side == 0) edge_side = -1;
+  }
+  double t_best = double(best - below) * dt, k_best = k_of[best];
+  if (best >= 1 && best <= top - 1) {
+    const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+    double a = t_best - dt, b = t_best + dt;
+    double c = b - phi * (b - a), d = a + phi * (b - a);
+    double kc = kappa(c), kd = kappa(d);
+    while (b - a > 1e-4) {
+      if (kc >= kd) {
+        b = d, d = c, kd = kc;
+        c = b - phi * (b - a), kc = kappa(c);
+      } else {
+        a = c, c = d, kc = kd;
+        d = a + phi * (b - a), kd = kappa(d);
+      }
+    }
+    const double t_mid = 0.5 * (a + b), k_mid = kappa(t_mid);
+    if (k_mid > k_best) k_best = k_mid, t_best = t_mid;
+  }
+  *curvature = k_best;
   *evaluations = evaluated;
   if (edge) {
     edge->clear();
-    if (at_edge)
-      *edge = std::string("; GCV minimum at the ") + (best_k == 0 ? "smallest" : "largest") +
-              " lambda searched (lambda0 x 10^[-gcv_decades, " + (best_k == 0 ? "0" : "gcv_decades") +
-              "]): a bound, not a minimiser" +
-              (best_k == 0 ? " (GCV undersmooths here: prefer the discrepancy rule or a fixed lambda)" : "");
+    if (edge_side != 0)
+      *edge = std::string("; no L-curve corner (positive local maximum of the curvature) in lambda0 x 10^[-") +
+              ToString(options.gcv_decades) + ", " + ToString(double(above) * dt) +
+              "]: the largest curvature there, a bound, not a corner";
   }
-  return lambda_at(t_best);
+  return sys.lambda0() * std::pow(10.0, t_best);
+}
+
+double Upre(const FourierSystem& sys, double lambda, double variance) {
+  // U = ||y − Ax||² + 2v tr H − n v with tr H = n − dof (Mallows 1973; Vogel 2002, §7.1), per pixel.
+  const double n = double(sys.model().frames()) * double(sys.bins());
+  const FourierSystem::Fit f = sys.EvaluateSpectral(lambda);
+  return (f.residual2 + 2.0 * variance * (n - f.dof) - n * variance) / n;
+}
+
+double UpreSearch(const FourierSystem& sys, const TikhonovOptions& options, double variance, double* score,
+                  int* evaluations, std::string* edge) {
+  const LogGridMinimum m = MinimiseOnLogGrid(
+      [&](double t) { return Upre(sys, sys.lambda0() * std::pow(10.0, t), variance); }, options.gcv_decades,
+      options.gcv_steps_per_decade);
+  *score = m.value;
+  *evaluations = m.evaluations;
+  if (edge) *edge = EdgeNote("UPRE minimum", "UPRE minimiser", m.edge, " (check noise_sigma: an underestimate undersmooths)");
+  return sys.lambda0() * std::pow(10.0, m.t);
 }
 
 void FinishSummary(const ReconstructionProblem& solved, const Image& x, double lambda,
@@ -931,6 +1094,15 @@ TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovO
     std::string edge;
     lambda_eff = GcvSearch(sys, options, &s.gcv, &s.lambda_evaluations, &edge);
     note = " (GCV)" + edge;
+  } else if (options.lambda_rule == TikhonovLambdaRule::kLcurve) {
+    std::string edge;
+    lambda_eff = LcurveSearch(sys, options, &s.lcurve_curvature, &s.lambda_evaluations, &edge);
+    note = " (L-curve)" + edge;
+  } else if (options.lambda_rule == TikhonovLambdaRule::kUpre) {
+    std::string edge;
+    lambda_eff = UpreSearch(sys, options, options.noise_sigma * options.noise_sigma / w0, &s.upre,
+                            &s.lambda_evaluations, &edge);
+    note = " (UPRE)" + edge;
   } else if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy) {
     const double n_w = double(model.frames()) * double(model.lr_shape().size());
     s.discrepancy_target = options.discrepancy_factor * options.noise_sigma * options.noise_sigma * n_w;
@@ -968,6 +1140,59 @@ TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovO
 
 }  // namespace
 
+TikhonovResult FittedPrior(const char* function, const ReconstructionProblem& problem,
+                           const TikhonovOptions& options, std::chrono::steady_clock::time_point start) {
+  // The frames as the fit wants them: masked pixels filled with their frame's weighted mean (a hole would add
+  // white power), and the white floor σ²·mean(1/w) when σ is known.
+  const ImageStack clean = problem.CleanFrames();
+  ImageStack filled;
+  double inv_weight_sum = 0;
+  Index weighted = 0;
+  for (int i = 0; i < problem.frame_count(); ++i) {
+    const Image w = problem.Weight(i);
+    const auto on = w.array() > 0;
+    const Index count = on.count();
+    const double mean = count > 0 ? on.select(clean[i], 0.0).sum() / double(count) : 0.0;
+    filled.push_back(on.select(clean[i], mean));
+    inv_weight_sum += on.select(1.0 / w.array().max(1e-300), 0.0).sum();
+    weighted += count;
+  }
+  const double mean_inv_weight = inv_weight_sum / double(std::max<Index>(1, weighted));
+  FramePowerSpectrumOptions fo = options.spectrum_fit;
+  fo.noise_variance = options.noise_sigma > 0 ? options.noise_sigma * options.noise_sigma * mean_inv_weight : 0.0;
+  const FramePowerSpectrumFit fit = FitFramePowerSpectrum(*problem.model, filled, fo);
+  TikhonovOptions o = options;
+  o.prior = TikhonovPrior::kPowerSpectrum;
+  o.spectrum_slope = fit.model.slope;
+  o.spectrum_corner = fit.model.corner;
+  std::string wiener;
+  if (options.lambda_rule == TikhonovLambdaRule::kWiener) {
+    // λ = σ²/s(0): σ² given, or v/mean(1/w) from the fitted floor v (tikhonov.hpp, kWiener).
+    const double sigma2 = options.noise_sigma > 0 ? options.noise_sigma * options.noise_sigma
+                                                  : fit.noise_variance / mean_inv_weight;
+    o.lambda_rule = TikhonovLambdaRule::kFixed;
+    o.lambda = sigma2 / fit.ZeroFrequencyPower();
+    if (!(std::isfinite(o.lambda) && o.lambda >= 0))
+      throw NumericalError(std::string(function) + ": the Wiener lambda of the fitted spectrum is not finite (" +
+                           fit.BriefReport() + ")");
+    wiener = "; lambda = sigma^2 / s(0) (Wiener, sigma " +
+             std::string(options.noise_sigma > 0 ? "given" : "from the fitted noise floor") + ")";
+    if (options.noise_sigma == 0 && !fit.noise_identified)
+      wiener += "; the frames do not determine their noise floor, so this lambda is not a Wiener lambda: give "
+                "noise_sigma";
+  }
+  TikhonovResult r = Reconstruct(function, problem, o);
+  TikhonovSummary& s = r.summary;
+  s.spectrum_fitted = true;
+  s.fitted_spectrum = fit.model;
+  s.fitted_noise_variance = fit.noise_variance;
+  s.message += wiener + "; prior fitted to the frames: " + fit.BriefReport();
+  if (options.lambda_rule == TikhonovLambdaRule::kWiener && options.noise_sigma == 0 && !fit.noise_identified)
+    s.termination = Termination::kFailed;
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
 TikhonovResult Reconstruct(const char* function, const ReconstructionProblem& problem,
                            const TikhonovOptions& options) {
   std::string why;
@@ -985,15 +1210,24 @@ TikhonovResult Reconstruct(const char* function, const ReconstructionProblem& pr
     if (!any) throw InvalidArgument(function, "problem.weights", "all zero", "at least one weighted pixel");
   }
   const bool fourier_exact = problem.HasUniformWeights() && options.boundary == TikhonovBoundary::kPeriodic;
+  if (options.prior == TikhonovPrior::kFitted) return FittedPrior(function, problem, options, start);
   if (options.method == TikhonovMethod::kFourier && !fourier_exact)
     throw InvalidArgument(
         function, "options.method", "kFourier",
         "kAuto or kConjugateGradient: the weights are not uniform, so no exact Fourier solution");
-  if (options.lambda_rule == TikhonovLambdaRule::kGcv && !fourier_exact)
+  const bool searched = options.lambda_rule == TikhonovLambdaRule::kGcv ||
+                        options.lambda_rule == TikhonovLambdaRule::kLcurve ||
+                        options.lambda_rule == TikhonovLambdaRule::kUpre;
+  if (searched && !fourier_exact)
     throw InvalidArgument(
-        function, "options.lambda_rule", "kGcv",
-        "kFixed or kDiscrepancy: GCV needs the exact influence-matrix trace, which only the Fourier "
-        "path (uniform weights, periodic boundary) has");
+        function, "options.lambda_rule", std::string("k") + (options.lambda_rule == TikhonovLambdaRule::kGcv
+                                                                ? "Gcv"
+                                                                : options.lambda_rule == TikhonovLambdaRule::kLcurve
+                                                                      ? "Lcurve"
+                                                                      : "Upre"),
+        "kFixed, kDiscrepancy or kWiener: GCV, the L-curve and UPRE need the exact influence-matrix trace or "
+        "spectral sums, which only the Fourier path (uniform weights, periodic boundary) has (Reconstruct in "
+        "reconstruct.hpp chooses them on the unweighted frames)");
   const bool use_cg = options.method == TikhonovMethod::kConjugateGradient || !fourier_exact;
   if (!use_cg) return FourierPath(problem, options, start);
   return ConjugateGradientPath(function, problem, options, start);

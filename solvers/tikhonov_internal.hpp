@@ -33,6 +33,9 @@ class FourierSystem {
     double residual2 = 0;  // ||y − A x_λ||² (spatial units, Parseval-normalised)
     double dof = 0;  // n − tr H_λ = Σ_u (N − tr(A G⁻¹ Aᴴ)), residual degrees of freedom (only if asked)
     Index woodbury_bins = 0;
+    // EvaluateSpectral with want_prior: η = ||Γ x_λ||² (spatial units) and dη/dλ (for the L-curve).
+    double prior2 = 0;
+    double dprior2 = 0;
   };
   Fit Evaluate(double lambda, bool want_trace) const;
   // The same residual and trace from one decomposition per bin (an SVD), made on first use after SetData: with
@@ -41,7 +44,9 @@ class FourierSystem {
   // q = min(N, r²): O(q) per bin and λ instead of a solve, so a λ rule may evaluate as often as it likes
   // (tikhonov.hpp, "λ rules"). Bins whose prior vanishes somewhere (the DC bin of the gradient and Laplacian
   // priors) are solved directly at each λ.
-  Fit EvaluateSpectral(double lambda) const;
+  // want_prior adds η = ||Γx||² = (1/(m² r²)) Σ_u Σ_k s_k² c_k/(s_k² + w)² and its derivative by λ,
+  // dη/dλ = −(2/(m² r⁴)) Σ_u Σ_k s_k² c_k/(s_k² + w)³ (direct bins: −2 Re (Px)ᴴ G⁻¹ (Px) per bin).
+  Fit EvaluateSpectral(double lambda, bool want_prior = false) const;
   Image Solve(double lambda, Fit* fit = nullptr) const;
 
   // G(u)⁻¹ for every bin (pseudo-inverse where singular; *proper = false then).
@@ -126,6 +131,29 @@ LambdaSearch DiscrepancySearch(const std::function<double(double)>& residual, do
 double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, double* score, int* evaluations,
                  std::string* edge = nullptr);
 
+// The minimum of f(t) over t = log10(λ/λ₀) as GcvSearch finds it: a grid of t in [−decades, 0] (steps_per_decade
+// per decade), walking on upwards up to `decades` more while the minimum sits at the top, then golden-section
+// search between the best point's neighbours to 1e-4 decades. edge: 0 inside, −1 at the bottom, +1 at the top.
+struct LogGridMinimum {
+  double t = 0;
+  double value = 0;
+  int evaluations = 0;
+  int edge = 0;
+};
+LogGridMinimum MinimiseOnLogGrid(const std::function<double(double)>& f, double decades, int steps_per_decade);
+
+// The L-curve curvature κ(λ) of tikhonov.hpp (kLcurve) from the spectral sums (−∞ where undefined), and the
+// λ' of the corner: the positive local maximum of κ at the largest λ on the grid, refined by golden section
+// (tikhonov.cpp says why not the global maximum); *edge "" or a note when there is no such corner.
+double LcurveCurvature(const FourierSystem& sys, double lambda);
+double LcurveSearch(const FourierSystem& sys, const TikhonovOptions& options, double* curvature, int* evaluations,
+                    std::string* edge = nullptr);
+// UPRE U(λ)/n = (||y − A x_λ||² + 2 v tr H_λ − n v) / n for noise variance v per pixel of the unweighted frames
+// (tikhonov.hpp, kUpre), and the λ' of its minimum.
+double Upre(const FourierSystem& sys, double lambda, double variance);
+double UpreSearch(const FourierSystem& sys, const TikhonovOptions& options, double variance, double* score,
+                  int* evaluations, std::string* edge = nullptr);
+
 // Fills lambda, final_cost, weighted_residual, frame_residual_rms (WeightedDataMisfit of `solved`, the
 // problem on the grid x lives on) and solved_hr_shape.
 void FinishSummary(const ReconstructionProblem& solved, const Image& x, double lambda,
@@ -141,6 +169,10 @@ bool PosteriorStd(const FourierSystem& sys, double lambda_eff, double variance_s
 // (tikhonov_cg.cpp), called with validated options and problem.
 TikhonovResult Reconstruct(const char* function, const ReconstructionProblem& problem,
                            const TikhonovOptions& options);
+// prior kFitted: fits the spectrum to the problem's frames, resolves kWiener, and runs Reconstruct with the
+// resulting kPowerSpectrum options; the fit is in the summary.
+TikhonovResult FittedPrior(const char* function, const ReconstructionProblem& problem,
+                           const TikhonovOptions& options, std::chrono::steady_clock::time_point start);
 TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionProblem& problem,
                                      const TikhonovOptions& options,
                                      std::chrono::steady_clock::time_point start);

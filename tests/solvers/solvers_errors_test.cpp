@@ -40,7 +40,7 @@ TEST(SolversErrorsTest, TikhonovRejectsNegativeLambda) {
   TikhonovOptions o;
   o.lambda = -1;
   EXPECT_THAT(ErrorOf([&] { TikhonovFourier(Model(), ImageStack(2, Image::Ones(4, 4)), o); }), HasSubstr("lambda"));
-  EXPECT_THAT(ErrorOf([&] { ParseTikhonovPrior("tv"); }), HasSubstr("identity, gradient or laplacian"));
+  EXPECT_THAT(ErrorOf([&] { ParseTikhonovPrior("tv"); }), HasSubstr("identity, gradient, laplacian, power-spectrum or fitted"));
 }
 
 TEST(SolversErrorsTest, ModelRejectsRThatDoesNotDivideTheGrid) {

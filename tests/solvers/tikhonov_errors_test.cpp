@@ -169,5 +169,50 @@ TEST(TikhonovErrorsTest, PreconditionedCgRejectsBadInputs) {
   EXPECT_THAT(ErrorOf([&] { PreconditionedConjugateGradient(*a, *a, bad, &x); }), HasSubstr("b or x"));
 }
 
+TEST(TikhonovErrorsTest, LambdaRulesAndTheFittedPriorNameTheBadField) {
+  EXPECT_THAT(ErrorOfSolve([](auto& o) { o.lambda_rule = TikhonovLambdaRule::kUpre; }),
+              HasSubstr("options.noise_sigma must be > 0 for the upre rule"));
+  EXPECT_THAT(ErrorOfSolve([](auto& o) { o.lambda_rule = TikhonovLambdaRule::kWiener; }),
+              HasSubstr("options.lambda_rule kWiener needs prior kFitted"));
+  EXPECT_THAT(ErrorOfSolve([](auto& o) {
+                o.lambda_rule = TikhonovLambdaRule::kLcurve;
+                o.gcv_steps_per_decade = 0;
+              }),
+              HasSubstr("options.gcv_decades must be in (0, 20] and gcv_steps_per_decade"));
+  EXPECT_THAT(ErrorOfSolve([](auto& o) {
+                o.prior = TikhonovPrior::kFitted;
+                o.object_power_spectrum = Image::Ones(16, 16);
+              }),
+              HasSubstr("options.object_power_spectrum must be empty for prior kFitted"));
+  EXPECT_THAT(ErrorOfSolve([](auto& o) {
+                o.prior = TikhonovPrior::kFitted;
+                o.spectrum_fit.min_radius = 40;
+              }),
+              HasSubstr("options.spectrum_fit.min_radius"));
+  EXPECT_THAT(ErrorOfSolve([](auto& o) {
+                o.prior = TikhonovPrior::kFitted;
+                o.spectrum_fit.max_iterations = 0;
+              }),
+              HasSubstr("options.spectrum_fit.max_iterations"));
+  // The searching rules need the Fourier-exact problem; the Wiener rule does not.
+  ReconstructionProblem weighted = Problem();
+  weighted.weights = ImageStack(2, Image::Ones(8, 8));
+  weighted.weights[0](0, 0) = 0.5;
+  EXPECT_THAT(ErrorOfSolve([](auto& o) { o.lambda_rule = TikhonovLambdaRule::kLcurve; }, weighted),
+              HasSubstr("invalid options.lambda_rule = kLcurve"));
+  EXPECT_THAT(ErrorOfSolve(
+                  [](auto& o) {
+                    o.lambda_rule = TikhonovLambdaRule::kUpre;
+                    o.noise_sigma = 1;
+                  },
+                  weighted),
+              HasSubstr("kUpre"));
+  EXPECT_THAT(ErrorOf([] { ParseTikhonovLambdaRule("morozov"); }),
+              HasSubstr("fixed, gcv, discrepancy, lcurve, upre or wiener"));
+  EXPECT_EQ(ParseTikhonovLambdaRule("upre"), TikhonovLambdaRule::kUpre);
+  EXPECT_EQ(ParseTikhonovLambdaRule("lcurve"), TikhonovLambdaRule::kLcurve);
+  EXPECT_EQ(ParseTikhonovPrior("fitted"), TikhonovPrior::kFitted);
+}
+
 }  // namespace
 }  // namespace aosr

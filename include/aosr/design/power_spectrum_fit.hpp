@@ -81,26 +81,13 @@
 #include <vector>
 
 #include "aosr/core/image.hpp"
+#include "aosr/solvers/power_spectrum_model.hpp"
 #include "aosr/solvers/tikhonov.hpp"
 
 namespace aosr {
 
-// s(f) = a / (f0² + |f|²)^(β/2) + w.
-struct PowerSpectrumModel {
-  double amplitude = 1.0;  // a > 0, in (flux per HR pixel)² · (cycles per HR pixel)^β
-  double corner = 0.05;    // f0 > 0, cycles per HR pixel
-  double slope = 2.0;      // β, finite, in [−2, 12] (natural images: 2..3)
-  double floor = 0.0;      // w >= 0, (flux per HR pixel)²
-
-  // s at spatial frequency magnitude f (cycles per HR pixel).
-  double operator()(double f) const;
-  bool IsValid(std::string* why) const;
-};
-
-// The model on the full M_y x M_x HR DFT grid (unshifted, bin (0,0) = zero frequency, |f|² =
-// (SignedFrequency(ky)/M_y)² + (SignedFrequency(kx)/M_x)²): finite, > 0 and symmetric, as
-// DesignObjectiveOptions::object_power_spectrum wants. Both sides >= 1.
-Image PowerSpectrumGrid(const PowerSpectrumModel& model, Shape grid);
+// PowerSpectrumModel and PowerSpectrumGrid live in solvers/power_spectrum_model.hpp (shared with the Wiener
+// prior fitted to the frames, solvers/frame_power_spectrum.hpp).
 
 // A periodic, real, stationary Gaussian random field on `shape` with spectrum s = model: x = IDFT(√s · DFT(n)),
 // n white N(0, 1) (NormalGenerator, seed), so E|X(f)|²/(H W) = s(f) exactly at the grid's frequencies and the

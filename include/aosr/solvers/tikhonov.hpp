@@ -62,6 +62,13 @@
 //   kPowerSpectrum  Γ = S^(−½) ⊛               |Γ̂|² = 1 / S(f),  S a stationary object power spectrum:
 //                   either given (object_power_spectrum) or S(f) = (1 + |f|²/f₀²)^(−β/2), normalised to
 //                   S(0) = 1 (β = spectrum_slope, f₀ = spectrum_corner; β = 0 is the identity prior).
+//   kFitted         kPowerSpectrum with S fitted to the frames themselves (frame_power_spectrum.hpp): the
+//                   periodogram of the frames against the forward model E P̄(u) = r² Σ_k T_k(u) s(f_k) + v
+//                   (T the frames' mean |A(u)|², v the white noise floor), s(f) = s(0)(1 + |f|²/f₀²)^(−β/2)
+//                   by Levenberg-Marquardt over the frequencies the data constrain. No training images, so
+//                   legitimate on measured data. Masked pixels are filled with their frame's weighted mean
+//                   for the fit; the noise floor is held at σ²·mean(1/w) when noise_sigma > 0 (σ known),
+//                   else fitted. The fitted β, f₀, s(0) and v are in the summary.
 //
 // Bayesian reading (Wiener). With Gaussian noise of variance σ²/w and the prior x ~ N(0, (σ²/λ)(ΓᵀΓ)⁻¹),
 // i.e. for kPowerSpectrum a stationary object with E|X̂(f)|² / M² = (σ²/λ)·S(f) (M² = M_y·M_x HR pixels,
@@ -108,6 +115,28 @@
 //                 is the classical rule; since the residual of an estimate with p effective parameters
 //                 is about (n − p)σ², τ = 1 over-smooths, more so when N is small relative to r² (measured,
 //                 N = 5, r = 2, 5% noise: λ 10x the oracle's, error 9% above the oracle's).
+//   kLcurve       Hansen's L-curve (Hansen 1992, SIAM Review 34, 561; Hansen & O'Leary 1993, SIAM J. Sci.
+//                 Comput. 14, 1487): λ at the maximum curvature of the curve (ln ρ(λ), ln η(λ)), ρ = ||y − A x_λ||²,
+//                 η = ||Γ x_λ||². For an exact minimiser dρ/dλ = −λ dη/dλ, so the curvature needs only ρ, η and
+//                 η' = dη/dλ (the second derivatives cancel):
+//                     κ = [1/(ρη) + λη'(1/(ρη²) + λ/(ρ²η))] / (|η'| (λ²/ρ² + 1/η²)^(3/2)),
+//                 and each is a sum over the whitened bins' singular values, η = Σ s²c/(s²+w)², η' ∝ −2Σ s²c/(s²+w)³
+//                 (one SVD per bin, as GCV). Needs no noise level. The corner is the positive local maximum of
+//                 κ at the largest λ on the grid t = log10(λ/λ₀) in [−gcv_decades, gcv_decades/2], refined by
+//                 golden section: maxima at smaller λ are where the curve comes to rest at the least-squares end
+//                 (residual and norm both saturate; a short arc with a large κ), not the L's corner (Hansen
+//                 2001 restricts the curve for the same reason). Same Fourier-exact requirement as kGcv.
+//   kUpre         the unbiased predictive risk estimator (Mallows' C_L, Mallows 1973, Technometrics 15, 661;
+//                 Vogel 2002, "Computational Methods for Inverse Problems", §7.1; for Gaussian noise it is
+//                 Stein's SURE, Stein 1981, Ann. Stat. 9, 1135, of the prediction A x_λ): minimises
+//                     U(λ) = ||y − A x_λ||² + 2 σ_p² tr H_λ − n σ_p²,   σ_p² = noise_sigma² / w₀,
+//                 an unbiased estimate of the predictive risk E||A(x_λ − x)||². Needs noise_sigma > 0 (1 for
+//                 inverse-variance weights). Same grid, refinement and Fourier-exact requirement as kGcv.
+//   kWiener       λ = σ² / s(0), the Wiener choice for the kFitted prior's spectrum s = s(0)·S (see the Bayesian
+//                 reading above): no search. σ = noise_sigma when > 0, else from the fitted noise floor,
+//                 σ² = v / mean(1/w). Needs prior kFitted; works on both paths (weights and masks included).
+//   For weighted or masked data, ReconstructOptions (reconstruct.hpp) chooses λ for kGcv, kLcurve and kUpre on
+//   the unweighted frames and scales it by the mean weight; ReconstructTikhonov itself refuses them there.
 //
 // API rules: every entry point validates its options (IsValid names the field) and its inputs before
 // computing and throws InvalidArgument naming the argument; outcomes (λ chosen, iterations, unmet
@@ -119,18 +148,21 @@
 
 #include "aosr/core/forward_model.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
+#include "aosr/solvers/frame_power_spectrum.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/summary.hpp"
 
 namespace aosr {
 
-enum class TikhonovPrior { kIdentity, kGradient, kLaplacian, kPowerSpectrum };
+enum class TikhonovPrior { kIdentity, kGradient, kLaplacian, kPowerSpectrum, kFitted };
 const char* ToString(TikhonovPrior p);
-// Parses "identity" | "gradient" | "laplacian" | "power-spectrum"; InvalidArgument otherwise.
+// Parses "identity" | "gradient" | "laplacian" | "power-spectrum" | "fitted"; InvalidArgument otherwise.
 TikhonovPrior ParseTikhonovPrior(const std::string& name);
 
-enum class TikhonovLambdaRule { kFixed, kGcv, kDiscrepancy };
+enum class TikhonovLambdaRule { kFixed, kGcv, kDiscrepancy, kLcurve, kUpre, kWiener };
 const char* ToString(TikhonovLambdaRule rule);
+// Parses "fixed" | "gcv" | "discrepancy" | "lcurve" | "upre" | "wiener"; InvalidArgument otherwise.
+TikhonovLambdaRule ParseTikhonovLambdaRule(const std::string& name);
 
 // How each Fourier bin is solved. kAuto: Woodbury (3) when N < r² and the bin allows it (w > 0, P > 0),
 // else the normal equations (2). Forcing one is for tests and timing; a bin that does not allow Woodbury
@@ -156,6 +188,9 @@ struct TikhonovOptions {
   // object); its scale is absorbed by λ. Empty: the parametric form. Periodic boundary only (it is tied
   // to the model's grid).
   Image object_power_spectrum;
+  // kFitted: how the spectrum is fitted to the frames (frame_power_spectrum.hpp). Its noise_variance is
+  // overridden: σ²·mean(1/w) when noise_sigma > 0, else 0 (fitted).
+  FramePowerSpectrumOptions spectrum_fit;
 
   // --- λ -------------------------------------------------------------------------------------------------
   TikhonovLambdaRule lambda_rule = TikhonovLambdaRule::kFixed;
@@ -165,11 +200,12 @@ struct TikhonovOptions {
   // kGcv searches λ = λ₀·10^t on a grid of t in [-gcv_decades, 0] (walking on up to +gcv_decades while the
   // minimum sits at the top) with gcv_steps_per_decade points per
   // decade, where λ₀ = w₀ Σ_u tr(A(u)ᴴA(u)) / Σ_u tr P(u) is the scale at which data and prior weigh
-  // alike. Each grid point costs one pass of per-bin solves. Defaults: 8 decades, 4 per decade.
+  // alike. Each grid point costs one pass of per-bin solves. Defaults: 8 decades, 4 per decade. kLcurve and
+  // kUpre search the same grid (and refine the same way).
   double gcv_decades = 8.0;
   int gcv_steps_per_decade = 4;
-  // σ: noise standard deviation of a pixel of weight 1, in frame units; >= 0, and > 0 for kDiscrepancy
-  // and compute_std. Not used otherwise.
+  // σ: noise standard deviation of a pixel of weight 1, in frame units; >= 0, and > 0 for kDiscrepancy, kUpre
+  // and compute_std. kWiener and kFitted use it when > 0 (else the fitted noise floor). Not used otherwise.
   double noise_sigma = 0.0;
   // kDiscrepancy: τ in [0.1, 10] (target residual τσ²n_w); the root is accepted when the weighted residual
   // is within discrepancy_tolerance (relative, in (0, 0.1]) of the target, after at most
@@ -224,6 +260,13 @@ struct TikhonovSummary : SolverSummary {
   Shape solved_hr_shape;                // the HR grid x was solved on (the padded grid for kZeroPadded)
   bool std_computed = false;            // the posterior std map is in the result
   double mean_posterior_variance = 0.0; // tr C / M² (expected squared error per HR pixel), if computed
+  double lcurve_curvature = 0.0;        // κ at λ (0 unless kLcurve)
+  double upre = 0.0;                    // U(λ) / n, the predictive risk per pixel estimate (0 unless kUpre)
+  // kFitted: the spectrum fitted to the frames (s(f), floor 0, (frame units per HR pixel)²) and the white noise
+  // variance per LR pixel of the frames as given (fitted, or σ²·mean(1/w)); spectrum_fitted says they are set.
+  bool spectrum_fitted = false;
+  PowerSpectrumModel fitted_spectrum;
+  double fitted_noise_variance = 0.0;
 };
 
 struct TikhonovResult {
@@ -233,7 +276,8 @@ struct TikhonovResult {
 };
 
 // The regulariser Γ as an operator on an HR grid (for iterative solvers and tests); ΓᵀΓ has the symbol
-// below. The enum-only overloads use the default spectrum parameters for kPowerSpectrum.
+// below. The enum-only overloads use the default spectrum parameters for kPowerSpectrum. kFitted, whose spectrum
+// ReconstructTikhonov fits to the frames, is here the parametric kPowerSpectrum form of the options' fields.
 OperatorPtr TikhonovPriorOperator(Shape hr, const TikhonovOptions& options);
 OperatorPtr TikhonovPriorOperator(Shape hr, TikhonovPrior prior);
 // |Γ̂(f)|² at full-spectrum HR bin (fy, fx) of grid hr.
