@@ -11,7 +11,8 @@ Bindings of the C++ library (not of the CLI): every function here makes the libr
 Arrays are (rows, cols) = (y, x) float64; stacks are (N, rows, cols). Results the library computes are
 handed over without copies (the array's ``.base`` keeps the C++ object alive); inputs are copied once into
 the library's images (a plain memcpy for C-contiguous float64 arrays). Long calls release the GIL; Ctrl-C
-stops tv/map after the current iteration and raises KeyboardInterrupt. Errors are ``aosr.Error``
+stops tv/map after the current iteration and raises KeyboardInterrupt. aosr uses every hardware thread
+(as the CLI; ``set_threads`` changes it; results are the same bytes for any count). Errors are ``aosr.Error``
 subclasses that are also the builtin you would catch: ``InvalidArgument`` (ValueError), ``IoError``
 (OSError), ``ResourceError`` (MemoryError), ``NumericalError`` (ArithmeticError).
 
@@ -35,6 +36,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     __version__,
     calibrate,
     compare_images,
+    design,
     evaluate,
     methods,
     open_dataset,
@@ -52,9 +54,6 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     threads,
     write_fits,
 )
-
-if hasattr(_aosr, "design"):
-    from ._aosr import design  # noqa: F401
 
 __all__ = [
     "CalibrationSet", "Dataset", "Error", "InvalidArgument", "IoError", "NumericalError", "Reconstruction",

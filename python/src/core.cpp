@@ -1,5 +1,6 @@
 // Bindings of the core layer: the error types, execution settings (threads, FFT planner, memory limit) and
 // the image metrics.
+#include <algorithm>
 #include <thread>
 
 #include "aosr/core/error.hpp"
@@ -72,6 +73,8 @@ void BindCore(py::module_& m) {
     }
   });
 
+  // As the CLI without --threads: every hardware thread (results do not depend on the count).
+  SetDefaultThreads(std::min(int(std::max(1u, std::thread::hardware_concurrency())), 256));
   m.attr("__version__") = AOSR_VERSION;
   m.attr("_data_dir") = AOSR_SOURCE_DATA_DIR;
 

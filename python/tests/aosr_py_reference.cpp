@@ -10,8 +10,10 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <thread>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
@@ -37,6 +39,8 @@ int main(int argc, char** argv) {
     o.linear.noise_sigma = 1.0;
     o.drizzle.compute_context = false;
     if (iterations > 0) o.tv.max_iterations = o.map.max_iterations = iterations;
+    // As the CLI and `import aosr`: every hardware thread.
+    SetDefaultThreads(std::min(int(std::max(1u, std::thread::hardware_concurrency())), 256));
     const Dataset d = LoadDataset(argv[2]);
     Reconstruction rec;
     double best = 1e300;
