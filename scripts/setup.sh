@@ -10,7 +10,9 @@ packages=(cmake g++ make pkg-config
           nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev
           # OpenImageIO's CMake config names its command-line tools as imported targets and fails
           # when they are absent, which --no-install-recommends leaves them.
-          openimageio-tools)
+          openimageio-tools
+          # the WCS check of tests/cli/wcs_astropy_check.py reads aosr's FITS files with astropy (wcslib)
+          python3-astropy python3-numpy)
 # The Python package (python/, `import aosr`): pybind11 bindings built for Debian's /usr/bin/python3, numpy and
 # astropy for users and tests, Dask's distributed scheduler for aosr.distributed, pytest for the python tests.
 packages+=(pybind11-dev python3-dev python3-numpy python3-astropy python3-dask python3-distributed python3-pytest)

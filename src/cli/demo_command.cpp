@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -11,6 +12,7 @@
 #include "aosr/core/metrics.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/io/image_io.hpp"
+#include "aosr/io/wcs.hpp"
 #include "aosr/scene/demo.hpp"
 #include "aosr/solvers/shift_and_add.hpp"
 #include "aosr/solvers/tikhonov.hpp"
@@ -37,7 +39,15 @@ struct MethodResult {
   std::string note;
 };
 
-FitsHeader SceneHeader(const DemoScene& s, const std::string& what) {
+// Sky coordinates of the demo's HR grid (the truth's): a placeholder pointing, RA = Dec = 0 at the grid's
+// centre, north up, HR pixel pitch (io/wcs.hpp); the frames carry frame 0's camera WCS derived from it.
+Wcs DemoHrWcs(const DemoScene& s) {
+  const PixelCoord centre{(s.truth.rows() - 1) / 2.0, (s.truth.cols() - 1) / 2.0};
+  return TangentPlaneWcs(0.0, 0.0, s.hr_pixel_rad, 0.0, centre);
+}
+
+// `wcs`: the file's sky coordinates, none for the PSF kernels.
+FitsHeader SceneHeader(const DemoScene& s, const std::string& what, const std::optional<Wcs>& wcs = std::nullopt) {
   FitsHeader h;
   h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
   h.Set("AOSRDATA", what, "content of this HDU");
@@ -49,13 +59,18 @@ FitsHeader SceneHeader(const DemoScene& s, const std::string& what) {
   h.Set("LRPIXRAD", s.hr_pixel_rad * s.options.r, "[rad] camera pixel angular pitch");
   h.Set("NOISESIG", s.noise_sigma, "Gaussian noise sigma per camera pixel");
   h.Set("SEED", static_cast<long long>(s.options.seed), "noise seed");
+  // Sky images only (not the PSF kernels): the WCS, and BUNIT saying that the demo's flux (per HR pixel for
+  // the truth and estimates, per camera pixel for the frames) has no physical unit (truth values in [0.05, 1]).
+  if (wcs) SetImageKeywords(wcs, "arbitrary", &h);
   return h;
 }
 
 void WriteOutputs(const std::string& dir, const DemoScene& s, const std::vector<MethodResult>& results) {
   EnsureDirectory(dir);
-  WriteFits(JoinPath(dir, "truth.fits"), s.truth, SceneHeader(s, "truth"));
-  FitsHeader fh = SceneHeader(s, "frames");
+  const Wcs hr_wcs = DemoHrWcs(s);
+  const FrameOffset first = s.offsets.empty() ? FrameOffset{} : s.offsets.front();
+  WriteFits(JoinPath(dir, "truth.fits"), s.truth, SceneHeader(s, "truth", hr_wcs));
+  FitsHeader fh = SceneHeader(s, "frames", LrWcs(hr_wcs, s.options.r, first.dy, first.dx));
   for (std::size_t i = 0; i < s.offsets.size(); ++i) {
     fh.Set("DY" + std::to_string(i), s.offsets[i].dy, "[HR px] pointing offset of frame " + std::to_string(i));
     fh.Set("DX" + std::to_string(i), s.offsets[i].dx, "[HR px] pointing offset of frame " + std::to_string(i));
@@ -64,7 +79,7 @@ void WriteOutputs(const std::string& dir, const DemoScene& s, const std::vector<
   WriteFitsCube(JoinPath(dir, "psfs.fits"), s.psfs, SceneHeader(s, "psfs"), FitsType::kFloat64);
   std::vector<Image> tiles = {s.truth};
   for (const MethodResult& r : results) {
-    WriteFits(JoinPath(dir, r.method + ".fits"), r.estimate, SceneHeader(s, r.method));
+    WriteFits(JoinPath(dir, r.method + ".fits"), r.estimate, SceneHeader(s, r.method, hr_wcs));
     tiles.push_back(r.estimate);
   }
   // Montage: truth, then each reconstruction, all on the truth's display range.

@@ -129,18 +129,21 @@ void RunReconstruct(const ReconstructArgs& a) {
   h.Set("METHOD", std::string(ToString(o.method)), "reconstruction method");
   h.Set("SRFACTOR", static_cast<long long>(d.r), "super-resolution factor r");
   h.Set("NFRAMES", static_cast<long long>(d.size()), "number of sub-exposures N");
-  h.Set("BUNIT", "electron", "per HR pixel per frame");
   h.Set("REGUL", rec.regularisation, "lambda (tikhonov, map) or mu (tv); 0 for baselines");
   h.Set("TERMINAT", std::string(ToString(rec.summary.termination)), "solver termination");
   h.Set("NITER", static_cast<long long>(rec.summary.iterations), "iterations");
   if (d.camera_pixel_rad > 0) h.Set("HRPIXRAD", d.camera_pixel_rad / d.r, "[rad] HR pixel angular pitch");
+  const FitsHeader common = h;  // the aux map sets its own unit
+  SetHrImageKeywords(d, "electron", &h);  // BUNIT (e- per HR pixel per frame) and the HR grid's WCS
   progress.Step("writing " + a.out);
   WriteFits(a.out, rec.image, h, FitsType::kFloat32);
   std::string aux_path;
   if (!rec.aux_name.empty()) {
     aux_path = AuxPath(a.out, rec.aux_name == "weight" ? "weight" : "std");
-    FitsHeader ha = h;
+    FitsHeader ha = common;
     ha.Set("AOSRDATA", rec.aux_name, "content of this HDU");
+    // std: electrons, as the image; Drizzle's weight: summed input weights, no unit of its own.
+    SetHrImageKeywords(d, rec.aux_name == "weight" ? "" : "electron", &ha);
     WriteFits(aux_path, rec.aux, ha, FitsType::kFloat32);
   }
 

@@ -55,9 +55,10 @@ const char* NoiseModelName(const DetectorOptions& d) {
   return d.enable_photon_noise || d.enable_read_noise ? "physical" : "none";
 }
 
-// The keywords every file of a simulation carries; `hr` selects the HR pixel scale (truth, PSFs).
+// The keywords every file of a simulation carries; `hr` selects the HR pixel scale (truth, PSFs); `wcs` is
+// the file's sky coordinates (none for the PSFs).
 FitsHeader SimulationHeader(const SceneSpec& scene, const SceneGeometry& g, const std::string& what,
-                            const std::string& bunit, bool hr) {
+                            const std::string& bunit, bool hr, const std::optional<Wcs>& wcs = std::nullopt) {
   FitsHeader h;
   h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
   h.Set("AOSRDATA", what, "content of this HDU (see manifest.json)");
@@ -71,8 +72,22 @@ FitsHeader SimulationHeader(const SceneSpec& scene, const SceneGeometry& g, cons
   h.Set("PIXSCALE", (hr ? g.hr_pixel_rad : g.camera_pixel_rad) / kRadPerMas,
         hr ? "[mas] HR pixel pitch (camera pixel / r)" : "[mas] camera pixel pitch");
   h.Set("WAVELEN", g.wavelength_m, "[m] science wavelength");
+  if (wcs) {
+    WriteWcs(*wcs, &h);
+    h.Set("SKYGIVEN", scene.sky.given, "F: the scene gave no sky pointing (placeholder RA, Dec)");
+  }
   return h;
 }
+
+// The truth's (HR grid's) WCS: the scene's pointing at the centre of the HR grid, HR pixel pitch.
+Wcs SimulationHrWcs(const SceneSpec& scene, const SceneGeometry& g) {
+  const PixelCoord centre{(g.hr_frame.rows - 1) / 2.0, (g.hr_frame.cols - 1) / 2.0};
+  return TangentPlaneWcs(scene.sky.ra_deg, scene.sky.dec_deg, g.hr_pixel_rad, scene.sky.position_angle_deg, centre);
+}
+
+// Frame i's image displacement from the HR grid, HR pixels (+x: toward larger column), from its DM shift.
+double ShiftHrY(const DmOffset& o, int r) { return o.shift_y_px * r; }
+double ShiftHrX(const DmOffset& o, int r) { return o.shift_x_px * r; }
 
 OrderedJson Ordered(const nlohmann::json& j) { return OrderedJson::parse(j.dump()); }
 
@@ -346,25 +361,41 @@ void WriteSimulation(const std::string& dir, const SceneSpec& scene, const Scene
     throw IoError(manifest, "cannot remove the previous manifest: " + ec.message());
 
   const SceneGeometry& g = sim.geometry;
+  const Wcs hr_wcs = SimulationHrWcs(scene, g);
+  const DmOffset first = scene.offsets.frames.empty() ? DmOffset{} : scene.offsets.frames.front();
+  const Wcs lr_wcs = LrWcs(hr_wcs, g.r, ShiftHrY(first, g.r), ShiftHrX(first, g.r));
   ImageStack adu, valid, weights;
   for (const DetectorFrame& f : sim.frames) {
     adu.push_back(f.adu);
     valid.push_back(f.valid);
     weights.push_back(f.inverse_variance);
   }
-  WriteFitsCube(Join(dir, kFramesFile), adu, SimulationHeader(scene, g, "frames", "adu", false), FitsType::kFloat64);
-  WriteFitsCube(Join(dir, kValidFile), valid, SimulationHeader(scene, g, "valid: 1 usable, 0 bad or saturated", "", false));
-  WriteFitsCube(Join(dir, kWeightsFile), weights, SimulationHeader(scene, g, "inverse variance", "adu-2", false),
+  WriteFitsCube(Join(dir, kFramesFile), adu, SimulationHeader(scene, g, "frames", "adu", false, lr_wcs),
                 FitsType::kFloat64);
-  WriteFits(Join(dir, kTruthFile), sim.truth, SimulationHeader(scene, g, "truth", "electron", true), FitsType::kFloat64);
+  WriteFitsCube(Join(dir, kValidFile), valid,
+                SimulationHeader(scene, g, "valid: 1 usable, 0 bad or saturated", "", false, lr_wcs));
+  WriteFitsCube(Join(dir, kWeightsFile), weights, SimulationHeader(scene, g, "inverse variance", "adu-2", false, lr_wcs),
+                FitsType::kFloat64);
+  WriteFits(Join(dir, kTruthFile), sim.truth, SimulationHeader(scene, g, "truth", "electron", true, hr_wcs),
+            FitsType::kFloat64);
   FitsHeader psf = SimulationHeader(scene, g, "psfs: unit sum, HR sampling", "", true);
   WriteFitsCube(Join(dir, kPsfsFile), sim.psfs, psf, FitsType::kFloat64);
   if (!sim.nominal_psfs.empty())
     WriteFitsCube(Join(dir, kNominalPsfsFile), sim.nominal_psfs,
                   SimulationHeader(scene, g, "nominal psfs (analytic AO): unit sum, HR sampling", "", true), FitsType::kFloat64);
-  WriteFitsCube(Join(dir, kExpectedFile), sim.expected_e, SimulationHeader(scene, g, "noiseless frames", "electron", false),
-                FitsType::kFloat64);
+  WriteFitsCube(Join(dir, kExpectedFile), sim.expected_e,
+                SimulationHeader(scene, g, "noiseless frames", "electron", false, lr_wcs), FitsType::kFloat64);
   WriteJsonAtomically(manifest, BuildManifest(scene, pipeline, sim, scene_json));
+}
+
+std::optional<Wcs> Dataset::HrWcs() const {
+  if (!wcs) return std::nullopt;
+  const DmOffset first = offsets.empty() ? DmOffset{} : offsets.front();
+  return aosr::HrWcs(*wcs, r, ShiftHrY(first, r), ShiftHrX(first, r));
+}
+
+void SetHrImageKeywords(const Dataset& dataset, const std::string& bunit, FitsHeader* header) {
+  SetImageKeywords(dataset.HrWcs(), bunit, header);
 }
 
 ImageStack Dataset::FramesElectrons() const {
@@ -451,10 +482,51 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
     p.PositiveOr("hr_lambda_over_d", 1.0);
     p.CheckNoOtherFields();
   }
+  // The manifest's WCS: FITS keywords, read by the same rules as a header (io/wcs.hpp); null: none.
+  const bool wcs_in_manifest = ds.manifest.contains("wcs");
+  if (wcs_in_manifest) {
+    const nlohmann::json& w = ds.manifest.at("wcs");
+    if (w.is_null()) {
+      root.StringOr("wcs", "");  // marks the field read: null is a valid value (no WCS)
+    } else {
+      if (!w.is_object()) root.Fail("wcs", w.dump(), "an object of FITS WCS keywords, or null");
+      root.Child("wcs");
+      FitsHeader h;
+      for (const auto& [key, value] : w.items()) {
+        if (key.rfind("comment", 0) == 0) continue;
+        try {
+          if (value.is_boolean()) h.Set(key, value.get<bool>());
+          else if (value.is_number_integer()) h.Set(key, value.get<long long>());
+          else if (value.is_number()) h.Set(key, value.get<double>());
+          else if (value.is_string()) h.Set(key, value.get<std::string>());
+          else root.Fail("wcs." + key, value.dump(), "a number, string or logical (a FITS keyword value)");
+        } catch (const InvalidArgument& e) {
+          if (std::string(e.what()).rfind("FitsHeader::Set", 0) != 0) throw;
+          root.Fail("wcs." + key, value.dump(), std::string("a valid FITS keyword (") + e.what() + ")");
+        }
+      }
+      try {
+        ds.wcs = WcsFromHeader(h);
+      } catch (const InvalidArgument& e) {
+        throw InvalidArgument(ds.manifest_path + ": wcs: " + e.what());
+      }
+    }
+  }
   root.CheckNoOtherFields();
 
   // ---- The frames and the PSFs. --------------------------------------------------------------------------
-  ds.frames = ReadFits(frames_path).planes;
+  {
+    FitsData frames = ReadFits(frames_path);
+    ds.frames = std::move(frames.planes);
+    if (!wcs_in_manifest && HasWcs(frames.header)) {
+      try {
+        ds.wcs = WcsFromHeader(frames.header);
+      } catch (const InvalidArgument& e) {
+        throw InvalidArgument(frames_path + " (frames of " + ds.manifest_path + "): " + e.what() +
+                              " (a manifest \"wcs\" section replaces it, null ignores it)");
+      }
+    }
+  }
   ds.frame = ShapeOf(ds.frames.front());
   ds.hr_frame = {ds.frame.rows * ds.r, ds.frame.cols * ds.r};
   const std::size_t n = ds.frames.size();

@@ -491,6 +491,16 @@ SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
     for (const DmOffset::Term& t : s.offsets.frames[i].zernike)
       if (t.noll < 2) root.Fail("offsets.frames[" + std::to_string(i) + "].zernike", "noll 1", "Noll indices >= 2");
 
+  if (root.Has("sky")) {
+    const ConfigNode k = root.Child("sky");
+    s.sky.ra_deg = k.Number("ra_deg", 0.0, 360.0);
+    if (s.sky.ra_deg == 360.0) s.sky.ra_deg = 0.0;
+    s.sky.dec_deg = k.Number("dec_deg", -90.0, 90.0);
+    s.sky.position_angle_deg = k.NumberOr("position_angle_deg", 0.0, -360.0, 360.0);
+    s.sky.given = true;
+    k.CheckNoOtherFields();
+  }
+
   bool needs_magnitudes = false;
   const std::vector<ConfigNode> objects = root.Array("objects");
   if (objects.empty()) root.Fail("objects", "[]", "at least one object");

@@ -44,6 +44,32 @@ class DatasetErrorsTest : public ::testing::Test {
 TempDir* DatasetErrorsTest::dir_ = nullptr;
 nlohmann::json* DatasetErrorsTest::manifest_ = nullptr;
 
+TEST_F(DatasetErrorsTest, BadWcsNamesTheManifestAndTheKeyword) {
+  nlohmann::json m = *manifest_;
+  m["wcs"] = {{"CTYPE1", "RA---SIN"}, {"CTYPE2", "DEC--SIN"}, {"CRPIX1", 1.0}, {"CRPIX2", 1.0},
+              {"CRVAL1", 0.0},        {"CRVAL2", 0.0},        {"CDELT1", -1e-5}, {"CDELT2", 1e-5}};
+  EXPECT_THAT(LoadError(m), AllOf(HasSubstr("broken.json: wcs: WcsFromHeader: invalid CTYPE1 = 'RA---SIN'"),
+                                  HasSubstr("only the gnomonic TAN projection is supported")));
+  m["wcs"] = {{"CTYPE1", "RA---TAN"}, {"CTYPE2", "DEC--TAN"}, {"CRPIX1", 1.0}, {"CRPIX2", 1.0},
+              {"CRVAL1", 0.0},        {"CRVAL2", 0.0},        {"CD1_1", -1e-5}, {"CD2_2", 1e-5}, {"A_ORDER", 2}};
+  EXPECT_THAT(LoadError(m), HasSubstr("A_ORDER = (present); allowed: no SIP distortion"));
+  m["wcs"] = "RA---TAN";
+  EXPECT_THAT(LoadError(m), HasSubstr("broken.json: wcs = \"RA---TAN\"; allowed: an object of FITS WCS keywords"));
+  m["wcs"] = {{"NAXIS", 2}};
+  EXPECT_THAT(LoadError(m), HasSubstr("wcs.NAXIS"));
+  // A frames file whose own header WCS is unsupported: the file, the keyword, and the way out.
+  FitsData frames = ReadFits(dir_->File("sim/frames.fits"));
+  frames.header.Set("CTYPE1", "RA---TAN-SIP");
+  WriteFitsCube(dir_->File("sim/sip_frames.fits"), frames.planes, frames.header, FitsType::kFloat64);
+  m = *manifest_;
+  m["frames"] = "sip_frames.fits";
+  EXPECT_THAT(LoadError(m), AllOf(HasSubstr("sip_frames.fits (frames of"), HasSubstr("-SIP is not supported"),
+                                  HasSubstr("\"wcs\" section replaces it")));
+  m["wcs"] = nullptr;
+  test::WriteJson(dir_->File("sim/broken.json"), m);
+  EXPECT_FALSE(LoadDataset(dir_->File("sim/broken.json")).wcs);
+}
+
 TEST_F(DatasetErrorsTest, MissingManifestOrFile) {
   TempDir empty;
   EXPECT_THAT(ErrorOf<IoError>([&] { LoadDataset(empty.path().string()); }),

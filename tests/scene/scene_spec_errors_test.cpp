@@ -49,6 +49,22 @@ TEST(SceneSpecErrorsTest, BaseSceneIsValid) {
   EXPECT_EQ(ParseError(BaseScene()), "no exception");
 }
 
+TEST(SceneSpecErrorsTest, SkyPointingIsCheckedFieldByField) {
+  Json j = BaseScene();
+  j["sky"] = {{"ra_deg", 10.0}, {"dec_deg", 95.0}};
+  EXPECT_THAT(ParseError(j), HasSubstr("mem.json: sky.dec_deg = 95"));
+  j["sky"] = {{"ra_deg", -1.0}, {"dec_deg", 5.0}};
+  EXPECT_THAT(ParseError(j), HasSubstr("sky.ra_deg = -1"));
+  j["sky"] = {{"dec_deg", 5.0}};
+  EXPECT_THAT(ParseError(j), HasSubstr("sky.ra_deg"));
+  j["sky"] = {{"ra_deg", 1.0}, {"dec_deg", 5.0}, {"pa_deg", 3.0}};
+  EXPECT_THAT(ParseError(j), HasSubstr("sky.pa_deg = (unknown field)"));
+  j["sky"] = {{"ra_deg", 1.0}, {"dec_deg", 5.0}, {"position_angle_deg", 30.0}};
+  EXPECT_EQ(ParseError(j), "no exception");
+  EXPECT_TRUE(ParseScene(j, "mem.json").sky.given);
+  EXPECT_FALSE(ParseScene(BaseScene(), "mem.json").sky.given);
+}
+
 TEST(SceneSpecErrorsTest, UnknownFieldAtTopLevelNamesItAndTheCommentRule) {
   Json j = BaseScene();
   j["colour"] = "red";

@@ -49,6 +49,12 @@
 //                                               required in the section, hr_rad and the mas values are checked
 //                                               against it and r, the λ/D values are informational
 //   wavelength_m           no                   science wavelength, m
+//   wcs                    no                   the sky coordinates of frame 0 (io/wcs.hpp) as FITS keywords, e.g.
+//                                               {"CTYPE1": "RA---TAN", "CTYPE2": "DEC--TAN", "CRPIX1": 32.5,
+//                                               "CRPIX2": 32.5, "CRVAL1": 150.1, "CRVAL2": 2.2, "CD1_1": -1e-5,
+//                                               "CD1_2": 0, "CD2_1": 0, "CD2_2": 1e-5} (or PCi_j + CDELTi, or
+//                                               CDELTi with CROTA2); it replaces the frames file's own WCS; null:
+//                                               none. Absent: the frames file's header WCS, when it has one
 //   software, noise,       no                   provenance written by WriteSimulation (the software version; the
 //   simulation                                  detector model; the scene as read, seeds, the compiled plan,
 //                                               per-exposure Strehl and PSF window fraction, stage timings); not
@@ -68,7 +74,10 @@
 //   psfs.fits      N × K × K, unit sum, HR sampling        expected.fits N × rows × cols, noiseless e⁻
 //   manifest.json  the above, all of it referenced by name
 // Each FITS header carries ORIGIN, the scene name, r, gain, bias, BUNIT, the frame time and the pixel scale
-// of its own sampling (camera or HR), in mas.
+// of its own sampling (camera or HR), in mas. Sky coordinates (io/wcs.hpp, the scene's "sky" pointing): the
+// truth carries the HR grid's TAN WCS with the sky position at its centre; frames, valid, weights and expected
+// carry frame 0's camera WCS, LrWcs of the truth's with frame 0's image shift (the other frames are displaced
+// by their own shifts); the PSFs, kernels rather than sky images, carry none.
 //
 // Every file is written atomically (io/atomic_file.hpp). An existing manifest.json in the folder is removed
 // before anything else is written and the new one is written last, so a folder whose writing was interrupted
@@ -82,6 +91,7 @@
 #include <vector>
 
 #include "aosr/core/image.hpp"
+#include "aosr/io/wcs.hpp"
 #include "aosr/scene/objects.hpp"
 #include "aosr/scene/pipeline.hpp"
 #include "aosr/scene/scene_spec.hpp"
@@ -138,6 +148,14 @@ struct Dataset {
   double camera_pixel_rad = 0.0;
   double wavelength_m = 0.0;
 
+  // Sky coordinates of frame 0's camera pixels (the manifest's "wcs", else the frames file's header), when
+  // known. Frame i's image is displaced from the HR (object) grid by its DM shift, offsets[i].shift_px.
+  std::optional<Wcs> wcs;
+  // The WCS of the HR grid every reconstructor estimates x on (the truth's grid): HrWcs(wcs, r, d0) with d0
+  // frame 0's commanded image shift in HR pixels (offsets[0].shift_px · r; tilt given as Zernike terms is
+  // not counted, as in the registration offsets of solvers/dataset_problem.hpp). Empty without a wcs.
+  std::optional<Wcs> HrWcs() const;
+
   int size() const { return int(frames.size()); }
   Index psf_size() const { return psfs.empty() ? 0 : psfs.front().rows(); }
   // The frames in electrons: (ADU − bias) · gain.
@@ -150,5 +168,10 @@ struct Dataset {
 // <rule>" for everything else, including a file the manifest names that does not exist (the value shows the
 // resolved path). With "scene", the scene's own errors name the scene file.
 Dataset LoadDataset(const std::string& manifest_or_dir);
+
+// What every image on a dataset's HR grid written to FITS carries (reconstructions and their maps): the
+// dataset's HR WCS when it has one (Dataset::HrWcs) and BUNIT = `bunit` when not empty. The one place the
+// commands take it from.
+void SetHrImageKeywords(const Dataset& dataset, const std::string& bunit, FitsHeader* header);
 
 }  // namespace aosr

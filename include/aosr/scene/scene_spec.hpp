@@ -126,6 +126,18 @@ struct PhotometrySpec {
   std::optional<double> zero_point_mag;
 };
 
+// Where the scene is on the sky: the tangent-plane WCS (io/wcs.hpp) of the simulated files. The sky position
+// (ra_deg, dec_deg) is that of the frame's centre on the undithered grid (the truth's centre: aosr pixel
+// ((rows − 1)/2, (cols − 1)/2) of the camera grid); the image's +y axis points to position_angle_deg east of
+// north (0: north up, east to the left, as the sky is seen). The default, (0°, 0°) ICRS with north up, is a
+// placeholder that gives viewers the right scale and orientation; `given` says whether the scene set it.
+struct SkySpec {
+  double ra_deg = 0.0;               // [0, 360)
+  double dec_deg = 0.0;              // [−90, 90]
+  double position_angle_deg = 0.0;   // [−360, 360]
+  bool given = false;
+};
+
 struct SceneSpec {
   std::string name;
   std::string source;  // the scene file ("<string>" when parsed from memory)
@@ -140,6 +152,7 @@ struct SceneSpec {
   AoSpec ao;
   std::vector<DmOffset::Term> static_aberrations;  // w_static (science path only)
   OffsetsSpec offsets;
+  SkySpec sky;
   PhotometrySpec photometry;
 
   DetectorOptions detector;        // exposure_time_s = total exposure / N (the frame time)
