@@ -89,7 +89,8 @@ struct TargetPsfOptions {
   double noise_sigma = 1.0;
   // Compute the noise map, its correlation kernel and the noise RMS.
   bool compute_noise = true;
-  // Weighted/masked path: noise probes (>= 2), their seed, and the PCG of every solve.
+  // Weighted/masked path: noise probes (>= 2), their seed, and the PCG of the data solve (the probes stop at a
+  // relative residual of max(cg.tolerance, 1e-6): their sampling error is far larger).
   int noise_probes = 32;
   std::uint64_t seed = 1;
   ConjugateGradientOptions cg = {1000, 1e-9};
