@@ -118,15 +118,18 @@ def _reconstruct_task(task):
     dataset = task["dataset"]
     ds = dataset if isinstance(dataset, aosr.Dataset) else aosr.open_dataset(dataset)
     rec = aosr.reconstruct(ds, task["method"], **task["options"])
+    # The keywords `aosr reconstruct` writes (with the HR grid's WCS and BUNIT from the dataset).
     header = {
         "ORIGIN": f"aosr {aosr.__version__}",
         "AOSRDATA": "reconstruction",
         "METHOD": task["method"],
-        "BUNIT": "electron",
+        "SRFACTOR": ds.r,
+        "NFRAMES": len(ds),
         "REGUL": rec.regularisation,
         "TERMINAT": rec.summary["termination"],
         "NITER": rec.summary["iterations"],
     }
+    header.update(ds.hr_header("electron"))
     output = task["output"]
     aosr.write_fits(output, rec.image, header, dtype=task["dtype"])
     record = {
@@ -145,7 +148,9 @@ def _reconstruct_task(task):
     if rec.aux is not None:
         stem, ext = os.path.splitext(output)
         aux = f"{stem}_{'weight' if rec.aux_name == 'weight' else 'std'}{ext}"
-        aosr.write_fits(aux, rec.aux, dict(header, AOSRDATA=rec.aux_name), dtype=task["dtype"])
+        aux_header = dict(header, AOSRDATA=rec.aux_name)
+        aux_header.update(ds.hr_header("" if rec.aux_name == "weight" else "electron"))
+        aosr.write_fits(aux, rec.aux, aux_header, dtype=task["dtype"])
         record["aux"] = {"name": rec.aux_name, "path": aux}
     if task["evaluate"]:
         if ds.truth is not None:

@@ -7,6 +7,7 @@
 #include "aosr/core/error.hpp"
 #include "aosr/core/metrics.hpp"
 #include "aosr/io/config.hpp"
+#include "aosr/io/wcs.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/scene/dataset_memory.hpp"
 #include "aosr/scene/pipeline.hpp"
@@ -256,6 +257,18 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
       .def_property_readonly("manifest_path", [](const PyDataset& d) { return d.dataset->manifest_path; },
                              "the manifest read ('' for datasets made in memory)")
       .def_property_readonly("manifest", [](const PyDataset& d) { return FromJson(d.dataset->manifest); })
+      .def(
+          "hr_header",
+          [](const PyDataset& d, const std::string& bunit) {
+            FitsHeader h;
+            SetHrImageKeywords(*d.dataset, bunit, &h);
+            return HeaderToDict(h);
+          },
+          py::arg("bunit") = "electron",
+          "FITS keywords of an HR image of this dataset (a reconstruction): the HR grid's WCS when the dataset has\n"
+          "sky coordinates, and BUNIT; a dict astropy.io.fits.Header accepts (what `aosr reconstruct` writes).")
+      .def_property_readonly("has_wcs", [](const PyDataset& d) { return d.dataset->wcs.has_value(); },
+                             "whether the dataset carries sky coordinates (frame 0's WCS)")
       .def("frames_electrons", [](const PyDataset& d) { return StackToArray(d.dataset->FramesElectrons()); },
            "(N, rows, cols) frames in electrons: (ADU - bias) * gain (a new array)")
       .def("__repr__", [](const PyDataset& d) {
@@ -289,6 +302,9 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
             s["manifest_path"] = d.manifest_path;
             s["manifest"] = FromJson(d.manifest);
             s["expected_file"] = d.expected_file;
+            FitsHeader wcs;
+            if (d.wcs) WriteWcs(*d.wcs, &wcs);
+            s["wcs"] = d.wcs ? py::object(HeaderToDict(wcs)) : py::none();
             return s;
           },
           [](py::dict s) {
@@ -330,6 +346,7 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
             d.manifest_path = s["manifest_path"].cast<std::string>();
             d.manifest = ToJson(s["manifest"]);
             d.expected_file = s["expected_file"].cast<std::string>();
+            if (s.contains("wcs") && !s["wcs"].is_none()) d.wcs = WcsFromHeader(HeaderFromDict(s["wcs"], py::none()));
             PyDataset p;
             p.dataset = std::make_shared<const Dataset>(std::move(d));
             return p;

@@ -147,9 +147,10 @@ def test_a_worker_killed_mid_run_loses_nothing(batch, serial, fresh_cluster, tmp
     assert not list(out.glob("*.tmp-*"))                  # no temporary left, no partial file
 
 
-def test_local_cluster_default(batch, serial, tmp_path):
+def test_local_cluster_default(batch, serial, tmp_path, capsys):
     out = tmp_path / "local"
-    records = ad.reconstruct_many(batch[:2], out, "tv", dtype="float64", n_workers=2, **OPTIONS)
+    records = ad.reconstruct_many(batch[:2], out, "tv", dtype="float64", n_workers=2, progress=True, **OPTIONS)
+    assert "100%" in capsys.readouterr().out   # dask.distributed.progress's text bar
     _same_outputs_subset = [(a, b) for a, b in zip(serial[1][:2], records)]
     for a, b in _same_outputs_subset:
         assert a["image_sha256"] == b["image_sha256"]

@@ -25,6 +25,8 @@ def test_simulate_matches_the_cli_files(demo_scene_path, demo_dir):
     assert ds.offsets == on_disk.offsets
     assert (ds.r, ds.gain, ds.bias, ds.trustworthy_border_px) == (on_disk.r, on_disk.gain, on_disk.bias,
                                                                    on_disk.trustworthy_border_px)
+    assert ds.has_wcs and on_disk.has_wcs and ds.hr_header() == on_disk.hr_header()
+    assert "CD1_1" in ds.hr_header() and ds.hr_header()["BUNIT"] == "electron"
     # In memory and on disk reconstruct to the same bits.
     for method in ("drizzle", "tikhonov"):
         assert bits_equal(aosr.reconstruct(ds, method).image, aosr.reconstruct(on_disk, method).image)
@@ -67,6 +69,7 @@ def test_dataset_from_arrays_and_pickle(demo_dir):
     assert len(mine) == 4 and mine.psfs.shape == (4,) + ds.psfs.shape[1:]
     assert abs(mine.psfs.sum(axis=(1, 2)) - 1).max() < 1e-12
     back = pickle.loads(pickle.dumps(ds))
+    assert back.hr_header() == ds.hr_header()
     for name in ("frames", "valid", "weights", "psfs", "truth"):
         assert bits_equal(getattr(back, name), getattr(ds, name))
     assert bits_equal(aosr.reconstruct(back, "tv", iterations=5).image, aosr.reconstruct(ds, "tv", iterations=5).image)

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "aosr/core/error.hpp"
+#include "aosr/io/wcs.hpp"
 
 namespace aosr {
 namespace {
@@ -75,6 +76,12 @@ Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim) {
   ds.trustworthy_border_px = g.trustworthy_border_px;
   ds.camera_pixel_rad = g.camera_pixel_rad;
   ds.wavelength_m = g.wavelength_m;
+  // Frame 0's camera WCS, as WriteSimulation writes it into the frames' header (dataset.cpp): the scene's
+  // pointing at the HR grid's centre, then the camera grid of frame 0 with its DM image shift.
+  const PixelCoord centre{(g.hr_frame.rows - 1) / 2.0, (g.hr_frame.cols - 1) / 2.0};
+  const Wcs hr = TangentPlaneWcs(scene.sky.ra_deg, scene.sky.dec_deg, g.hr_pixel_rad, scene.sky.position_angle_deg, centre);
+  const DmOffset& first = ds.offsets.front();
+  ds.wcs = LrWcs(hr, g.r, first.shift_y_px * g.r, first.shift_x_px * g.r);
   NormaliseFrames(&ds);
   return ds;
 }
@@ -144,6 +151,7 @@ Dataset DatasetFromArrays(DatasetArrays a) {
                 "a finite wavelength >= 0 (0: unknown)");
   ds.camera_pixel_rad = a.camera_pixel_rad;
   ds.wavelength_m = a.wavelength_m;
+  ds.wcs = std::move(a.wcs);
   NormaliseFrames(&ds);
   return ds;
 }

@@ -17,7 +17,8 @@
 namespace aosr {
 
 // The Dataset of `sim` (pipeline.Run() of `scene`) as LoadDataset reads what WriteSimulation(dir, scene,
-// pipeline, sim) writes. manifest_path and expected_file are empty; manifest is null.
+// pipeline, sim) writes, its sky coordinates (frame 0's camera WCS) included. manifest_path and expected_file are
+// empty; manifest is null.
 // InvalidArgument if `sim` does not match `scene`.
 Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim);
 
@@ -37,6 +38,7 @@ struct DatasetArrays {
   Index trustworthy_border_px = -1;  // < 0: ceil(K / 2 / r), the manifest's default
   double camera_pixel_rad = 0.0;  // 0: unknown
   double wavelength_m = 0.0;      // 0: unknown
+  std::optional<Wcs> wcs;         // sky coordinates of frame 0's camera pixels (io/wcs.hpp), if known
 };
 
 // Validates and normalises `arrays` as LoadDataset does a manifest with "psfs". InvalidArgument
