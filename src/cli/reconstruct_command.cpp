@@ -12,6 +12,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/metrics.hpp"
+#include "aosr/core/operators.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
@@ -48,11 +49,39 @@ struct ReconstructArgs {
   std::string likelihood = "gaussian";
   std::string map_prior = "charbonnier-tv";
   double read_noise = 0;
+  // linear (target PSF)
+  std::string target_psf = "auto";
+  double leakage = 1e-3;
+  int noise_probes = 32;
   // Drizzle
   std::string kernel = "square";
   double pixfrac = 1.0;
   ExecutionArgs exec;
 };
+
+// --target-psf: "auto" | "gaussian:<FWHM in HR pixels>" | a FITS file holding the kernel at HR sampling.
+void ParseTargetPsf(const std::string& spec, TargetPsfOptions* o) {
+  constexpr const char* kAllowed = "auto | gaussian:<FWHM in HR px> | <kernel>.fits (HR sampling, centred)";
+  if (spec == "auto") {
+    o->kind = TargetPsfKind::kAuto;
+  } else if (spec.rfind("gaussian:", 0) == 0) {
+    o->kind = TargetPsfKind::kGaussian;
+    std::size_t used = 0;
+    const std::string v = spec.substr(9);
+    try {
+      o->fwhm_hr_px = std::stod(v, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != v.size() || !(o->fwhm_hr_px >= 0.5) || !std::isfinite(o->fwhm_hr_px))
+      throw InvalidArgument("aosr reconstruct", "--target-psf", spec, "gaussian:<FWHM >= 0.5 HR px>");
+  } else if (spec.size() > 5 && (spec.substr(spec.size() - 5) == ".fits" || spec.substr(spec.size() - 4) == ".fit")) {
+    o->kind = TargetPsfKind::kImage;
+    o->image = ReadFitsImage(spec);
+  } else {
+    throw InvalidArgument("aosr reconstruct", "--target-psf", spec, kAllowed);
+  }
+}
 
 std::string AuxPath(const std::string& out, const std::string& aux) {
   fs::path p(out);
@@ -74,11 +103,14 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (a.lambda >= 0) {
     o.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
     o.tikhonov.lambda = a.lambda;
-  } else if (a.lambda_rule == "discrepancy") {
-    // With inverse-variance weights (the default for simulated datasets) a weight-1 pixel has σ = 1.
-    o.tikhonov.lambda_rule = TikhonovLambdaRule::kDiscrepancy;
-  } else if (a.lambda_rule != "gcv") {
-    throw InvalidArgument("aosr reconstruct", "--lambda-rule", a.lambda_rule, "gcv | discrepancy");
+  } else {
+    // discrepancy and upre use --noise-sigma: with inverse-variance weights (the default for simulated
+    // datasets) a weight-1 pixel has σ = 1. wiener (with --prior fitted) too, or the fitted floor with 0.
+    if (a.lambda_rule != "gcv" && a.lambda_rule != "discrepancy" && a.lambda_rule != "lcurve" &&
+        a.lambda_rule != "upre" && a.lambda_rule != "wiener")
+      throw InvalidArgument("aosr reconstruct", "--lambda-rule", a.lambda_rule,
+                            "gcv | discrepancy | lcurve | upre | wiener");
+    o.tikhonov.lambda_rule = ParseTikhonovLambdaRule(a.lambda_rule);
   }
   if (a.boundary == "padded") {
     o.tikhonov.boundary = TikhonovBoundary::kZeroPadded;
@@ -87,6 +119,10 @@ void RunReconstruct(const ReconstructArgs& a) {
   }
   o.tikhonov.compute_std = a.std_map;
   o.tikhonov.noise_sigma = a.noise_sigma;
+  ParseTargetPsf(a.target_psf, &o.linear);
+  o.linear.leakage = a.leakage;
+  o.linear.noise_probes = a.noise_probes;
+  o.linear.noise_sigma = a.noise_sigma;
   o.drizzle.kernel = ParseDrizzleKernel(a.kernel);
   o.drizzle.pixfrac = a.pixfrac;
   o.drizzle.compute_context = false;
@@ -136,7 +172,38 @@ void RunReconstruct(const ReconstructArgs& a) {
   const FitsHeader common = h;  // the aux map sets its own unit
   SetHrImageKeywords(d, "electron", &h);  // BUNIT (e- per HR pixel per frame) and the HR grid's WCS
   progress.Step("writing " + a.out);
-  WriteFits(a.out, rec.image, h, FitsType::kFloat32);
+  if (rec.linear) {
+    // The linear method's output carries what photometry on it needs: its effective PSF, the target, the
+    // noise covariance kernel and the per-frequency leakage (target_psf.hpp), as named extensions.
+    const TargetPsfSummary& ls = *rec.linear;
+    h.Set("TARGET", ls.target, "target PSF");
+    h.Set("TGTFWHM", ls.target_fwhm_hr_px, "[HR px] target PSF FWHM");
+    h.Set("EFFFWHM", ls.effective_fwhm_hr_px, "[HR px] effective PSF FWHM");
+    h.Set("PSFFRAC", ls.effective_psf_window_fraction, "part of the effective PSF inside extension PSF");
+    h.Set("KAPPA", ls.kappa, "ridge kappa of Q = T (A^H A + kappa I)^-1 A^H");
+    h.Set("LEAKAGE", ls.leakage, "U: PSF error power / target power");
+    h.Set("LEAKMIN", ls.leakage_unreachable, "U_min: part no estimator reaches");
+    h.Set("LEAKBAND", ls.band_cycles_per_hr_px, "[cyc/HR px] leakage <= 1e-3 inside");
+    h.Set("NOISERMS", ls.noise_rms, "[electron] output noise RMS per HR pixel");
+    h.Set("NOISEERR", ls.noise_rms_error, "[electron] its standard error (probes)");
+    h.Set("NPROBES", static_cast<long long>(ls.noise_probes), "noise probes (0: exact)");
+    std::vector<FitsExtension> ext;
+    auto add = [&ext](const char* name, const Image& img, const char* what) {
+      if (img.size() == 0) return;
+      FitsExtension e;
+      e.name = name;
+      e.planes = {img};
+      e.header.Set("AOSRDATA", what, "content of this HDU");
+      e.type = FitsType::kFloat64;
+      ext.push_back(std::move(e));
+    };
+    add("PSF", rec.effective_psf, "effective PSF of the image, unit sum, centred at (K/2, K/2)");
+    add("NOISE_CORR", rec.noise_correlation, "noise covariance xi(dy, dx) [electron^2], lag 0 at the centre");
+    add("LEAKAGE", rec.leakage_spectrum, "leakage per HR frequency, zero frequency at (M/2, M/2)");
+    WriteFitsWithExtensions(a.out, rec.image, h, ext, FitsType::kFloat32);
+  } else {
+    WriteFits(a.out, rec.image, h, FitsType::kFloat32);
+  }
   std::string aux_path;
   if (!rec.aux_name.empty()) {
     aux_path = AuxPath(a.out, rec.aux_name == "weight" ? "weight" : "std");
@@ -167,12 +234,39 @@ void RunReconstruct(const ReconstructArgs& a) {
                         {"frame_residual_rms", rec.summary.frame_residual_rms}}},
                       {"seconds_total", rec.seconds_total}};
   if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
+  if (rec.linear) {
+    const TargetPsfSummary& ls = *rec.linear;
+    j["linear"] = {{"target", ls.target},
+                   {"target_fwhm_hr_px", ls.target_fwhm_hr_px},
+                   {"effective_fwhm_hr_px", ls.effective_fwhm_hr_px},
+                   {"effective_psf_window_fraction", ls.effective_psf_window_fraction},
+                   {"kappa", ls.kappa},
+                   {"leakage", ls.leakage},
+                   {"leakage_unreachable", ls.leakage_unreachable},
+                   {"leakage_met", ls.leakage_met},
+                   {"band_cycles_per_hr_px", ls.band_cycles_per_hr_px},
+                   {"unreachable_frequencies", ls.unreachable_frequencies},
+                   {"noise_sigma", ls.noise_sigma},
+                   {"noise_rms", ls.noise_rms},
+                   {"noise_rms_error", ls.noise_rms_error},
+                   {"noise_probes", ls.noise_probes},
+                   {"fourier_exact", ls.fourier_exact},
+                   {"extensions", {"PSF", "NOISE_CORR", "LEAKAGE"}}};
+  }
   if (d.truth) {
     MetricOptions mo;
     mo.crop_px = int(d.trustworthy_border_px * d.r);
     if (2 * mo.crop_px + 11 > std::min(d.hr_frame.rows, d.hr_frame.cols)) mo.crop_px = 0;
     const ImageMetrics m = CompareImages(*d.truth, rec.image, mo);
     j["against_truth"] = {{"psnr_db", m.psnr}, {"ssim", m.ssim}, {"rmse", m.rmse}, {"crop_px", mo.crop_px}};
+    if (rec.linear && rec.effective_psf.size() && rec.effective_psf.rows() <= d.hr_frame.rows &&
+        rec.effective_psf.cols() <= d.hr_frame.cols) {
+      // A linear output with a known PSF estimates the truth seen through that PSF: compare with that too.
+      const Image seen = ToImage(
+          PeriodicConvolutionFromKernel(d.hr_frame, rec.effective_psf)->Apply(AsVector(*d.truth)), d.hr_frame);
+      const ImageMetrics t = CompareImages(seen, rec.image, mo);
+      j["against_truth_through_psf"] = {{"psnr_db", t.psnr}, {"ssim", t.ssim}, {"rmse", t.rmse}};
+    }
   }
   if (a.json) {
     std::printf("%s\n", j.dump(2).c_str());
@@ -186,6 +280,10 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (j.contains("against_truth"))
     std::printf("  against the truth (crop %d HR px): PSNR %.2f dB, SSIM %.4f\n", j["against_truth"]["crop_px"].get<int>(),
                 j["against_truth"]["psnr_db"].get<double>(), j["against_truth"]["ssim"].get<double>());
+  if (j.contains("against_truth_through_psf"))
+    std::printf("  against the truth seen through the output's effective PSF: PSNR %.2f dB, SSIM %.4f\n",
+                j["against_truth_through_psf"]["psnr_db"].get<double>(),
+                j["against_truth_through_psf"]["ssim"].get<double>());
   std::printf("  wrote %s%s\n", a.out.c_str(), aux_path.empty() ? "" : (" and " + aux_path).c_str());
 }
 
@@ -199,7 +297,7 @@ void RegisterReconstruct(CLI::App& app) {
       "method. Writes OUT.fits (e- per HR pixel per frame) and, for drizzle/tikhonov --std, OUT_weight.fits / "
       "OUT_std.fits. If the dataset has a truth, reports PSNR/SSIM against it.");
   cmd->add_option("dataset", a->dataset, "dataset folder or manifest")->required();
-  cmd->add_option("-m,--method", a->method, "shift-add | shift-add-median | drizzle | tikhonov | tv | map")
+  cmd->add_option("-m,--method", a->method, "shift-add | shift-add-median | drizzle | tikhonov | linear | tv | map")
       ->capture_default_str();
   cmd->add_option("-o,--output", a->out, "output FITS image")->required();
   cmd->add_flag("--json", a->json, "print the summary as JSON");
@@ -217,16 +315,31 @@ void RegisterReconstruct(CLI::App& app) {
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
   cmd->add_option("--lambda-rule", a->lambda_rule,
                   "Tikhonov (and the TV/MAP pilot) lambda without --lambda: gcv | discrepancy (Morozov, residual = "
-                  "noise; uses --noise-sigma, 1 for inverse-variance weights)")
+                  "noise) | lcurve (Hansen's corner) | upre (unbiased predictive risk) | wiener (sigma^2/s(0) of "
+                  "--prior fitted); discrepancy, upre and wiener use --noise-sigma (1 for inverse-variance weights; "
+                  "wiener: 0 fits it)")
       ->capture_default_str();
-  cmd->add_option("--prior", a->prior, "Tikhonov prior: identity | gradient | laplacian | power-spectrum")
+  cmd->add_option("--prior", a->prior,
+                  "Tikhonov prior: identity | gradient | laplacian | power-spectrum | fitted (a power spectrum "
+                  "fitted to the frames themselves)")
       ->capture_default_str();
   cmd->add_option("--boundary", a->boundary, "Tikhonov boundary: periodic | padded")->capture_default_str();
   cmd->add_flag("--std", a->std_map, "Tikhonov: write the posterior standard deviation map (Fourier path only)");
   cmd->add_option("--noise-sigma", a->noise_sigma,
-                  "Tikhonov --std: noise sigma of a weight-1 pixel (1 for inverse-variance weights)")
+                  "Tikhonov --std, discrepancy, upre, wiener, and linear: noise sigma of a weight-1 pixel (1 for "
+                  "inverse-variance weights)")
       ->capture_default_str()
       ->check(NonNegativeFinite());
+  cmd->add_option("--target-psf", a->target_psf,
+                  "linear: output PSF: auto (Gaussian, FWHM max(PSF FWHM, 1 camera px)) | gaussian:<FWHM HR px> | "
+                  "<kernel>.fits")
+      ->capture_default_str();
+  cmd->add_option("--leakage", a->leakage, "linear: leakage bound epsilon, U <= U_min + epsilon, in (0, 1)")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-12, 0.999));
+  cmd->add_option("--noise-probes", a->noise_probes, "linear, weighted data: noise probes for the noise map")
+      ->capture_default_str()
+      ->check(CLI::Range(2, 100000));
   cmd->add_option("--mu", a->mu, "TV weight mu (MAP: lambda = 2 mu); default automatic (reconstruct.hpp)")
       ->check(NonNegativeFinite());
   cmd->add_option("--iterations", a->iterations, "iteration limit of tv / map")->check(CLI::Range(1, 1000000));

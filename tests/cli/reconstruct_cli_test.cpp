@@ -75,6 +75,53 @@ TEST_F(ReconstructCliTest, EveryMethodWritesAnImageAndATruthfulSummary) {
   EXPECT_GT(psnr[3], psnr[2]);  // TV beats Tikhonov on the bar target
 }
 
+TEST_F(ReconstructCliTest, LinearWritesItsEffectivePsfNoiseAndLeakage) {
+  // Uniform weights: the exact Fourier path, no probes.
+  const nlohmann::json j = Run("linear", "--target-psf gaussian:3 --leakage 1e-3 --noise-sigma 10");
+  ASSERT_TRUE(j.contains("linear")) << j.dump(2);
+  EXPECT_EQ(j["summary"]["method"], "target-psf-fourier");
+  EXPECT_EQ(j["linear"]["noise_probes"], 0);
+  EXPECT_TRUE(j["linear"]["leakage_met"].get<bool>());
+  EXPECT_NEAR(j["linear"]["target_fwhm_hr_px"].get<double>(), 3.0, 1e-12);
+  EXPECT_GT(j["linear"]["noise_rms"].get<double>(), 0.0);
+  EXPECT_EQ(aosr::FitsExtensionNames(Out("linear")), (std::vector<std::string>{"PSF", "NOISE_CORR", "LEAKAGE"}));
+  const aosr::FitsData img = aosr::ReadFits(Out("linear"));
+  EXPECT_NEAR(img.header.GetDouble("TGTFWHM"), 3.0, 1e-12);
+  // The PSF extension holds the effective PSF in a window; PSFFRAC says how much of it lies inside.
+  const aosr::FitsData psf = aosr::ReadFitsExtension(Out("linear"), "PSF");
+  EXPECT_NEAR(psf.planes.at(0).sum(), img.header.GetDouble("PSFFRAC"), 1e-6);
+  EXPECT_GT(img.header.GetDouble("PSFFRAC"), 0.99);
+  EXPECT_TRUE(fs::exists(dir_ / "linear_std.fits"));
+  ASSERT_TRUE(j.contains("against_truth_through_psf")) << j.dump(2);
+  // The truth seen through the output's PSF is what a linear method estimates: much closer than the truth.
+  EXPECT_GT(j["against_truth_through_psf"]["psnr_db"].get<double>(), j["against_truth"]["psnr_db"].get<double>() + 5);
+
+  // Bad pixels make the weights non-uniform: the PCG path with noise probes.
+  nlohmann::json scene = nlohmann::json::parse(std::ifstream(dir_ / "scene.json"));
+  scene["detector"]["bad_pixels"] = {{"fraction", 0.02}};
+  std::ofstream(dir_ / "scene_bad.json") << scene.dump(2);
+  ASSERT_EQ(RunCli("simulate " + (dir_ / "scene_bad.json").string() + " -o " + (dir_ / "bad").string()).status, 0);
+  const CliRun r = RunCli("reconstruct " + (dir_ / "bad").string() + " -m linear -o " +
+                          (dir_ / "linear_bad.fits").string() + " --json --noise-probes 8");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json b = nlohmann::json::parse(r.out);
+  EXPECT_EQ(b["summary"]["method"], "target-psf-cg");
+  EXPECT_EQ(b["linear"]["noise_probes"], 8);
+  EXPECT_GT(b["linear"]["noise_rms_error"].get<double>(), 0.0);
+  EXPECT_GT(b["masked_pixels"].get<long long>(), 0);
+}
+
+TEST_F(ReconstructCliTest, LinearRejectsABadTargetPsf) {
+  const std::string missing = (dir_ / "missing.fits").string();
+  for (const std::string& bad : {std::string("gaussian:"), std::string("gaussian:0.1"), std::string("gaussian:3x"),
+                                 std::string("moffat"), missing}) {
+    const CliRun r = RunCli("reconstruct " + Data() + " -m linear -o " + Out("bad") + " --target-psf " + bad);
+    EXPECT_NE(r.status, 0) << bad;
+    EXPECT_THAT(r.out, HasSubstr(bad == missing ? "missing.fits" : "--target-psf")) << r.out;
+    EXPECT_FALSE(fs::exists(Out("bad")));
+  }
+}
+
 TEST_F(ReconstructCliTest, TikhonovWritesItsPosteriorStdMap) {
   const nlohmann::json j = Run("tikhonov", "--weights mask --std --noise-sigma 10");
   ASSERT_TRUE(j.contains("aux")) << j.dump(2);
@@ -87,7 +134,7 @@ TEST_F(ReconstructCliTest, TikhonovWritesItsPosteriorStdMap) {
 TEST_F(ReconstructCliTest, BadRequestsFailBeforeWritingAnything) {
   CliRun r = RunCli("reconstruct " + Data() + " -m wiener -o " + Out("x"));
   EXPECT_EQ(r.status, 1);
-  EXPECT_THAT(r.out, HasSubstr("shift-add | shift-add-median | drizzle | tikhonov | tv | map"));
+  EXPECT_THAT(r.out, HasSubstr("shift-add | shift-add-median | drizzle | tikhonov | linear | tv | map"));
   EXPECT_FALSE(fs::exists(Out("x")));
   // Never overwrite an input.
   r = RunCli("reconstruct " + Data() + " -m drizzle -o " + (dir_ / "data" / "frames.fits").string());
