@@ -373,7 +373,7 @@ StarFit FitStars(const Image& img, const std::vector<aosr::PointSource>& stars, 
         for (Index x = 0; x < stamp; ++x) {
           const Index k = at(st[s].y0 + y, st[s].x0 + x);
           const double own = out.flux[s] * st[s].psf(y, x);
-          const double d = img.data()[k] - (model[k] - own) - f[n];
+          const double d = img.data()[k] - (model[k] - own);  // model[k] includes the background
           const Eigen::Vector3d g(p0(y, x), gy(y, x), gx(y, x));
           a += g * g.transpose();
           b += g * d;
@@ -471,7 +471,7 @@ void Photometry(const std::string& scene, int r, aosr::DatasetWeights weights, b
           pos.push_back(std::hypot(fit.dy[s], fit.dx[s]));
       }
     }
-    md << "| " << m.label << " | " << Fmt("%.2f", Fwhm(psf)) << " | " << Fmt("%.3f", Median(pos)) << " / "
+    md << "| " << m.label << " | " << Fmt("%.2f", Fwhm(psf)) << " | " << Fmt("%.4f", Median(pos)) << " / "
        << Fmt("%.0f", 100.0 * double(bright - int(pos.size())) / double(std::max(1, bright))) << "% |";
     for (int b = 0; b < bins; ++b) {
       const BinStats st = Stats(per_bin[b]);
