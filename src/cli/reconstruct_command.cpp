@@ -42,6 +42,7 @@ struct ReconstructArgs {
   std::string boundary = "periodic";
   bool std_map = false;
   double noise_sigma = 1.0;
+  CLI::Option* noise_sigma_option = nullptr;  // to tell a given --noise-sigma from the default
   // TV / MAP
   double mu = -1;  // < 0: automatic
   int iterations = -1;
@@ -234,6 +235,9 @@ void RunReconstruct(const ReconstructArgs& a) {
                         {"frame_residual_rms", rec.summary.frame_residual_rms}}},
                       {"seconds_total", rec.seconds_total}};
   if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
+  // Noise figures need absolute weights: a validity mask is relative (every pixel weight 1, σ = --noise-sigma).
+  const bool noise_unscaled = rec.linear && dp.weights_source == "validity mask" &&
+                              !(a.noise_sigma_option && a.noise_sigma_option->count() > 0);
   if (rec.linear) {
     const TargetPsfSummary& ls = *rec.linear;
     j["linear"] = {{"target", ls.target},
@@ -252,6 +256,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                    {"noise_probes", ls.noise_probes},
                    {"fourier_exact", ls.fourier_exact},
                    {"extensions", {"PSF", "NOISE_CORR", "LEAKAGE"}}};
+    if (noise_unscaled)
+      j["linear"]["noise_note"] = "weights are a validity mask: noise figures assume sigma = 1 e- per pixel; pass --noise-sigma";
   }
   if (d.truth) {
     MetricOptions mo;
@@ -275,6 +281,9 @@ void RunReconstruct(const ReconstructArgs& a) {
   std::printf("%s: %s, %d iterations, %.3f s (total %.3f s)\n", ToString(o.method),
               ToString(rec.summary.termination), rec.summary.iterations, rec.summary.seconds, rec.seconds_total);
   std::printf("  %s\n", rec.summary.message.c_str());
+  if (noise_unscaled)
+    std::printf("  note: the weights are a validity mask, so the noise figures assume sigma = 1 e- per pixel: pass "
+                "--noise-sigma (the frames' noise in e-)\n");
   std::printf("  weights: %s; offsets: %s%s\n", dp.weights_source.c_str(), dp.offsets_source.c_str(),
               dp.model_psfs_replaced ? ("; model PSFs replaced by " + a.model_psfs).c_str() : "");
   if (j.contains("against_truth"))
@@ -325,7 +334,7 @@ void RegisterReconstruct(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--boundary", a->boundary, "Tikhonov boundary: periodic | padded")->capture_default_str();
   cmd->add_flag("--std", a->std_map, "Tikhonov: write the posterior standard deviation map (Fourier path only)");
-  cmd->add_option("--noise-sigma", a->noise_sigma,
+  a->noise_sigma_option = cmd->add_option("--noise-sigma", a->noise_sigma,
                   "Tikhonov --std, discrepancy, upre, wiener, and linear: noise sigma of a weight-1 pixel (1 for "
                   "inverse-variance weights)")
       ->capture_default_str()
