@@ -65,7 +65,6 @@ void BindDesign(py::module_& m) {
         }
         const std::string out = output.is_none() ? std::string() : PathString(output);
         const std::string cal = calibration.is_none() ? std::string() : PathString(calibration);
-        py::list notes_out;
         DesignStudy study = WithoutGil([&] {
           DesignStudy s = RunDesignStudy(*spec, o);
           if (!cal.empty()) ApplyCalibrationToDesignFile(cal, s.result.offsets, &s.file);
