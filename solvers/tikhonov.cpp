@@ -119,6 +119,8 @@ bool TikhonovOptions::IsValid(std::string* why) const {
     std::string fit_why;
     if (!spectrum_fit.IsValid(&fit_why)) return fail("spectrum_fit." + fit_why);
   }
+  if (compute_std && std_samples < 2)
+    return fail("std_samples must be >= 2, got " + std::to_string(std_samples));
   if (compute_std && !(noise_sigma > 0))
     return fail("noise_sigma must be > 0 for compute_std (it scales the map)");
   if (lambda_rule == TikhonovLambdaRule::kDiscrepancy) {

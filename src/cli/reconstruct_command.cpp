@@ -333,7 +333,7 @@ void RegisterReconstruct(CLI::App& app) {
                   "fitted to the frames themselves)")
       ->capture_default_str();
   cmd->add_option("--boundary", a->boundary, "Tikhonov boundary: periodic | padded")->capture_default_str();
-  cmd->add_flag("--std", a->std_map, "Tikhonov: write the posterior standard deviation map (Fourier path only)");
+  cmd->add_flag("--std", a->std_map, "Tikhonov: write the posterior standard deviation map (closed form for uniform weights, else from posterior draws)");
   a->noise_sigma_option = cmd->add_option("--noise-sigma", a->noise_sigma,
                   "Tikhonov --std, discrepancy, upre, wiener, and linear: noise sigma of a weight-1 pixel (1 for "
                   "inverse-variance weights)")

@@ -144,6 +144,7 @@
 // never returned.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include "aosr/core/forward_model.hpp"
@@ -227,10 +228,16 @@ struct TikhonovOptions {
   // 2000: masked problems need tens of iterations, zero-padded ones hundreds to thousands at small λ.
   ConjugateGradientOptions cg = {2000, 1e-10};
   bool precondition = true;
-  // Compute the posterior standard deviation map (5)-(6) (needs noise_sigma > 0). Exact, and only
-  // available, when the problem is Fourier-exact (uniform weights, periodic boundary); otherwise the
-  // summary says it was not computed.
+  // Compute the posterior standard deviation map (5)-(6) (needs noise_sigma > 0). Exact (closed form) when the
+  // problem is Fourier-exact (uniform weights, periodic boundary). Otherwise (weights, masks, zero-padded
+  // boundaries) estimated from std_samples exact draws of the posterior by perturbation-optimisation
+  // (Papandreou & Yuille 2010; Orieux, Féron & Giovannelli 2012): x_s = Q⁻¹ σ (Aᵀ W^½ z₁ + √λ Γᵀ z₂),
+  // z ~ N(0, I), Q = AᵀWA + λΓᵀΓ, has covariance exactly C = σ²Q⁻¹; each draw is one PCG solve. The map's
+  // per-pixel standard error (from the spread of x_s² over the draws) comes with it. std_samples >= 2; the
+  // draws are seeded by std_seed. With the large-λ expansion (see above) no map is made.
   bool compute_std = false;
+  int std_samples = 32;
+  std::uint64_t std_seed = 1;
   // A singular value of A(u) below rank_tolerance × the largest singular value over all bins counts as
   // zero when reporting unconstrained frequencies and in the minimum-norm path. In (0, 1).
   double rank_tolerance = 1e-9;
@@ -259,6 +266,7 @@ struct TikhonovSummary : SolverSummary {
   int padding = 0;                      // kZeroPadded: camera pixels added on the top and left
   Shape solved_hr_shape;                // the HR grid x was solved on (the padded grid for kZeroPadded)
   bool std_computed = false;            // the posterior std map is in the result
+  int std_samples = 0;                  // posterior draws behind it (0: closed form)
   double mean_posterior_variance = 0.0; // tr C / M² (expected squared error per HR pixel), if computed
   double lcurve_curvature = 0.0;        // κ at λ (0 unless kLcurve)
   double upre = 0.0;                    // U(λ) / n, the predictive risk per pixel estimate (0 unless kUpre)
@@ -272,6 +280,7 @@ struct TikhonovSummary : SolverSummary {
 struct TikhonovResult {
   Image image;           // x̂ on problem.model->hr_shape() (the central window for kZeroPadded)
   Image posterior_std;   // √diag C of (5)-(6), same shape; empty unless summary.std_computed
+  Image posterior_std_error;  // sampled maps: the standard error of each posterior_std value; else empty
   TikhonovSummary summary;
 };
 
