@@ -238,6 +238,16 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         for (const DmOffset& o : d.dataset->offsets) out.append(FromJson(DmOffsetToJson(o)));
         return out;
       }, "the N DM offsets as the manifest writes them ({'shift_px': [dy, dx], 'zernike': [...], ...})")
+      .def_property_readonly("masks", [](py::object self) { return self.attr("valid"); }, "= valid")
+      .def_property_readonly("shifts", [](const PyDataset& d) {
+        py::array_t<double> a({py::ssize_t(d.dataset->offsets.size()), py::ssize_t(2)});
+        auto v = a.mutable_unchecked<2>();
+        for (std::size_t i = 0; i < d.dataset->offsets.size(); ++i) {
+          v(i, 0) = d.dataset->offsets[i].shift_y_px;
+          v(i, 1) = d.dataset->offsets[i].shift_x_px;
+        }
+        return a;
+      }, "(N, 2) the DM offsets' image shifts (dy, dx) in camera pixels")
       .def_property_readonly("stars", [](const PyDataset& d) {
         py::array_t<double> a({py::ssize_t(d.dataset->stars.size()), py::ssize_t(3)});
         auto v = a.mutable_unchecked<2>();

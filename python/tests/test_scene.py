@@ -23,6 +23,8 @@ def test_simulate_matches_the_cli_files(demo_scene_path, demo_dir):
     for name in ("frames", "valid", "weights", "psfs", "truth", "stars"):
         assert bits_equal(getattr(ds, name), getattr(on_disk, name)), name
     assert ds.offsets == on_disk.offsets
+    assert ds.masks is ds.valid and ds.shifts.shape == (4, 2)
+    assert [list(x) for x in ds.shifts] == [o["shift_px"] for o in ds.offsets]
     assert (ds.r, ds.gain, ds.bias, ds.trustworthy_border_px) == (on_disk.r, on_disk.gain, on_disk.bias,
                                                                    on_disk.trustworthy_border_px)
     assert ds.has_wcs and on_disk.has_wcs and ds.hr_header() == on_disk.hr_header()
