@@ -10,6 +10,7 @@
 #include "aosr/io/wcs.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/scene/dataset_memory.hpp"
+#include "aosr/scene/evaluation.hpp"
 #include "aosr/scene/pipeline.hpp"
 #include "aosr/scene/scene_spec.hpp"
 #include "aosr/scene/star_metrics.hpp"
@@ -381,8 +382,6 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
           throw InvalidArgument("aosr.evaluate", "truth/dataset", truth.is_none() ? "(neither)" : "(both)",
                                 "exactly one of truth= (array or FITS path) and dataset=");
         CheckArgument(!crop || *crop >= 0, "aosr.evaluate", "crop", crop.value_or(0), ">= 0 or None");
-        CheckArgument(stars >= 1, "aosr.evaluate", "stars", stars, ">= 1");
-        CheckArgument(aperture >= 0.5 && aperture <= 1000, "aosr.evaluate", "aperture", aperture, "0.5 .. 1000 HR px");
         Image t;
         std::vector<PointSource> catalogue;
         int c = crop.value_or(0);
@@ -391,37 +390,25 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
           if (!d->truth) throw InvalidArgument("aosr.evaluate", "dataset", d->manifest_path, "a dataset with a truth image");
           t = *d->truth;
           catalogue = d->stars;
-          if (!crop) c = int(d->trustworthy_border_px * d->r);
+          if (!crop) c = DatasetCrop(d->trustworthy_border_px, d->r);
         } else {
           t = ImageOrFits(truth, "truth");
         }
         const Image e = ImageOrFits(estimate, "estimate");
-        if (ShapeOf(e) != ShapeOf(t))
-          throw InvalidArgument("aosr.evaluate", "estimate", ToString(ShapeOf(e)), "an image of the truth's shape " + ToString(ShapeOf(t)));
-        if (!AllFinite(e)) throw InvalidArgument("aosr.evaluate", "estimate", "(non-finite values)", "an image with finite values only");
-        if (2 * c >= std::min(t.rows(), t.cols()))
-          throw InvalidArgument("aosr.evaluate", "crop", std::to_string(c) + (crop ? "" : " (the dataset's border)"),
-                                "less than half the smaller image side");
-        MetricOptions mo;
-        mo.crop_px = c;
-        mo.peak = peak;
-        StarMetricsOptions so;
-        so.brightest = stars;
-        so.aperture_px = aperture;
-        so.annulus_inner_px = aperture + 2;  // the CLI's annulus: 2..5 HR px beyond the aperture
-        so.annulus_outer_px = aperture + 5;
-        ImageMetrics im;
-        StarMetrics sm;
-        WithoutGil([&] {
-          im = CompareImages(t, e, mo);
-          if (!catalogue.empty()) sm = MeasureStars(t, e, catalogue, so);
-        });
+        EvaluationOptions eo;
+        eo.crop_px = c;
+        eo.peak = peak;
+        eo.stars = stars;
+        eo.aperture_px = aperture;
+        const Evaluation ev = WithoutGil([&] { return EvaluateReconstruction(t, e, catalogue, eo); });
+        const ImageMetrics& im = ev.metrics;
+        const StarMetrics& sm = ev.stars;
         py::dict j;
         j["crop_px"] = c;
         j["psnr_db"] = im.psnr;
         j["ssim"] = im.ssim;
         j["rmse"] = im.rmse;
-        if (!catalogue.empty()) {
+        if (ev.measured_stars) {
           py::list list;
           for (const StarMeasurement& s : sm.stars) {
             py::dict st;

@@ -103,3 +103,16 @@ def test_stubs_and_docstrings_cover_the_module():
         assert len(getattr(aosr, name).__doc__) > 200, name
     assert "super-resolves" in aosr.reconstruct.__doc__.lower()
     assert os.path.exists(os.path.join(os.path.dirname(aosr.__file__), "py.typed"))
+
+
+def test_evaluate_stars_match_cli(cli, tmp_path):
+    """The star-field part (photometry and centroids of the brightest stars), same library call as the CLI."""
+    data = tmp_path / "cs"
+    cli("simulate", aosr.data_path("scenes", "crowded-stars.json"), "-o", data, "--json")
+    rec = aosr.reconstruct(data, "tikhonov")
+    aosr.write_fits(tmp_path / "t.fits", rec.image, dtype="float64")
+    j = json.loads(cli("evaluate", "--manifest", data, "--estimate", tmp_path / "t.fits", "--stars", 10, "--json").stdout)
+    m = aosr.evaluate(rec.image, dataset=data, stars=10)
+    assert m["stars"]["measured"] > 0
+    for k in ("measured", "skipped_at_edge", "median_abs_flux_error", "rms_position_error_hr_px", "brightest"):
+        assert m["stars"][k] == j["stars"][k], k
