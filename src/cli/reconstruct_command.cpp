@@ -189,18 +189,21 @@ void RunReconstruct(const ReconstructArgs& a) {
     h.Set("NOISEERR", ls.noise_rms_error, "[electron] its standard error (probes)");
     h.Set("NPROBES", static_cast<long long>(ls.noise_probes), "noise probes (0: exact)");
     std::vector<FitsExtension> ext;
-    auto add = [&ext](const char* name, const Image& img, const char* what) {
+    auto add = [&ext](const char* name, const Image& img, const char* what, FitsType type) {
       if (img.size() == 0) return;
       FitsExtension e;
       e.name = name;
       e.planes = {img};
       e.header.Set("AOSRDATA", what, "content of this HDU");
-      e.type = FitsType::kFloat64;
+      e.type = type;
       ext.push_back(std::move(e));
     };
-    add("PSF", rec.effective_psf, "effective PSF of the image, unit sum, centred at (K/2, K/2)");
-    add("NOISE_CORR", rec.noise_correlation, "noise covariance xi(dy, dx) [electron^2], lag 0 at the centre");
-    add("LEAKAGE", rec.leakage_spectrum, "leakage per HR frequency, zero frequency at (M/2, M/2)");
+    // The kernels in double precision (photometry sums them); the HR-sized leakage map in single (it is for
+    // looking at, and a 2048² grid would otherwise add 32 MB).
+    add("PSF", rec.effective_psf, "effective PSF of the image, unit sum, centred at (K/2, K/2)", FitsType::kFloat64);
+    add("NOISE_CORR", rec.noise_correlation, "noise covariance xi(dy, dx) [electron^2], lag 0 at the centre",
+        FitsType::kFloat64);
+    add("LEAKAGE", rec.leakage_spectrum, "leakage per HR frequency, zero frequency at (M/2, M/2)", FitsType::kFloat32);
     WriteFitsWithExtensions(a.out, rec.image, h, ext, FitsType::kFloat32);
   } else {
     WriteFits(a.out, rec.image, h, FitsType::kFloat32);
