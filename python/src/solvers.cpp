@@ -77,6 +77,9 @@ OptionTable<TikhonovOptions> TikhonovTable() {
       .Nested("cg", &TikhonovOptions::cg, CgTable())
       .Field("precondition", &TikhonovOptions::precondition, "CG path: precondition by the Fourier inverse")
       .Field("compute_std", &TikhonovOptions::compute_std, "compute the posterior std map (needs noise_sigma > 0)")
+      .Field("std_samples", &TikhonovOptions::std_samples,
+             "posterior draws behind the std map where it has no closed form (weights, masks, padding), >= 2")
+      .Field("std_seed", &TikhonovOptions::std_seed, "seed of those draws")
       .Field("rank_tolerance", &TikhonovOptions::rank_tolerance, "relative singular-value floor, (0, 1)");
   return t;
 }

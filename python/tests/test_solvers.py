@@ -62,6 +62,8 @@ def test_options_table(demo_dir):
     assert aosr.reconstruct(ds, "tv", mu=2.0, iterations=3).regularisation == 2.0
     std = aosr.reconstruct(ds, "tikhonov", std=True, weights="mask")
     assert std.aux_name == "posterior-std" and std.aux.shape == std.image.shape
+    sampled = aosr.reconstruct(ds, "tikhonov", std=True, tikhonov_std_samples=4)  # weighted: posterior draws
+    assert sampled.aux_name == "posterior-std" and np.isfinite(sampled.aux).all()
     help_ = aosr.reconstruct_options()
     assert help_["tv_max_iterations"]["default"] == 1000
     assert help_["noise_sigma"]["default"] == 1.0  # the CLI's default
