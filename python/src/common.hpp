@@ -137,6 +137,18 @@ class OptionTable {
                      }});
     return *this;
   }
+  // An enum field set by name through the library's own Parse/ToString pair, so that a value added to the enum
+  // (and to its Parse) is accepted here without an edit; Parse's InvalidArgument lists what is allowed.
+  template <typename E>
+  OptionTable& EnumParsed(const std::string& name, E S::*member, E (*parse)(const std::string&),
+                          const char* (*to_string)(E), const std::string& type, const std::string& doc) {
+    rows_.push_back({name, type, doc,
+                     [member, parse](S& s, py::handle v, const std::string& shown) {
+                       s.*member = parse(Cast<std::string>(v, shown));
+                     },
+                     [member, to_string](const S& s) -> py::object { return py::str(to_string(s.*member)); }});
+    return *this;
+  }
   // A row with its own setter (aliases that set several fields, like the CLI's --mu) and getter.
   OptionTable& Custom(const std::string& name, const std::string& type, const std::string& doc,
                       std::function<void(S&, py::handle)> set, std::function<py::object(const S&)> get) {

@@ -3,6 +3,7 @@
 // ReconstructOptions (ReconstructTable below). A new method's options are a few lines there.
 #include "aosr/core/error.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
+#include "aosr/solvers/frame_power_spectrum.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "aosr/solvers/target_psf.hpp"
 #include "bindings.hpp"
@@ -15,18 +16,11 @@ namespace {
 // Names are the C++ field names; help(aosr.reconstruct) and aosr.reconstruct_options() list them with their
 // defaults, and the headers (include/aosr/solvers/*.hpp) document each field's meaning, units and range.
 
-const std::vector<std::pair<std::string, TikhonovPrior>> kTikhonovPriors = {
-    {"identity", TikhonovPrior::kIdentity},
-    {"gradient", TikhonovPrior::kGradient},
-    {"laplacian", TikhonovPrior::kLaplacian},
-    {"power-spectrum", TikhonovPrior::kPowerSpectrum}};
 
 OptionTable<DrizzleOptions> DrizzleTable() {
   OptionTable<DrizzleOptions> t;
-  t.Enum("kernel", &DrizzleOptions::kernel,
-         {{"square", DrizzleKernel::kSquare}, {"turbo", DrizzleKernel::kTurbo}, {"point", DrizzleKernel::kPoint},
-          {"gaussian", DrizzleKernel::kGaussian}, {"lanczos3", DrizzleKernel::kLanczos3}},
-         "how a drop's flux is spread over the HR pixels")
+  t.EnumParsed("kernel", &DrizzleOptions::kernel, &ParseDrizzleKernel, &ToString,
+               "square | turbo | point | gaussian | lanczos3", "how a drop's flux is spread over the HR pixels")
       .Field("pixfrac", &DrizzleOptions::pixfrac, "drop size as a fraction of the camera pixel, (0, 1]")
       .Field("fill_value", &DrizzleOptions::fill_value, "value of HR pixels no drop reaches")
       .Enum("boundary", &DrizzleOptions::boundary,
@@ -41,19 +35,28 @@ OptionTable<ConjugateGradientOptions> CgTable() {
   return t;
 }
 
+OptionTable<FramePowerSpectrumOptions> SpectrumFitTable() {
+  OptionTable<FramePowerSpectrumOptions> t;
+  t.Field("hann_window", &FramePowerSpectrumOptions::hann_window, "Hann-window the frames before the periodogram")
+      .Field("min_radius", &FramePowerSpectrumOptions::min_radius, "lowest LR frequency radius fitted")
+      .Field("noise_variance", &FramePowerSpectrumOptions::noise_variance, "noise floor held at this value, 0: fitted")
+      .Field("max_iterations", &FramePowerSpectrumOptions::max_iterations, "Levenberg-Marquardt iterations")
+      .Field("tolerance", &FramePowerSpectrumOptions::tolerance, "fit tolerance");
+  return t;
+}
+
 OptionTable<TikhonovOptions> TikhonovTable() {
   OptionTable<TikhonovOptions> t;
-  t.Enum("prior", &TikhonovOptions::prior, kTikhonovPriors, "the prior operator")
+  t.EnumParsed("prior", &TikhonovOptions::prior, &ParseTikhonovPrior, &ToString,
+               "identity | gradient | laplacian | power-spectrum | fitted | ...", "the prior operator")
       .Field("spectrum_slope", &TikhonovOptions::spectrum_slope, "power-spectrum prior: slope beta, [0, 8]")
       .Field("spectrum_corner", &TikhonovOptions::spectrum_corner,
              "power-spectrum prior: corner f0 [cycles per HR pixel], (0, 0.5]")
       .Custom("object_power_spectrum", "array", "power-spectrum prior: S on the full HR FFT grid (unshifted)",
               [](TikhonovOptions& o, py::handle v) { o.object_power_spectrum = ImageFromArray(v, "tikhonov_object_power_spectrum"); },
               [](const TikhonovOptions&) { return py::none(); })
-      .Enum("lambda_rule", &TikhonovOptions::lambda_rule,
-            {{"fixed", TikhonovLambdaRule::kFixed}, {"gcv", TikhonovLambdaRule::kGcv},
-             {"discrepancy", TikhonovLambdaRule::kDiscrepancy}},
-            "how lambda is chosen")
+      .EnumParsed("lambda_rule", &TikhonovOptions::lambda_rule, &ParseTikhonovLambdaRule, &ToString,
+                  "fixed | gcv | discrepancy | lcurve | upre | wiener | ...", "how lambda is chosen")
       .Field("lambda", &TikhonovOptions::lambda, "lambda >= 0 for lambda_rule 'fixed'")
       .Field("gcv_decades", &TikhonovOptions::gcv_decades, "GCV search span in decades")
       .Field("gcv_steps_per_decade", &TikhonovOptions::gcv_steps_per_decade, "GCV grid points per decade")
@@ -80,6 +83,7 @@ OptionTable<TikhonovOptions> TikhonovTable() {
       .Field("std_samples", &TikhonovOptions::std_samples,
              "posterior draws behind the std map where it has no closed form (weights, masks, padding), >= 2")
       .Field("std_seed", &TikhonovOptions::std_seed, "seed of those draws")
+      .Nested("spectrum_fit", &TikhonovOptions::spectrum_fit, SpectrumFitTable())
       .Field("rank_tolerance", &TikhonovOptions::rank_tolerance, "relative singular-value floor, (0, 1)");
   return t;
 }
@@ -110,19 +114,18 @@ OptionTable<TotalVariationOptions> TvTable() {
 
 OptionTable<MapOptions> MapTable() {
   OptionTable<MapOptions> t;
-  t.Enum("likelihood", &MapOptions::likelihood,
-         {{"gaussian", MapLikelihood::kGaussian}, {"poisson", MapLikelihood::kPoisson}}, "data likelihood")
+  t.EnumParsed("likelihood", &MapOptions::likelihood, &ParseMapLikelihood, &ToString, "gaussian | poisson",
+               "data likelihood")
       .Field("read_noise", &MapOptions::read_noise, "poisson: read noise [e-], >= 0")
       .Field("background", &MapOptions::background, "background added to the model [frame units], >= 0")
-      .Enum("prior", &MapOptions::prior,
-            {{"tikhonov", MapPrior::kTikhonov}, {"charbonnier-tv", MapPrior::kCharbonnierTv}, {"huber-tv", MapPrior::kHuberTv}},
-            "the prior")
-      .Enum("tikhonov_operator", &MapOptions::tikhonov_operator, kTikhonovPriors, "prior 'tikhonov': its operator")
+      .EnumParsed("prior", &MapOptions::prior, &ParseMapPrior, &ToString, "tikhonov | charbonnier-tv | huber-tv",
+                  "the prior")
+      .EnumParsed("tikhonov_operator", &MapOptions::tikhonov_operator, &ParseTikhonovPrior, &ToString,
+                  "identity | gradient | laplacian | power-spectrum", "prior 'tikhonov': its operator")
       .Field("lambda", &MapOptions::lambda, "regularisation weight (with auto_regularisation=False)")
       .Field("epsilon", &MapOptions::epsilon, "Charbonnier epsilon, > 0")
       .Field("delta", &MapOptions::delta, "Huber delta, > 0")
-      .Enum("positivity", &MapOptions::positivity,
-            {{"none", MapPositivity::kNone}, {"softplus", MapPositivity::kSoftplus}}, "positivity")
+      .EnumParsed("positivity", &MapOptions::positivity, &ParseMapPositivity, &ToString, "none | softplus", "positivity")
       .Field("softplus_scale", &MapOptions::softplus_scale, "softplus scale, 0: automatic")
       .Field("max_iterations", &MapOptions::max_iterations, ">= 1")
       .Field("function_tolerance", &MapOptions::function_tolerance, "[0, 1)")
@@ -189,10 +192,10 @@ const OptionTable<ReconstructOptions>& ReconstructTable() {
     t.Custom("lambda_", "float", "Tikhonov lambda (fixes lambda_rule); default: by GCV. Also accepted as 'lambda'",
              set_lambda, get_lambda)
         .Custom("lambda", "float", "= lambda_ (for **{'lambda': ...})", set_lambda, get_lambda)
-        .Custom("lambda_rule", "gcv | discrepancy | fixed", "Tikhonov (and the tv/map pilot) lambda rule",
+        .Custom("lambda_rule", "gcv | discrepancy | lcurve | upre | wiener | fixed", "Tikhonov (and the tv/map pilot) lambda rule",
                 [](O& o, py::handle v) { TikhonovTable().Find("lambda_rule")->set(o.tikhonov, v, "lambda_rule"); },
                 [](const O& o) { return TikhonovTable().Find("lambda_rule")->get(o.tikhonov); })
-        .Custom("prior", "identity | gradient | laplacian | power-spectrum", "Tikhonov prior",
+        .Custom("prior", "identity | gradient | laplacian | power-spectrum | fitted", "Tikhonov prior",
                 [](O& o, py::handle v) { TikhonovTable().Find("prior")->set(o.tikhonov, v, "prior"); },
                 [](const O& o) { return TikhonovTable().Find("prior")->get(o.tikhonov); })
         .Custom("boundary", "periodic | padded", "Tikhonov boundary",

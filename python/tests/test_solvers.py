@@ -64,6 +64,10 @@ def test_options_table(demo_dir):
     assert std.aux_name == "posterior-std" and std.aux.shape == std.image.shape
     sampled = aosr.reconstruct(ds, "tikhonov", std=True, tikhonov_std_samples=4)  # weighted: posterior draws
     assert sampled.aux_name == "posterior-std" and np.isfinite(sampled.aux).all()
+    # Values added to the library's enums are accepted through its own Parse functions.
+    wiener = aosr.reconstruct(ds, "tikhonov", prior="fitted", lambda_rule="wiener", weights="mask")
+    assert wiener.summary["termination"] == "converged"
+    assert aosr.reconstruct_options()["tikhonov_lambda_rule"]["default"] == "gcv"
     help_ = aosr.reconstruct_options()
     assert help_["tv_max_iterations"]["default"] == 1000
     assert help_["noise_sigma"]["default"] == 1.0  # the CLI's default
@@ -74,7 +78,8 @@ def test_options_table(demo_dir):
     ({"bogus": 1}, "bogus"),
     ({"tv_max_iterations": 2.5}, "tv_max_iterations"),
     ({"tv_positivity": 1}, "True or False"),
-    ({"prior": "smooth"}, "identity | gradient"),
+    ({"prior": "smooth"}, "smooth"),
+    ({"map_prior": "tv"}, "charbonnier-tv"),
     ({"tv": {"nope": 1}}, "nope"),
 ])
 def test_bad_options_raise_invalid_argument(demo_dir, kwargs, needle):
