@@ -463,8 +463,8 @@ void Photometry(const std::string& scene, int r, aosr::DatasetWeights weights, b
       const Method& m = methods[mi];
       const Reconstruction rec = aosr::Reconstruct(p, m.options);
       // The PSF over all r² sub-pixel phases: Drizzle's and shift-and-add's response depends on the phase when
-      // N < r², and stars sit at every phase.
-      const Image psf = MethodPsf(p, Fixed(m, rec), typical, side, r);
+      // N < r², and stars sit at every phase. TV and MAP (a full solve per phase) over 2 x 2 of them.
+      const Image psf = MethodPsf(p, Fixed(m, rec), typical, side, m.linear_method ? r : std::min(r, 2));
       const StarFit fit = FitStars(rec.image, stars, psf, stamp);
       Pooled& pl = pooled[mi];
       pl.fwhm = Fwhm(psf);
@@ -488,7 +488,7 @@ void Photometry(const std::string& scene, int r, aosr::DatasetWeights weights, b
         "(count) of stars scored (stars within half a fitting stamp + 4 camera pixels of the edge are fitted but not "
         "scored). Astrometry: median position error |Δr| of the stars brighter than the median, HR px, and the share "
         "whose position fit ran off (|Δ| > 2 HR px). FWHM: of the method's effective PSF (at the catalogue's "
-        "geometric-mean flux, averaged over the r² sub-pixel phases).\n\n| method | FWHM (HR px) | astrometry (HR px) |";
+        "geometric-mean flux, averaged over the r² sub-pixel phases; TV and MAP over 2 x 2 of them).\n\n| method | FWHM (HR px) | astrometry (HR px) |";
   for (int b = 0; b < bins; ++b) md << " K " << 14 + b << "–" << 15 + b << ": bias / scatter |";
   md << "\n|---|---|---|";
   for (int b = 0; b < bins; ++b) md << "---|";
