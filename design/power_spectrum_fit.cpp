@@ -52,18 +52,9 @@ std::vector<double> Window1d(SpectralWindow window, Index m) {
   return w;
 }
 
-// Circular smoothing by the window's |Ŵ|² kernel: identity for rectangular, [1/6, 2/3, 1/6] per axis for Hann.
+// Circular smoothing by the window's |Ŵ|² kernel: identity for rectangular (solvers/power_spectrum_model.hpp for Hann).
 Image Smooth(const Image& s, SpectralWindow window) {
-  if (window == SpectralWindow::kRectangular) return s;
-  const Index r = s.rows(), c = s.cols();
-  Image t(r, c), u(r, c);
-  for (Index y = 0; y < r; ++y)
-    for (Index x = 0; x < c; ++x)
-      t(y, x) = (2.0 / 3.0) * s(y, x) + (1.0 / 6.0) * (s(y, (x + 1) % c) + s(y, (x + c - 1) % c));
-  for (Index y = 0; y < r; ++y)
-    for (Index x = 0; x < c; ++x)
-      u(y, x) = (2.0 / 3.0) * t(y, x) + (1.0 / 6.0) * (t((y + 1) % r, x) + t((y + r - 1) % r, x));
-  return u;
+  return window == SpectralWindow::kRectangular ? s : HannWindowSmooth(s);
 }
 
 struct Annulus {

@@ -1,4 +1,5 @@
 #include "aosr/solvers/frame_power_spectrum.hpp"
+#include "aosr/solvers/power_spectrum_model.hpp"
 
 #include <Eigen/Dense>
 #include <algorithm>
@@ -21,19 +22,6 @@ std::string Fmt(const char* f, double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, f, v);
   return buf;
-}
-
-// Circular smoothing by the Hann window's normalised |Ŵ|² kernel, [1/6, 2/3, 1/6] per axis.
-Image HannSmooth(const Image& s) {
-  const Index r = s.rows(), c = s.cols();
-  Image t(r, c), u(r, c);
-  for (Index y = 0; y < r; ++y)
-    for (Index x = 0; x < c; ++x)
-      t(y, x) = (2.0 / 3.0) * s(y, x) + (1.0 / 6.0) * (s(y, (x + 1) % c) + s(y, (x + c - 1) % c));
-  for (Index y = 0; y < r; ++y)
-    for (Index x = 0; x < c; ++x)
-      u(y, x) = (2.0 / 3.0) * t(y, x) + (1.0 / 6.0) * (t((y + 1) % r, x) + t((y + r - 1) % r, x));
-  return u;
 }
 
 // Everything of (1) that does not depend on θ.
@@ -77,8 +65,8 @@ Parts Signal(const Setup& s, double f0, double beta, bool derivatives) {
     gb.data()[u] = s.r2 * sum_b;
   }
   if (s.hann) {
-    g = HannSmooth(g);
-    if (derivatives) gf = HannSmooth(gf), gb = HannSmooth(gb);
+    g = HannWindowSmooth(g);
+    if (derivatives) gf = HannWindowSmooth(gf), gb = HannWindowSmooth(gb);
   }
   Parts p;
   auto mean = [&](const Image& img, std::vector<double>* out) {

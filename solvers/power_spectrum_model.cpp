@@ -40,4 +40,16 @@ Image PowerSpectrumGrid(const PowerSpectrumModel& model, Shape grid) {
   return s;
 }
 
+Image HannWindowSmooth(const Image& s) {
+  const Index r = s.rows(), c = s.cols();
+  Image t(r, c), u(r, c);
+  for (Index y = 0; y < r; ++y)
+    for (Index x = 0; x < c; ++x)
+      t(y, x) = (2.0 / 3.0) * s(y, x) + (1.0 / 6.0) * (s(y, (x + 1) % c) + s(y, (x + c - 1) % c));
+  for (Index y = 0; y < r; ++y)
+    for (Index x = 0; x < c; ++x)
+      u(y, x) = (2.0 / 3.0) * t(y, x) + (1.0 / 6.0) * (t((y + 1) % r, x) + t((y + r - 1) % r, x));
+  return u;
+}
+
 }  // namespace aosr

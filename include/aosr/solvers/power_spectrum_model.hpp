@@ -32,4 +32,9 @@ struct PowerSpectrumModel {
 // TikhonovOptions::object_power_spectrum and DesignObjectiveOptions::object_power_spectrum want. Both sides >= 1.
 Image PowerSpectrumGrid(const PowerSpectrumModel& model, Shape grid);
 
+// A periodogram of Hann-windowed data estimates the spectrum circularly convolved with the window's |Ŵ|², which
+// on the DFT grid is [1/6, 2/3, 1/6] per axis: this applies that kernel (periodic) to a spectrum on the grid, so
+// a model can be compared with such a periodogram. Shared by both fits above.
+Image HannWindowSmooth(const Image& spectrum);
+
 }  // namespace aosr
