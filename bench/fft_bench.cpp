@@ -1,16 +1,25 @@
-// What reproducible FFTs cost. For each shape, one forward r2c + inverse c2r pair through aosr's fft.hpp
-// with the reproducible planner (kEstimate, the default) and with kMeasure, on 1 and 2 threads, against
-// raw FFTW 2-D plans made with FFTW_MEASURE on aligned buffers (the fastest single-threaded FFTW can do;
-// the "floor" of the other benchmarks). Prints a markdown table; --out FILE also writes it there.
+// What reproducible FFTs cost against FFTW's own 2-D plans, timed in the same run.
 //
-//   build/bench/fft_bench [--quick] [--out bench/results/fft.md]
+// For each shape: one forward r2c + inverse c2r pair (what every convolution and solver does) through
+//  * FFTW's own 2-D plans on fftw_malloc'd buffers: FFTW_ESTIMATE on 1 thread (the floor every other
+//    benchmark quotes), FFTW_MEASURE on 1 thread, and FFTW_ESTIMATE with FFTW's threads on 2 threads;
+//  * aosr's fft.hpp (reproducible kEstimate plans, fixed blocks) on 1 and 2 threads, through the
+//    buffer-reusing FftR2CInto/FftC2RInto (the hot loops' form) and through the allocating FftR2C/FftC2R.
+// Timing: the machine is shared and its speed drifts, so every variant is timed in interleaved rounds
+// (each round times one batch of every variant, one after another) and each variant's figure is its
+// minimum over rounds of the batch mean. The minimum is the least disturbed estimate of the cost and is
+// stable from run to run; ratios are taken within the same run.
+//
+//   build/bench/fft_bench [--quick] [--rounds K] [--out bench/results/fft.md]
 #include <fftw3.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -24,91 +33,118 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Median of `reps` timings of fn (seconds), after one warm-up call.
-template <typename F>
-double Median(int reps, F fn) {
-  fn();
-  std::vector<double> t;
-  for (int k = 0; k < reps; ++k) {
-    const auto a = Clock::now();
-    fn();
-    t.push_back(std::chrono::duration<double>(Clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
-}
+// A timed variant: `setup` runs before its batch (thread count, planner), `run` is one pair.
+struct Variant {
+  std::string name;
+  std::function<void()> setup, run;
+  double best = 1e300;
+};
 
-double RawFftwPair(int rows, int cols, int reps) {
-  const std::size_t n = std::size_t(rows) * cols, nh = std::size_t(rows) * (cols / 2 + 1);
-  double* x = fftw_alloc_real(n);
-  fftw_complex* X = fftw_alloc_complex(nh);
-  const fftw_plan f = fftw_plan_dft_r2c_2d(rows, cols, x, X, FFTW_MEASURE);
-  const fftw_plan b = fftw_plan_dft_c2r_2d(rows, cols, X, x, FFTW_MEASURE);
-  for (std::size_t i = 0; i < n; ++i) x[i] = double(i % 17);
-  const double t = Median(reps, [&] {
+// FFTW's own 2-D r2c/c2r plans on its own aligned buffers.
+struct RawPair {
+  double* x = nullptr;
+  fftw_complex* X = nullptr;
+  fftw_plan f = nullptr, b = nullptr;
+  RawPair(int rows, int cols, unsigned flags, int threads) {
+    const std::size_t n = std::size_t(rows) * cols, nh = std::size_t(rows) * (cols / 2 + 1);
+    x = fftw_alloc_real(n);
+    X = fftw_alloc_complex(nh);
+    fftw_plan_with_nthreads(threads);
+    f = fftw_plan_dft_r2c_2d(rows, cols, x, X, flags);
+    b = fftw_plan_dft_c2r_2d(rows, cols, X, x, flags);
+    fftw_plan_with_nthreads(1);
+    for (std::size_t i = 0; i < n; ++i) x[i] = double(i % 17);
+  }
+  ~RawPair() {
+    fftw_destroy_plan(f);
+    fftw_destroy_plan(b);
+    fftw_free(x);
+    fftw_free(X);
+  }
+  void Run() {
     fftw_execute(f);
     fftw_execute(b);
-  });
-  fftw_destroy_plan(f);
-  fftw_destroy_plan(b);
-  fftw_free(x);
-  fftw_free(X);
-  return t;
-}
-
-double AosrPair(const aosr::Image& x, aosr::FftSettings::Planner planner, int threads, int reps) {
-  aosr::FftSettings s;
-  s.planner = planner;
-  aosr::SetFftSettings(s);
-  aosr::SetDefaultThreads(threads);
-  aosr::Image back;
-  return Median(reps, [&] { back = aosr::FftC2R(aosr::FftR2C(x), x.cols()); });
-}
+  }
+};
 
 }  // namespace
 
 int main(int argc, char** argv) {
   bool quick = false;
+  int rounds = 7;
   std::string out;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
+    else if (a == "--rounds" && i + 1 < argc) rounds = std::max(1, std::atoi(argv[++i]));
     else if (a == "--out" && i + 1 < argc) out = argv[++i];
     else {
-      std::fprintf(stderr, "usage: fft_bench [--quick] [--out FILE]\n");
+      std::fprintf(stderr, "usage: fft_bench [--quick] [--rounds K] [--out FILE]\n");
       return 1;
     }
   }
-  std::vector<int> sizes = quick ? std::vector<int>{128, 512} : std::vector<int>{128, 256, 512, 768, 1000, 1024, 2048};
+  fftw_init_threads();
+  const std::vector<int> sizes =
+      quick ? std::vector<int>{128, 512} : std::vector<int>{64, 128, 192, 256, 384, 512, 768, 1000, 1024, 2048};
   std::ostringstream md;
-  md << "# FFT cost: reproducible (kEstimate, blocked row-column) against FFTW_MEASURE\n\n"
-     << "Command: `build/bench/fft_bench" << (quick ? " --quick" : "") << "` (Release). Machine: "
-     << std::thread::hardware_concurrency()
-     << " hardware threads. One r2c + c2r pair, median of repeats, in ms. `raw FFTW` is a 2-D plan made with "
-        "FFTW_MEASURE on aligned buffers, single-threaded: the floor the other benchmarks quote. aosr's transforms "
-        "below 128x128 are one 2-D plan, from 128x128 on blocked row-column (fft.hpp).\n\n"
-     << "| shape | raw FFTW (measure) | aosr estimate, 1 thr | aosr measure, 1 thr | aosr estimate, 2 thr | "
-        "estimate 1 thr / raw | speed-up 2 thr |\n|---|---|---|---|---|---|---|\n";
+  md << "# FFT cost: aosr's reproducible transforms against FFTW's own 2-D plans\n\n"
+     << "Command: `build/bench/fft_bench" << (quick ? " --quick" : "") << "` (Release), " << rounds
+     << " interleaved rounds. Machine: " << std::thread::hardware_concurrency()
+     << " hardware threads. One r2c + c2r pair of a random n x n image, in ms: the minimum over rounds of the "
+        "batch mean. `FFTW est` is one FFTW 2-D plan pair made with FFTW_ESTIMATE on aligned buffers, one thread: "
+        "the floor the other benchmarks quote. `FFTW meas` the same with FFTW_MEASURE; `FFTW 2 thr` FFTW_ESTIMATE "
+        "with FFTW's own threads on 2 threads. `aosr` is fft.hpp with the reproducible default (FFTW_ESTIMATE "
+        "plans, fixed blocks: one 2-D plan below 192 x 192, blocked row-column from there), through the "
+        "buffer-reusing FftR2CInto/FftC2RInto; `aosr alloc` through FftR2C/FftC2R, which return new arrays.\n\n"
+     << "| shape | FFTW est (floor) | FFTW meas | FFTW 2 thr | aosr 1 thr | aosr 2 thr | aosr alloc 1 thr | "
+        "aosr 1 thr / floor | aosr 2 thr / FFTW 2 thr | aosr speed-up 2 thr |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n";
   for (int n : sizes) {
-    const int reps = std::max(5, int(2e7 / (double(n) * n * std::log2(double(n)))));
     aosr::Image x(n, n);
     std::mt19937_64 rng(1);
     std::normal_distribution<double> n01;
     for (aosr::Index i = 0; i < x.size(); ++i) x.data()[i] = n01(rng);
-    const double raw = RawFftwPair(n, n, reps);
-    const double e1 = AosrPair(x, aosr::FftSettings::Planner::kEstimate, 1, reps);
-    const double m1 = AosrPair(x, aosr::FftSettings::Planner::kMeasure, 1, reps);
-    const double e2 = AosrPair(x, aosr::FftSettings::Planner::kEstimate, 2, reps);
-    char line[256];
-    std::snprintf(line, sizeof line, "| %dx%d | %.3f | %.3f | %.3f | %.3f | %.2f | %.2f |\n", n, n, 1e3 * raw, 1e3 * e1,
-                  1e3 * m1, 1e3 * e2, e1 / raw, e1 / e2);
+    aosr::ComplexImage X;
+    aosr::Image back;
+    RawPair est(n, n, FFTW_ESTIMATE, 1), meas(n, n, FFTW_MEASURE, 1), est2(n, n, FFTW_ESTIMATE, 2);
+    auto threads = [](int t) { return [t] { aosr::SetDefaultThreads(t); }; };
+    auto none = [] {};
+    auto aosr_pair = [&] {
+      aosr::FftR2CInto(x, &X);
+      aosr::FftC2RInto(X, n, &back);
+    };
+    auto aosr_alloc = [&] { back = aosr::FftC2R(aosr::FftR2C(x), n); };
+    std::vector<Variant> v = {{"est", none, [&] { est.Run(); }},
+                              {"meas", none, [&] { meas.Run(); }},
+                              {"est2", none, [&] { est2.Run(); }},
+                              {"aosr1", threads(1), aosr_pair},
+                              {"aosr2", threads(2), aosr_pair},
+                              {"alloc1", threads(1), aosr_alloc}};
+    // A batch lasts about 20 ms (at least 3 pairs), so that timer and wake-up noise stay small.
+    const double flops = 5.0 * double(n) * n * std::log2(double(n));
+    const int batch = std::max(3, int(2e8 / flops));
+    for (Variant& var : v) {  // warm-up: plans made, caches and pages touched
+      var.setup();
+      var.run();
+    }
+    for (int r = 0; r < rounds; ++r)
+      for (Variant& var : v) {
+        var.setup();
+        const auto a = Clock::now();
+        for (int k = 0; k < batch; ++k) var.run();
+        var.best = std::min(var.best, std::chrono::duration<double>(Clock::now() - a).count() / batch);
+      }
+    aosr::SetDefaultThreads(1);
+    char line[320];
+    std::snprintf(line, sizeof line, "| %dx%d | %.3f | %.3f | %.3f | %.3f | %.3f | %.3f | %.2f | %.2f | %.2f |\n", n,
+                  n, 1e3 * v[0].best, 1e3 * v[1].best, 1e3 * v[2].best, 1e3 * v[3].best, 1e3 * v[4].best,
+                  1e3 * v[5].best, v[3].best / v[0].best, v[4].best / v[2].best, v[3].best / v[4].best);
     md << line;
     std::fputs(line, stdout);
     std::fflush(stdout);
   }
-  aosr::SetFftSettings({});
-  aosr::SetDefaultThreads(1);
   std::fputs(md.str().c_str(), stdout);
   if (!out.empty()) std::ofstream(out) << md.str();
+  fftw_cleanup_threads();
   return 0;
 }

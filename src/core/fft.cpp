@@ -17,27 +17,36 @@ namespace aosr {
 namespace {
 
 // How a transform is computed (fft.hpp, "Execution"):
-//  * below kBlockedMinPixels: one 2-D FFTW plan, executed on aligned scratch copies;
-//  * from kBlockedMinPixels on: row-column, in blocks of whole rows and then whole columns, each block a
-//    batched 1-D plan executed on an aligned scratch copy. Blocks are tasks of ParallelFor.
-// Every block of a given shape is computed by the same plan on a buffer of the same alignment, whichever
-// thread takes it, so the result does not depend on the thread count or on where Eigen put the arrays.
-constexpr Index kBlockedMinPixels = 128 * 128;
-// A block holds about this many bytes of data, so that its 1-D transforms stay in cache.
-constexpr std::size_t kBlockBytes = 256 * 1024;
+//  * below kBlockedMinPixels: one FFTW 2-D plan, executed directly on the caller's arrays;
+//  * from kBlockedMinPixels on: FFTW's own row-column algorithm, split into a fixed number of blocks: a row
+//    pass (each block one batched 1-D plan over whole contiguous rows) and a column pass (each block one
+//    batched, strided 1-D plan over a band of columns, run in place on the output). FFTW executes these
+//    strided plans with its own buffered vector loops, as its 2-D plans do internally, so the arithmetic
+//    per pixel is the same and nothing is copied by us.
+// The partition into blocks is a function of the shape only, and each block is always computed by the
+// plan made for its (shape, offset class), whichever thread takes it: the output bytes do not depend on
+// the thread count. FFTW requires that an array passed to fftw_execute_* have the alignment of the
+// arrays the plan was made on (fftw_alignment_of, SIMD alignment modulo 16 bytes here); Eigen's heap
+// arrays are 16-byte aligned, and block starts are chosen so that offsets keep that alignment.
+constexpr Index kBlockedMinPixels = 192 * 192;
+// At most this many blocks per pass (enough for 8 threads), and at least kMinLinesPerBlock lines each.
+constexpr Index kMaxBlocks = 8;
+constexpr Index kMinLinesPerBlock = 32;
 
 enum class Kind { kR2C, kC2R, kForward, kInverse };
 
-// A batched 1-D transform: `howmany` contiguous lines of length n (real lines of n, half spectra of
-// n/2+1, or complex lines of n), in-place for complex, out-of-place (separate buffers) for real.
-// howmany == 0 marks a 2-D plan of shape rows x n.
+// One FFTW plan: rank 2 (n0 x n1, one transform) or rank 1 (length n0, `howmany` transforms with the
+// given strides and distances, in elements of the plan's input and output types).
 struct PlanKey {
   Kind kind;
-  Index n, howmany, rows;
+  int rank;
+  Index n0, n1, howmany, istride, idist, ostride, odist;
+  bool in_place;
   FftSettings::Planner planner;
-  bool operator<(const PlanKey& o) const {
-    return std::tie(kind, n, howmany, rows, planner) < std::tie(o.kind, o.n, o.howmany, o.rows, o.planner);
+  auto Tie() const {
+    return std::tie(kind, rank, n0, n1, howmany, istride, idist, ostride, odist, in_place, planner);
   }
+  bool operator<(const PlanKey& o) const { return Tie() < o.Tie(); }
 };
 
 unsigned PlannerFlags(FftSettings::Planner p) {
@@ -49,14 +58,18 @@ unsigned PlannerFlags(FftSettings::Planner p) {
   return FFTW_ESTIMATE;
 }
 
+// Number of elements a rank-1 batched transform touches: the last line's last element plus one.
+std::size_t Extent(Index n, Index howmany, Index stride, Index dist) {
+  return std::size_t((howmany - 1) * dist + (n - 1) * stride + 1);
+}
+
 // Owns every plan for the life of the process; plans are never destroyed while in use. Plans are made on
-// fftw_malloc'd buffers (FFTW's SIMD alignment) and executed only on such buffers (Scratch below).
+// fftw_malloc'd buffers (FFTW's SIMD alignment) and executed on arrays of the same alignment.
 class PlanCache {
  public:
   static PlanCache& Get() {
     // Never destroyed (as parallel.cpp's Pool): a pool worker may still execute a plan during static
     // destruction, and the plans stay reachable from this pointer, so LeakSanitizer does not report them.
-    // A static object's destructor would free the map but not the plans (no fftw_destroy_plan).
     static PlanCache* cache = new PlanCache;
     return *cache;
   }
@@ -65,53 +78,21 @@ class PlanCache {
     std::lock_guard<std::mutex> lock(mutex_);
     auto it = plans_.find(key);
     if (it != plans_.end()) return it->second;
-    const unsigned flags = PlannerFlags(key.planner);
-    const int n = static_cast<int>(key.n);
-    const int half = n / 2 + 1;
-    fftw_plan plan = nullptr;
-    if (key.howmany == 0) {  // 2-D
-      const int r = static_cast<int>(key.rows);
-      const std::size_t nreal = std::size_t(key.rows) * key.n, nhalf = std::size_t(key.rows) * half;
-      double* re = fftw_alloc_real(nreal);
-      fftw_complex* c1 = fftw_alloc_complex(key.kind == Kind::kR2C || key.kind == Kind::kC2R ? nhalf : nreal);
-      fftw_complex* c2 = fftw_alloc_complex(nreal);
-      switch (key.kind) {
-        case Kind::kR2C: plan = fftw_plan_dft_r2c_2d(r, n, re, c1, flags); break;
-        case Kind::kC2R: plan = fftw_plan_dft_c2r_2d(r, n, c1, re, flags); break;
-        case Kind::kForward: plan = fftw_plan_dft_2d(r, n, c1, c2, FFTW_FORWARD, flags); break;
-        case Kind::kInverse: plan = fftw_plan_dft_2d(r, n, c1, c2, FFTW_BACKWARD, flags); break;
-      }
-      fftw_free(re);
-      fftw_free(c1);
-      fftw_free(c2);
-    } else {
-      const int m = static_cast<int>(key.howmany);
-      const std::size_t lines = std::size_t(key.howmany);
-      double* re = fftw_alloc_real(lines * n);
-      fftw_complex* c = fftw_alloc_complex(lines * std::max(n, half));
-      fftw_complex* c2 = fftw_alloc_complex(lines * n);  // complex plans are out-of-place, as executed
-      switch (key.kind) {
-        case Kind::kR2C:
-          plan = fftw_plan_many_dft_r2c(1, &n, m, re, nullptr, 1, n, c, nullptr, 1, half, flags);
-          break;
-        case Kind::kC2R:
-          plan = fftw_plan_many_dft_c2r(1, &n, m, c, nullptr, 1, half, re, nullptr, 1, n, flags);
-          break;
-        case Kind::kForward:
-        case Kind::kInverse:
-          plan = fftw_plan_many_dft(1, &n, m, c, nullptr, 1, n, c2, nullptr, 1, n,
-                                    key.kind == Kind::kForward ? FFTW_FORWARD : FFTW_BACKWARD, flags);
-          break;
-      }
-      fftw_free(re);
-      fftw_free(c);
-      fftw_free(c2);
-    }
+    fftw_plan plan = Make(key);
     if (plan == nullptr)
-      throw Error("FFTW failed to make a plan for n = " + std::to_string(key.n) + ", howmany " +
-                  std::to_string(key.howmany) + ", rows " + std::to_string(key.rows));
+      throw Error("FFTW failed to make a plan for shape " + std::to_string(key.n0) + "x" + std::to_string(key.n1) +
+                  ", howmany " + std::to_string(key.howmany));
     plans_.emplace(key, plan);
     return plan;
+  }
+
+  // Forgets every plan (and FFTW's accumulated wisdom), so that the next transforms plan afresh as a new
+  // process would. For the run-to-run reproducibility test only: no transform may be running.
+  void Reset() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& [key, plan] : plans_) fftw_destroy_plan(plan);
+    plans_.clear();
+    fftw_forget_wisdom();
   }
 
   void Set(const FftSettings& s) {
@@ -128,46 +109,80 @@ class PlanCache {
   }
 
  private:
+  static fftw_plan Make(const PlanKey& k) {
+    const unsigned flags = PlannerFlags(k.planner);
+    const bool real_in = k.kind == Kind::kR2C, real_out = k.kind == Kind::kC2R;
+    int n[2] = {int(k.n0), int(k.n1)};
+    std::size_t in_count, out_count;
+    if (k.rank == 2) {
+      const std::size_t real = std::size_t(k.n0) * k.n1, half = std::size_t(k.n0) * (k.n1 / 2 + 1);
+      in_count = real_in ? real : (real_out ? half : real);
+      out_count = real_out ? real : (real_in ? half : real);
+    } else {
+      in_count = Extent(real_out ? k.n0 / 2 + 1 : k.n0, k.howmany, k.istride, k.idist);
+      out_count = Extent(real_in ? k.n0 / 2 + 1 : k.n0, k.howmany, k.ostride, k.odist);
+    }
+    // In-place plans get one buffer large enough for both views (only complex-to-complex is in place).
+    const std::size_t bytes_in = in_count * (real_in ? sizeof(double) : sizeof(fftw_complex));
+    const std::size_t bytes_out = out_count * (real_out ? sizeof(double) : sizeof(fftw_complex));
+    void* in = fftw_malloc(k.in_place ? std::max(bytes_in, bytes_out) : bytes_in);
+    void* out = k.in_place ? in : fftw_malloc(bytes_out);
+    if (in == nullptr || out == nullptr) throw std::bad_alloc();
+    const int howmany = int(k.howmany), is = int(k.istride), id = int(k.idist), os = int(k.ostride),
+              od = int(k.odist);
+    auto* ci = static_cast<fftw_complex*>(in);
+    auto* co = static_cast<fftw_complex*>(out);
+    fftw_plan plan = nullptr;
+    switch (k.kind) {
+      case Kind::kR2C:
+        plan = fftw_plan_many_dft_r2c(k.rank, n, howmany, static_cast<double*>(in), nullptr, is, id, co, nullptr, os,
+                                      od, flags);
+        break;
+      case Kind::kC2R:
+        plan = fftw_plan_many_dft_c2r(k.rank, n, howmany, ci, nullptr, is, id, static_cast<double*>(out), nullptr, os,
+                                      od, flags);
+        break;
+      case Kind::kForward:
+      case Kind::kInverse:
+        plan = fftw_plan_many_dft(k.rank, n, howmany, ci, nullptr, is, id, co, nullptr, os, od,
+                                  k.kind == Kind::kForward ? FFTW_FORWARD : FFTW_BACKWARD, flags);
+        break;
+    }
+    fftw_free(in);
+    if (!k.in_place) fftw_free(out);
+    return plan;
+  }
+
   std::mutex mutex_;
   FftSettings settings_;
   std::map<PlanKey, fftw_plan> plans_;
 };
 
-// Per-thread aligned work buffers, grown on demand and kept for the thread's life.
+// A per-thread aligned work buffer (fftw_malloc), grown on demand and kept for the thread's life.
 class Scratch {
  public:
-  ~Scratch() {
-    fftw_free(a_);
-    fftw_free(b_);
+  ~Scratch() { fftw_free(p_); }
+  void* Reserve(std::size_t bytes) {
+    if (bytes > size_) {
+      fftw_free(p_);
+      p_ = fftw_malloc(bytes);
+      if (p_ == nullptr) throw std::bad_alloc();
+      size_ = bytes;
+    }
+    return p_;
   }
-  // Two buffers of at least `bytes_a` and `bytes_b` bytes, aligned as fftw_malloc aligns.
-  void Reserve(std::size_t bytes_a, std::size_t bytes_b) {
-    Grow(&a_, &size_a_, bytes_a);
-    Grow(&b_, &size_b_, bytes_b);
-  }
-  void* a() const { return a_; }
-  void* b() const { return b_; }
-
   static Scratch& ForThread() {
     thread_local Scratch s;
     return s;
   }
 
  private:
-  static void Grow(void** p, std::size_t* size, std::size_t bytes) {
-    if (bytes <= *size) return;
-    fftw_free(*p);
-    *p = fftw_malloc(bytes);
-    if (*p == nullptr) throw std::bad_alloc();
-    *size = bytes;
-  }
-  void* a_ = nullptr;
-  void* b_ = nullptr;
-  std::size_t size_a_ = 0, size_b_ = 0;
+  void* p_ = nullptr;
+  std::size_t size_ = 0;
 };
 
-fftw_complex* C(void* p) { return static_cast<fftw_complex*>(p); }
-double* R(void* p) { return static_cast<double*>(p); }
+fftw_complex* C(const Complex* p) { return reinterpret_cast<fftw_complex*>(const_cast<Complex*>(p)); }
+double* R(const double* p) { return const_cast<double*>(p); }
 
 std::atomic<std::uint64_t> g_executions{0};
 void CountExecution() { g_executions.fetch_add(1, std::memory_order_relaxed); }
@@ -178,72 +193,66 @@ void CheckNonEmpty(const char* fn, Index rows, Index cols) {
                 ToString(Shape{rows, cols}), "at most 2^30 per axis (FFTW takes int sizes)");
 }
 
-// Lines per block for lines of `line_bytes` bytes (a function of the shape only).
-Index LinesPerBlock(std::size_t line_bytes, Index lines) {
-  return std::clamp<Index>(Index(kBlockBytes / std::max<std::size_t>(line_bytes, 1)), 1, std::min<Index>(lines, 64));
-}
-
-// Applies a batched 1-D transform to every row of a row-major (rows x in_len) array `in`, writing rows of
-// out_len to `out` (which may equal `in` when both are complex of one length). Element types by Kind.
-template <typename In, typename Out>
-void RowPass(Kind kind, Index n, Index rows, const In* in, Index in_len, Out* out, Index out_len,
-             FftSettings::Planner planner) {
-  const Index per = LinesPerBlock(std::max(sizeof(In) * in_len, sizeof(Out) * out_len), rows);
-  const Index blocks = (rows + per - 1) / per;
-  ParallelFor(blocks, DefaultThreads(), [&](Index b) {
-    const Index r0 = b * per, nb = std::min(per, rows - r0);
-    const fftw_plan p = PlanCache::Get().Plan({kind, n, nb, 0, planner});
-    Scratch& s = Scratch::ForThread();
-    s.Reserve(sizeof(In) * in_len * nb, sizeof(Out) * out_len * nb);
-    std::memcpy(s.a(), in + r0 * in_len, sizeof(In) * in_len * nb);
-    if constexpr (std::is_same_v<In, double>)
-      fftw_execute_dft_r2c(p, R(s.a()), C(s.b()));
-    else if constexpr (std::is_same_v<Out, double>)
-      fftw_execute_dft_c2r(p, C(s.a()), R(s.b()));
-    else
-      fftw_execute_dft(p, C(s.a()), C(s.b()));
-    std::memcpy(out + r0 * out_len, s.b(), sizeof(Out) * out_len * nb);
-  });
-}
-
-// Applies a complex 1-D transform of length `rows` to every column of the row-major rows x cols complex
-// array `x`, in place: blocks of columns are gathered into contiguous lines, transformed and scattered back.
-void ColumnPass(Kind kind, Index rows, Index cols, Complex* x, FftSettings::Planner planner) {
-  const Index per = LinesPerBlock(sizeof(Complex) * rows, cols);
-  const Index blocks = (cols + per - 1) / per;
-  ParallelFor(blocks, DefaultThreads(), [&](Index b) {
-    const Index c0 = b * per, nb = std::min(per, cols - c0);
-    const fftw_plan p = PlanCache::Get().Plan({kind, rows, nb, 0, planner});
-    Scratch& s = Scratch::ForThread();
-    s.Reserve(sizeof(Complex) * rows * nb, sizeof(Complex) * rows * nb);
-    Complex* line = static_cast<Complex*>(s.a());
-    for (Index i = 0; i < rows; ++i)
-      for (Index c = 0; c < nb; ++c) line[c * rows + i] = x[i * cols + c0 + c];
-    fftw_execute_dft(p, C(s.a()), C(s.b()));
-    const Complex* res = static_cast<const Complex*>(s.b());
-    for (Index i = 0; i < rows; ++i)
-      for (Index c = 0; c < nb; ++c) x[i * cols + c0 + c] = res[c * rows + i];
-  });
-}
-
-// A small transform: one 2-D plan, input copied to aligned scratch (c2r destroys its input anyway).
-template <typename In, typename Out>
-void Small(Kind kind, Index rows, Index cols, const In* in, std::size_t in_count, Out* out,
-           std::size_t out_count, FftSettings::Planner planner) {
-  const fftw_plan p = PlanCache::Get().Plan({kind, cols, 0, rows, planner});
-  Scratch& s = Scratch::ForThread();
-  s.Reserve(sizeof(In) * in_count, sizeof(Out) * out_count);
-  std::memcpy(s.a(), in, sizeof(In) * in_count);
-  if constexpr (std::is_same_v<In, double>)
-    fftw_execute_dft_r2c(p, R(s.a()), C(s.b()));
-  else if constexpr (std::is_same_v<Out, double>)
-    fftw_execute_dft_c2r(p, C(s.a()), R(s.b()));
-  else
-    fftw_execute_dft(p, C(s.a()), C(s.b()));
-  std::memcpy(out, s.b(), sizeof(Out) * out_count);
+// FFTW executes a plan only on arrays aligned as the ones it was made on. Eigen's heap arrays always are
+// (16 bytes); an array that is not (a foreign buffer) would be a programming error here, not bad input.
+template <typename T>
+void CheckAligned(const T* p) {
+  if (fftw_alignment_of(reinterpret_cast<double*>(const_cast<T*>(p))) != 0)
+    throw Error("fft.cpp: array not aligned for FFTW (programming error)");
 }
 
 bool Blocked(Index rows, Index cols) { return rows * cols >= kBlockedMinPixels; }
+
+// The fixed partition of `lines` lines into blocks: block starts are even, so that an offset of a whole
+// number of blocks keeps 16-byte alignment for real lines of any length. A function of `lines` only.
+struct Partition {
+  Index per, count;
+  explicit Partition(Index lines) {
+    const Index blocks = std::clamp<Index>(lines / kMinLinesPerBlock, 1, kMaxBlocks);
+    per = (lines + blocks - 1) / blocks;
+    per += per % 2;
+    count = (lines + per - 1) / per;
+  }
+  Index Begin(Index b) const { return b * per; }
+  Index Size(Index b, Index lines) const { return std::min(per, lines - b * per); }
+};
+
+// Row pass: a rank-1 transform of length n along each of `rows` contiguous rows, in (row length in_len) ->
+// out (row length out_len), out of place. For kC2R the rows of `out` are also multiplied by `scale`.
+template <typename In, typename Out>
+void RowPass(Kind kind, Index n, Index rows, const In* in, Index in_len, Out* out, Index out_len,
+             FftSettings::Planner planner, double scale) {
+  const Partition part(rows);
+  ParallelFor(part.count, DefaultThreads(), [&](Index b) {
+    const Index r0 = part.Begin(b), nb = part.Size(b, rows);
+    const fftw_plan p = PlanCache::Get().Plan({kind, 1, n, 0, nb, 1, in_len, 1, out_len, false, planner});
+    const In* src = in + r0 * in_len;
+    Out* dst = out + r0 * out_len;
+    if constexpr (std::is_same_v<In, double>) {
+      fftw_execute_dft_r2c(p, R(src), C(dst));
+    } else if constexpr (std::is_same_v<Out, double>) {
+      fftw_execute_dft_c2r(p, C(src), dst);
+      if (scale != 1.0)
+        for (Index i = 0, count = nb * out_len; i < count; ++i) dst[i] *= scale;
+    } else {
+      fftw_execute_dft(p, C(src), C(dst));
+    }
+  });
+}
+
+// Column pass: a complex rank-1 transform of length `rows` down each of the `cols` columns of the
+// row-major rows x cols arrays `in` -> `out` (the same array for in place).
+void ColumnPass(Kind kind, Index rows, Index cols, const Complex* in, Complex* out, FftSettings::Planner planner) {
+  const Partition part(cols);
+  const bool in_place = in == out;
+  ParallelFor(part.count, DefaultThreads(), [&](Index b) {
+    const Index c0 = part.Begin(b), nb = part.Size(b, cols);
+    const fftw_plan p = PlanCache::Get().Plan({kind, 1, rows, 0, nb, cols, 1, cols, 1, in_place, planner});
+    fftw_execute_dft(p, C(in + c0), C(out + c0));
+  });
+}
+
+FftSettings::Planner CurrentPlanner() { return PlanCache::Get().Settings().planner; }
 
 }  // namespace
 
@@ -253,63 +262,95 @@ FftSettings GetFftSettings() { return PlanCache::Get().Settings(); }
 
 std::size_t FftPlanCount() { return PlanCache::Get().Count(); }
 
+void FftResetPlansForTesting() { PlanCache::Get().Reset(); }
+
 std::uint64_t FftExecutionCount() { return g_executions.load(std::memory_order_relaxed); }
 
-ComplexImage FftR2C(const Image& x) {
+void FftR2CInto(const Image& x, ComplexImage* X) {
   CheckNonEmpty("FftR2C", x.rows(), x.cols());
+  CheckArgument(X != nullptr, "FftR2C", "X", "null", "an output array");
   const Index rows = x.rows(), cols = x.cols(), half = cols / 2 + 1;
-  const auto planner = GetFftSettings().planner;
-  ComplexImage X(rows, half);
+  const auto planner = CurrentPlanner();
+  X->resize(rows, half);
+  CheckAligned(x.data());
+  CheckAligned(X->data());
   CountExecution();
   if (!Blocked(rows, cols)) {
-    Small(Kind::kR2C, rows, cols, x.data(), x.size(), X.data(), X.size(), planner);
+    const fftw_plan p = PlanCache::Get().Plan({Kind::kR2C, 2, rows, cols, 1, 1, 0, 1, 0, false, planner});
+    fftw_execute_dft_r2c(p, R(x.data()), C(X->data()));
   } else {
-    RowPass(Kind::kR2C, cols, rows, x.data(), cols, X.data(), half, planner);
-    ColumnPass(Kind::kForward, rows, half, X.data(), planner);
+    RowPass(Kind::kR2C, cols, rows, x.data(), cols, X->data(), half, planner, 1.0);
+    ColumnPass(Kind::kForward, rows, half, X->data(), X->data(), planner);
   }
+}
+
+ComplexImage FftR2C(const Image& x) {
+  ComplexImage X;
+  FftR2CInto(x, &X);
   return X;
 }
 
-Image FftC2R(const ComplexImage& X, Index cols) {
+void FftC2RInto(const ComplexImage& X, Index cols, Image* x) {
   CheckNonEmpty("FftC2R", X.rows(), cols);
   CheckArgument(cols / 2 + 1 == X.cols(), "FftC2R", "cols", cols,
                 "2*(X.cols()-1) or 2*(X.cols()-1)+1 with X.cols() = " + std::to_string(X.cols()));
+  CheckArgument(x != nullptr, "FftC2R", "x", "null", "an output array");
   const Index rows = X.rows(), half = X.cols();
-  const auto planner = GetFftSettings().planner;
-  Image x(rows, cols);
+  const auto planner = CurrentPlanner();
+  x->resize(rows, cols);
+  CheckAligned(X.data());
+  CheckAligned(x->data());
+  const double scale = 1.0 / static_cast<double>(rows * cols);
   CountExecution();
+  // c2r destroys its input, so the half spectrum goes through a per-thread scratch buffer: copied whole for
+  // the one 2-D plan, or written by the (out-of-place) column pass in the blocked path, which costs no pass.
+  Complex* work = static_cast<Complex*>(Scratch::ForThread().Reserve(sizeof(Complex) * X.size()));
   if (!Blocked(rows, cols)) {
-    Small(Kind::kC2R, rows, cols, X.data(), X.size(), x.data(), x.size(), planner);
+    std::memcpy(work, X.data(), sizeof(Complex) * X.size());
+    const fftw_plan p = PlanCache::Get().Plan({Kind::kC2R, 2, rows, cols, 1, 1, 0, 1, 0, false, planner});
+    fftw_execute_dft_c2r(p, C(work), x->data());
+    *x *= scale;
   } else {
-    ComplexImage work = X;
-    ColumnPass(Kind::kInverse, rows, half, work.data(), planner);
-    RowPass(Kind::kC2R, cols, rows, work.data(), half, x.data(), cols, planner);
+    ColumnPass(Kind::kInverse, rows, half, X.data(), work, planner);
+    RowPass(Kind::kC2R, cols, rows, static_cast<const Complex*>(work), half, x->data(), cols, planner, scale);
   }
-  x /= static_cast<double>(rows * cols);
+}
+
+Image FftC2R(const ComplexImage& X, Index cols) {
+  Image x;
+  FftC2RInto(X, cols, &x);
   return x;
 }
 
 namespace {
-ComplexImage FullComplex(const char* fn, Kind kind, const ComplexImage& in) {
+void FullComplex(const char* fn, Kind kind, const ComplexImage& in, ComplexImage* out) {
   CheckNonEmpty(fn, in.rows(), in.cols());
+  CheckArgument(out != nullptr && out != &in, fn, "out", "null or the input", "a separate output array");
   const Index rows = in.rows(), cols = in.cols();
-  const auto planner = GetFftSettings().planner;
-  ComplexImage out(rows, cols);
+  const auto planner = CurrentPlanner();
+  out->resize(rows, cols);
+  CheckAligned(in.data());
+  CheckAligned(out->data());
   CountExecution();
   if (!Blocked(rows, cols)) {
-    Small(kind, rows, cols, in.data(), in.size(), out.data(), out.size(), planner);
+    const fftw_plan p = PlanCache::Get().Plan({kind, 2, rows, cols, 1, 1, 0, 1, 0, false, planner});
+    fftw_execute_dft(p, C(in.data()), C(out->data()));
   } else {
-    RowPass(kind, cols, rows, in.data(), cols, out.data(), cols, planner);
-    ColumnPass(kind, rows, cols, out.data(), planner);
+    RowPass(kind, cols, rows, in.data(), cols, out->data(), cols, planner, 1.0);
+    ColumnPass(kind, rows, cols, out->data(), out->data(), planner);
   }
-  return out;
 }
 }  // namespace
 
-ComplexImage FftForward(const ComplexImage& x) { return FullComplex("FftForward", Kind::kForward, x); }
+ComplexImage FftForward(const ComplexImage& x) {
+  ComplexImage X;
+  FullComplex("FftForward", Kind::kForward, x, &X);
+  return X;
+}
 
 ComplexImage FftInverse(const ComplexImage& X) {
-  ComplexImage x = FullComplex("FftInverse", Kind::kInverse, X);
+  ComplexImage x;
+  FullComplex("FftInverse", Kind::kInverse, X, &x);
   x /= static_cast<double>(X.rows() * X.cols());
   return x;
 }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <vector>
 
 #include "aosr/core/parallel.hpp"
 #include "support/testing.hpp"
@@ -35,7 +36,7 @@ bool SameBytes(const A& a, const B& b) {
 TEST(FftTest, RoundTrips) {
   // Small (one 2-D plan) and blocked (row-column) shapes, odd and prime sizes included.
   for (Shape s : {Shape{8, 8}, Shape{7, 13}, Shape{64, 50}, Shape{1, 5}, Shape{128, 128}, Shape{131, 257},
-                  Shape{256, 192}, Shape{600, 1}}) {
+                  Shape{256, 192}, Shape{600, 1}, Shape{1, 40000}, Shape{211, 1009}}) {
     const Image x = RandomImage(s, 5);
     const Image back = FftC2R(FftR2C(x), s.cols);
     EXPECT_LT((back - x).abs().maxCoeff(), 1e-13) << ToString(s);
@@ -46,7 +47,8 @@ TEST(FftTest, RoundTrips) {
 }
 
 TEST(FftTest, MatchesTheNaiveDftOnBothPaths) {
-  for (Shape s : {Shape{6, 10}, Shape{128, 129}}) {  // 2-D plan; blocked row-column (>= 128 x 128)
+  // 2-D plan; blocked row-column (>= 192 x 192: prime and odd sizes)
+  for (Shape s : {Shape{6, 10}, Shape{193, 197}}) {
     const Image x = RandomImage(s, 9);
     const ComplexImage ref = NaiveDft(x.cast<Complex>(), -1);
     const double scale = ref.abs().maxCoeff();
@@ -68,24 +70,86 @@ TEST(FftTest, PlansAreCachedByShape) {
 }
 
 // Reproducibility (fft.hpp): the output bytes depend on the input bytes only, not on the thread count.
+// Every size class the library meets: powers of two, even non-powers (2^a 3^b 5^c 7^d), odd sizes, primes
+// above 7, tall and wide, one-row and one-column images, on both execution paths (one 2-D plan below
+// 192 x 192, blocked row-column above).
+const std::vector<Shape>& SizeClasses() {
+  static const std::vector<Shape> shapes = {
+      {30, 40},   {1, 5},      {5, 1},      {7, 13},    {128, 128}, {192, 192}, {256, 192}, {257, 131},
+      {193, 195}, {211, 223},  {200, 384},  {500, 500}, {512, 512}, {1, 40000}, {40000, 1}, {2, 30011},
+      {1000, 96}, {1024, 1024}, {1009, 1013}};
+  return shapes;
+}
+
+// All four transforms of one shape: r2c, c2r of that spectrum, complex forward and inverse.
+struct Outputs {
+  ComplexImage r2c, fwd, inv;
+  Image c2r;
+};
+Outputs Transform(Shape s) {
+  const Image x = RandomImage(s, 21);
+  const ComplexImage xc = RandomImage(s, 22).cast<Complex>() + Complex(0, 1) * RandomImage(s, 23).cast<Complex>();
+  Outputs o;
+  o.r2c = FftR2C(x);
+  o.c2r = FftC2R(o.r2c, s.cols);
+  o.fwd = FftForward(xc);
+  o.inv = FftInverse(xc);
+  return o;
+}
+void ExpectSameBytes(const Outputs& a, const Outputs& b) {
+  EXPECT_TRUE(SameBytes(a.r2c, b.r2c));
+  EXPECT_TRUE(SameBytes(a.c2r, b.c2r));
+  EXPECT_TRUE(SameBytes(a.fwd, b.fwd));
+  EXPECT_TRUE(SameBytes(a.inv, b.inv));
+}
+
 TEST(FftTest, ResultsAreBitIdenticalForOneAndTwoThreads) {
   const int saved = DefaultThreads();
-  for (Shape s : {Shape{30, 40}, Shape{128, 128}, Shape{256, 192}, Shape{257, 131}, Shape{512, 512}}) {
+  for (Shape s : SizeClasses()) {
     SCOPED_TRACE(ToString(s));
-    const Image x = RandomImage(s, 21);
-    const ComplexImage xc = RandomImage(s, 22).cast<Complex>() + Complex(0, 1) * RandomImage(s, 23).cast<Complex>();
     SetDefaultThreads(1);
-    const ComplexImage a1 = FftR2C(x), f1 = FftForward(xc), i1 = FftInverse(xc);
-    const Image c1 = FftC2R(a1, s.cols);
+    const Outputs one = Transform(s);
     SetDefaultThreads(2);
-    const ComplexImage a2 = FftR2C(x), f2 = FftForward(xc), i2 = FftInverse(xc);
-    const Image c2 = FftC2R(a2, s.cols);
-    EXPECT_TRUE(SameBytes(a1, a2));
-    EXPECT_TRUE(SameBytes(c1, c2));
-    EXPECT_TRUE(SameBytes(f1, f2));
-    EXPECT_TRUE(SameBytes(i1, i2));
+    const Outputs two = Transform(s);
+    SetDefaultThreads(3);  // more threads than blocks on small shapes, an odd count on large ones
+    const Outputs three = Transform(s);
+    ExpectSameBytes(one, two);
+    ExpectSameBytes(one, three);
   }
   SetDefaultThreads(saved);
+}
+
+// Run to run: plans made afresh (as in a new process, FFTW's wisdom forgotten) give the same bytes.
+TEST(FftTest, ResultsAreBitIdenticalAfterPlanningAfresh) {
+  const int saved = DefaultThreads();
+  SetDefaultThreads(2);
+  std::vector<Outputs> first;
+  for (Shape s : SizeClasses()) first.push_back(Transform(s));
+  FftResetPlansForTesting();
+  EXPECT_EQ(FftPlanCount(), 0u);
+  SetDefaultThreads(1);
+  for (std::size_t k = 0; k < SizeClasses().size(); ++k) {
+    SCOPED_TRACE(ToString(SizeClasses()[k]));
+    ExpectSameBytes(first[k], Transform(SizeClasses()[k]));
+  }
+  SetDefaultThreads(saved);
+}
+
+TEST(FftTest, IntoVariantsEqualTheReturningOnesAndReuseTheBuffer) {
+  for (Shape s : {Shape{20, 21}, Shape{300, 257}}) {
+    const Image x = RandomImage(s, 3);
+    ComplexImage X(s.rows, s.cols / 2 + 1);
+    const Complex* before = X.data();
+    FftR2CInto(x, &X);
+    EXPECT_EQ(X.data(), before);
+    EXPECT_TRUE(SameBytes(X, FftR2C(x)));
+    Image back(s.rows, s.cols);
+    const double* back_before = back.data();
+    FftC2RInto(X, s.cols, &back);
+    EXPECT_EQ(back.data(), back_before);
+    EXPECT_TRUE(SameBytes(back, FftC2R(X, s.cols)));
+    EXPECT_LT((back - x).abs().maxCoeff(), 1e-13);
+  }
 }
 
 TEST(FftTest, ResultsDoNotDependOnWhereTheArraysLive) {

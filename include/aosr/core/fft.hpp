@@ -6,17 +6,20 @@
 //  * Real transforms store the non-redundant half spectrum: R x (C/2 + 1), FFTW's layout.
 //
 // Execution (DESIGN.md §3, "execution is not maths"):
-//  * Plans are made once per (kind, length, batch, planner) under a global lock, because only
+//  * Plans are made once per (kind, shape, batch, strides, planner) under a global lock, because only
 //    fftw_execute* is thread-safe; executing a cached plan needs no lock.
-//  * A transform of at least 128 x 128 pixels is computed row-column: blocks of whole rows, then blocks of
-//    whole columns, each block one batched 1-D plan run on an aligned per-thread scratch copy. The blocks
-//    are the tasks of ParallelFor (parallel.hpp) on DefaultThreads() threads. Smaller transforms are one
-//    2-D plan on an aligned scratch copy. Either way every block of a given shape meets the same plan on
-//    a buffer of the same alignment, so
-//  * Reproducibility: with the default planner (kEstimate) the output bytes depend only on the input
-//    bytes: not on the run, the thread count, or the arrays' addresses (tested bit for bit). kMeasure and
-//    kPatient time candidate algorithms, so the chosen plan, and with it the last bits of every result,
-//    may change from run to run; they are opt-in for benchmarks (bench/results/fft.md measures the cost).
+//  * A transform smaller than 192 x 192 pixels is one FFTW 2-D plan run directly on the caller's arrays.
+//    From 192 x 192 on it is FFTW's row-column algorithm cut into a fixed number of blocks (at most 8,
+//    a function of the shape only): a row pass (each block a batched 1-D plan over contiguous rows) and
+//    a column pass (each block a batched 1-D plan over a band of columns, strided, in place). The blocks
+//    are the tasks of ParallelFor (parallel.hpp) on DefaultThreads() threads; nothing is copied by us.
+//    bench/results/fft.md compares this with one FFTW 2-D plan on 1 and 2 threads.
+//  * Reproducibility: with the default planner (kEstimate, whose choices are FFTW's deterministic
+//    heuristics, no timing) the output bytes depend only on the input bytes: not on the run, the thread
+//    count, or the arrays' addresses, because every block is always computed by the same plan on arrays
+//    of the same alignment (tested bit for bit for every size class: powers of two, odd, primes > 7,
+//    one-row images). kMeasure and kPatient time candidate algorithms, so the chosen plan, and with it
+//    the last bits of every result, may change from run to run; they are opt-in for benchmarks.
 #pragma once
 
 #include <cstddef>
@@ -40,15 +43,22 @@ FftSettings GetFftSettings();
 
 // Real-to-complex forward transform: R x C -> R x (C/2+1), unnormalised.
 ComplexImage FftR2C(const Image& x);
+// The same into *X, resized only when its shape differs (hot loops reuse one buffer).
+void FftR2CInto(const Image& x, ComplexImage* X);
 // Complex-to-real inverse: R x (C/2+1) -> R x `cols`, divided by R*cols. `cols` must be
 // 2*(X.cols()-1) or 2*(X.cols()-1)+1.
 Image FftC2R(const ComplexImage& X, Index cols);
+// The same into *x, resized only when its shape differs. X is not modified.
+void FftC2RInto(const ComplexImage& X, Index cols, Image* x);
 // Full complex transforms; Forward unnormalised, Inverse divided by R*C.
 ComplexImage FftForward(const ComplexImage& x);
 ComplexImage FftInverse(const ComplexImage& X);
 
 // Number of distinct plans made so far (for tests and benchmarks of the cache).
 std::size_t FftPlanCount();
+// Destroys every cached plan and FFTW's wisdom, so the next transforms plan as a fresh process would (the
+// run-to-run reproducibility test). No transform may be running on any thread while it is called.
+void FftResetPlansForTesting();
 // Number of transforms executed through this file since the program started (all threads; a relaxed
 // atomic counter). Tests use it to prove a disabled stage does no FFT work; benchmarks to count the FFT
 // floor of an algorithm. Every FFT in aosr goes through this file, so the count is complete.
