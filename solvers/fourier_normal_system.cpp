@@ -251,39 +251,55 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
 }
 
 Image FourierNormalSystem::Solve(const Image& rhs) const {
-  if (!factorized_) throw InvalidArgument("FourierNormalSystem::Solve: call Factorize first");
-  CheckArgument(ShapeOf(rhs) == hr_, "FourierNormalSystem::Solve", "rhs shape", ToString(ShapeOf(rhs)),
-                "the HR shape " + ToString(hr_));
   CheckArgument(AllFinite(rhs), "FourierNormalSystem::Solve", "rhs", "(non-finite values)", "finite values");
-  const ComplexImage half = FftR2C(rhs);
+  Workspace ws;
+  Image x;
+  SolveInto(rhs, &x, &ws);
+  return x;
+}
+
+void FourierNormalSystem::SolveInto(const Image& rhs, Image* x, Workspace* ws) const {
+  constexpr const char* kFn = "FourierNormalSystem::Solve";
+  if (!factorized_) throw InvalidArgument(std::string(kFn) + ": call Factorize first");
+  CheckArgument(ShapeOf(rhs) == hr_, kFn, "rhs shape", ToString(ShapeOf(rhs)), "the HR shape " + ToString(hr_));
+  CheckArgument(x != nullptr && ws != nullptr, kFn, "x, ws", "null", "an output image and a workspace");
+  FftR2CInto(rhs, &ws->half);
   // Solutions go to a separate half spectrum: a bin may read the mirror of a value another bin writes.
-  ComplexImage out(half.rows(), half.cols());
-  SolveBins(half, nullptr, &out, nullptr);
-  return FftC2R(out, hr_.cols);
+  ws->out.resize(ws->half.rows(), ws->half.cols());
+  SolveBins(ws->half, nullptr, &ws->out, nullptr);
+  FftC2RInto(ws->out, hr_.cols, x);
 }
 
 void FourierNormalSystem::SolveWithData(const Image& rhs, const ImageStack& v, Image* x, ImageStack* ax) const {
   constexpr const char* kFn = "FourierNormalSystem::SolveWithData";
+  CheckArgument(AllFinite(rhs), kFn, "rhs", "(non-finite values)", "finite values");
+  for (const Image& f : v) CheckArgument(AllFinite(f), kFn, "v", "(non-finite values)", "finite values");
+  Workspace ws;
+  SolveWithDataInto(rhs, v, x, ax, &ws);
+}
+
+void FourierNormalSystem::SolveWithDataInto(const Image& rhs, const ImageStack& v, Image* x, ImageStack* ax,
+                                            Workspace* ws) const {
+  constexpr const char* kFn = "FourierNormalSystem::SolveWithData";
   if (!factorized_) throw InvalidArgument(std::string(kFn) + ": call Factorize first");
   CheckArgument(ShapeOf(rhs) == hr_, kFn, "rhs shape", ToString(ShapeOf(rhs)), "the HR shape " + ToString(hr_));
-  CheckArgument(AllFinite(rhs), kFn, "rhs", "(non-finite values)", "finite values");
   CheckArgument(Index(v.size()) == n_, kFn, "v frames", std::to_string(v.size()), std::to_string(n_));
-  CheckArgument(x != nullptr, kFn, "x", "null", "an output image");
-  for (const Image& f : v) {
+  CheckArgument(x != nullptr && ws != nullptr, kFn, "x, ws", "null", "an output image and a workspace");
+  for (const Image& f : v)
     CheckArgument(ShapeOf(f) == lr_, kFn, "v frame shape", ToString(ShapeOf(f)), "the LR shape " + ToString(lr_));
-    CheckArgument(AllFinite(f), kFn, "v", "(non-finite values)", "finite values");
+  FftR2CInto(rhs, &ws->half);
+  ws->spectra.resize(n_);
+  ParallelFor(n_, [&](Index i) { FftR2CInto(v[i], &ws->spectra[i]); });
+  ws->out.resize(ws->half.rows(), ws->half.cols());
+  if (ax) {
+    ws->ax_half.resize(n_);
+    for (ComplexImage& a : ws->ax_half) a.resize(lr_.rows, lr_.cols / 2 + 1);
   }
-  const ComplexImage half = FftR2C(rhs);
-  std::vector<ComplexImage> spectra(n_);
-  ParallelFor(n_, [&](Index i) { spectra[i] = FftR2C(v[i]); });
-  ComplexImage out(half.rows(), half.cols());
-  std::vector<ComplexImage> ax_half;
-  if (ax) ax_half.assign(n_, ComplexImage(lr_.rows, lr_.cols / 2 + 1));
-  SolveBins(half, &spectra, &out, ax ? &ax_half : nullptr);
-  *x = FftC2R(out, hr_.cols);
+  SolveBins(ws->half, &ws->spectra, &ws->out, ax ? &ws->ax_half : nullptr);
+  FftC2RInto(ws->out, hr_.cols, x);
   if (ax) {
     ax->resize(n_);
-    ParallelFor(n_, [&](Index i) { (*ax)[i] = FftC2R(ax_half[i], lr_.cols); });
+    ParallelFor(n_, [&](Index i) { FftC2RInto(ws->ax_half[i], lr_.cols, &(*ax)[i]); });
   }
 }
 

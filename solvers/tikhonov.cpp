@@ -540,20 +540,31 @@ void FourierSystem::MakeSpectral() const {
   // and the same |UᴴY|²: the second of each pair copies the first.
   const auto mirror = [&](Index i) { return MirrorBin(i); };
   const auto canonical = [&](Index i) { return CanonicalBin(i); };
-  ParallelFor(nb, [&](Index i) {
-    const Bin& b = bins_[i];
-    if (!b.prior_positive || !canonical(i)) return;
-    const Index q = sp->offset[i + 1] - sp->offset[i];
-    // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's range,
-    // so the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||² that would cancel
-    // for nearly fitted data. (The eigen-decomposition of the N x N matrix A P⁻¹ Aᴴ costs about as much here
-    // and loses small s² to rounding at the scale of the largest: 100x the SVD's error at λ = 1e-8 λ₀.)
-    const Eigen::MatrixXcd whitened = b.a * b.prior.cwiseSqrt().cwiseInverse().asDiagonal();
-    const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(whitened, Eigen::ComputeFullU);
-    const Eigen::VectorXcd uy = svd.matrixU().adjoint() * b.y;
-    sp->s2.segment(sp->offset[i], q) = svd.singularValues().array().square().matrix();
-    sp->c.segment(sp->offset[i], q) = uy.head(q).cwiseAbs2();
-    sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
+  // Tasks are rows of bins, so that each task sizes its SVD workspace once (Eigen's JacobiSVD allocates in
+  // its constructor and reuses that memory in compute()) instead of allocating for every bin.
+  const Index lr_cols = model_.lr_shape().cols, lr_rows = model_.lr_shape().rows;
+  ParallelFor(lr_rows, [&](Index uy_row) {
+    Eigen::MatrixXcd whitened;
+    Eigen::JacobiSVD<Eigen::MatrixXcd> svd;
+    Eigen::VectorXcd uy;
+    for (Index i = uy_row * lr_cols; i < (uy_row + 1) * lr_cols; ++i) {
+      const Bin& b = bins_[i];
+      if (!b.prior_positive || !canonical(i)) continue;
+      const Index q = sp->offset[i + 1] - sp->offset[i];
+      // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's
+      // range, so the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||² that
+      // would cancel for nearly fitted data. (The eigen-decomposition of the N x N matrix A P⁻¹ Aᴴ costs
+      // about as much here and loses small s² to rounding at the scale of the largest: 100x the SVD's error
+      // at λ = 1e-8 λ₀.)
+      if (svd.rows() != b.a.rows() || svd.cols() != b.a.cols())
+        svd = Eigen::JacobiSVD<Eigen::MatrixXcd>(b.a.rows(), b.a.cols(), Eigen::ComputeFullU);
+      whitened.noalias() = b.a * b.prior.cwiseSqrt().cwiseInverse().asDiagonal();
+      svd.compute(whitened, Eigen::ComputeFullU);
+      uy.noalias() = svd.matrixU().adjoint() * b.y;
+      sp->s2.segment(sp->offset[i], q) = svd.singularValues().array().square().matrix();
+      sp->c.segment(sp->offset[i], q) = uy.head(q).cwiseAbs2();
+      sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
+    }
   });
   ParallelFor(nb, [&](Index i) {
     if (!bins_[i].prior_positive || canonical(i)) return;

@@ -7,10 +7,12 @@
 #include <limits>
 #include <memory>
 #include <sstream>
+#include <vector>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
 
 namespace aosr {
@@ -104,22 +106,33 @@ struct ZPassSums {
   double primal2 = 0, kx2 = 0, zeta2 = 0;
 };
 
+// Both passes run over a fixed partition of the rows into blocks (a function of the shape only), in
+// parallel; each block's sums are added in block order afterwards, so the result does not depend on the
+// thread count. Inside a row the loop is a SIMD loop (`omp simd`, compiled with -fopenmp-simd: no OpenMP
+// runtime): its sums are kept per SIMD lane and added at the end of the row, a fixed order for a given
+// build. The wrap-around column (periodic boundary) is done apart, so the main loop has no branch.
+constexpr Index kPassBlockPixels = 16384;
+
+Index PassBlockRows(Shape hr) { return std::max<Index>(1, kPassBlockPixels / std::max<Index>(hr.cols, 1)); }
+
 // From x: g = ∇x; ĝ = α g + (1 − α) z; z ← shrink_t(ĝ + u); u ← u + ĝ − z; dz = z_new − z_old. Returns
 // ||g − z||², ||g||², ||z||².
 ZPassSums ZUpdate(Shape hr, const Vector& x, double alpha, double t, Vector* z, Vector* u, Vector* dz) {
   const Index R = hr.rows, C = hr.cols, n = hr.size();
+  const double* xs = x.data();
   double* zy = z->data();
   double* zx = z->data() + n;
   double* uy = u->data();
   double* ux = u->data() + n;
   double* dzy = dz->data();
   double* dzx = dz->data() + n;
-  ZPassSums sums;
-  for (Index y = 0; y < R; ++y) {
-    const Index yn = y + 1 < R ? y + 1 : 0;
-    for (Index c = 0; c < C; ++c) {
-      const Index cn = c + 1 < C ? c + 1 : 0, p = y * C + c;
-      const double gy = x[yn * C + c] - x[p], gx = x[y * C + cn] - x[p];
+  const Index per = PassBlockRows(hr), blocks = (R + per - 1) / per;
+  std::vector<ZPassSums> partial(blocks);
+  ParallelFor(blocks, [&](Index b) {
+    double primal2 = 0, kx2 = 0, zeta2 = 0;
+    // One pixel p with its forward neighbours at p + dy (next row) and p + dx (next column).
+    auto pixel = [&](Index p, Index below, Index right) {
+      const double gy = xs[below] - xs[p], gx = xs[right] - xs[p];
       const double hy = alpha * gy + (1 - alpha) * zy[p], hx = alpha * gx + (1 - alpha) * zx[p];
       const double ty = hy + uy[p], tx = hx + ux[p];
       const double norm = std::sqrt(ty * ty + tx * tx);
@@ -131,10 +144,41 @@ ZPassSums ZUpdate(Shape hr, const Vector& x, double alpha, double t, Vector* z, 
       dzx[p] = nx - zx[p];
       zy[p] = ny;
       zx[p] = nx;
-      sums.primal2 += (gy - ny) * (gy - ny) + (gx - nx) * (gx - nx);
-      sums.kx2 += gy * gy + gx * gx;
-      sums.zeta2 += ny * ny + nx * nx;
+      primal2 += (gy - ny) * (gy - ny) + (gx - nx) * (gx - nx);
+      kx2 += gy * gy + gx * gx;
+      zeta2 += ny * ny + nx * nx;
+    };
+    for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y) {
+      const Index row = y * C, down = (y + 1 < R ? y + 1 : 0) * C - row;
+#pragma omp simd reduction(+ : primal2, kx2, zeta2)
+      for (Index c = 0; c < C - 1; ++c) {
+        const Index p = row + c;
+        const double gy = xs[p + down] - xs[p], gx = xs[p + 1] - xs[p];
+        const double hy = alpha * gy + (1 - alpha) * zy[p], hx = alpha * gx + (1 - alpha) * zx[p];
+        const double ty = hy + uy[p], tx = hx + ux[p];
+        const double norm = std::sqrt(ty * ty + tx * tx);
+        const double f = norm > t ? 1.0 - t / norm : 0.0;
+        const double ny = f * ty, nx = f * tx;
+        uy[p] += hy - ny;
+        ux[p] += hx - nx;
+        dzy[p] = ny - zy[p];
+        dzx[p] = nx - zx[p];
+        zy[p] = ny;
+        zx[p] = nx;
+        primal2 += (gy - ny) * (gy - ny) + (gx - nx) * (gx - nx);
+        kx2 += gy * gy + gx * gx;
+        zeta2 += ny * ny + nx * nx;
+      }
+      const Index last = row + C - 1;
+      pixel(last, last + down, row);
     }
+    partial[b] = {primal2, kx2, zeta2};
+  });
+  ZPassSums sums;
+  for (const ZPassSums& p : partial) {
+    sums.primal2 += p.primal2;
+    sums.kx2 += p.kx2;
+    sums.zeta2 += p.zeta2;
   }
   return sums;
 }
@@ -145,7 +189,7 @@ struct AdjointPassSums {
 
 // The three ∇ᵀ products of an iteration in one gather pass: rhs = ρ∇ᵀ(z − u) [+ ρ(v − s)] (the next
 // x-update's right-hand side), and the norms ||∇ᵀdz [+ dv]||² (dual residual) and ||∇ᵀu [+ s]||² (dual
-// tolerance). The bracketed terms only with positivity (v, s, dv non-null).
+// tolerance). The bracketed terms only with positivity (v, s, dv non-null). Blocks and SIMD as ZUpdate.
 AdjointPassSums AdjointPass(Shape hr, double rho, const Vector& z, const Vector& u, const Vector& dz,
                             const Vector* v, const Vector* sv, const Vector* dv, Vector* rhs) {
   const Index R = hr.rows, C = hr.cols, n = hr.size();
@@ -155,25 +199,62 @@ AdjointPassSums AdjointPass(Shape hr, double rho, const Vector& z, const Vector&
   const double* ux = u.data() + n;
   const double* dzy = dz.data();
   const double* dzx = dz.data() + n;
-  AdjointPassSums sums;
-  for (Index y = 0; y < R; ++y) {
-    const Index yp = y > 0 ? y - 1 : R - 1;
-    for (Index c = 0; c < C; ++c) {
-      const Index cp = c > 0 ? c - 1 : C - 1, p = y * C + c, up = yp * C + c, left = y * C + cp;
+  const double* vs = v ? v->data() : nullptr;
+  const double* ss = v ? sv->data() : nullptr;
+  const double* dvs = v ? dv->data() : nullptr;
+  double* out = rhs->data();
+  const Index per = PassBlockRows(hr), blocks = (R + per - 1) / per;
+  std::vector<AdjointPassSums> partial(blocks);
+  ParallelFor(blocks, [&](Index b) {
+    double dual2 = 0, ktu2 = 0;
+    // One pixel p with its backward neighbours at p − dy (previous row) and p − dx (previous column).
+    auto pixel = [&](Index p, Index up, Index left, bool pos) {
       const double tz = (zy[up] - zy[p]) + (zx[left] - zx[p]);
       const double tu = (uy[up] - uy[p]) + (ux[left] - ux[p]);
       double d = (dzy[up] - dzy[p]) + (dzx[left] - dzx[p]);
       double k = tu;
       double r = rho * (tz - tu);
-      if (v) {
-        r += rho * ((*v)[p] - (*sv)[p]);
-        d += (*dv)[p];
-        k += (*sv)[p];
+      if (pos) {
+        r += rho * (vs[p] - ss[p]);
+        d += dvs[p];
+        k += ss[p];
       }
-      (*rhs)[p] = r;
-      sums.dual2 += d * d;
-      sums.ktu2 += k * k;
+      out[p] = r;
+      dual2 += d * d;
+      ktu2 += k * k;
+    };
+    for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y) {
+      const Index row = y * C, up = (y > 0 ? y - 1 : R - 1) * C - row;
+      pixel(row, row + up, row + C - 1, vs != nullptr);
+      if (vs) {
+#pragma omp simd reduction(+ : dual2, ktu2)
+        for (Index p = row + 1; p < row + C; ++p) {
+          const double tz = (zy[p + up] - zy[p]) + (zx[p - 1] - zx[p]);
+          const double tu = (uy[p + up] - uy[p]) + (ux[p - 1] - ux[p]);
+          const double d = (dzy[p + up] - dzy[p]) + (dzx[p - 1] - dzx[p]) + dvs[p];
+          const double k = tu + ss[p];
+          out[p] = rho * (tz - tu) + rho * (vs[p] - ss[p]);
+          dual2 += d * d;
+          ktu2 += k * k;
+        }
+      } else {
+#pragma omp simd reduction(+ : dual2, ktu2)
+        for (Index p = row + 1; p < row + C; ++p) {
+          const double tz = (zy[p + up] - zy[p]) + (zx[p - 1] - zx[p]);
+          const double tu = (uy[p + up] - uy[p]) + (ux[p - 1] - ux[p]);
+          const double d = (dzy[p + up] - dzy[p]) + (dzx[p - 1] - dzx[p]);
+          out[p] = rho * (tz - tu);
+          dual2 += d * d;
+          ktu2 += tu * tu;
+        }
+      }
     }
+    partial[b] = {dual2, ktu2};
+  });
+  AdjointPassSums sums;
+  for (const AdjointPassSums& p : partial) {
+    sums.dual2 += p.dual2;
+    sums.ktu2 += p.ktu2;
   }
   return sums;
 }
@@ -233,7 +314,10 @@ class FourierXUpdate final : public XUpdate {
     summary_->singular_bins = std::max(summary_->singular_bins, system_.singular_bins());
   }
   bool Solve(const Vector& prior_rhs, Vector* x) override {
-    *x = AsVector(system_.Solve(AsImage(Vector(aty_ + prior_rhs), hr_)));
+    rhs_.resize(hr_.rows, hr_.cols);
+    AsVector(rhs_) = aty_ + prior_rhs;
+    system_.SolveInto(rhs_, &x_, &workspace_);
+    *x = AsVector(x_);
     return true;
   }
   std::string Report() const override {
@@ -246,6 +330,8 @@ class FourierXUpdate final : public XUpdate {
   Vector aty_;
   Shape hr_;
   TotalVariationSummary* summary_;
+  Image rhs_, x_;  // reused every iteration, as is the workspace
+  FourierNormalSystem::Workspace workspace_;
 };
 
 // Any weights: matrix-free CG on (AᵀWA + ρ∇ᵀ∇ + ρ_v I), warm-started from the previous x.
@@ -314,20 +400,30 @@ class SplitXUpdate final : public XUpdate {
   }
   void Prepare(double rho, double /*rho_v*/) override { rho_ = rho; }
   bool Solve(const Vector& prior_rhs, Vector* x) override {
-    Image xi;
-    ImageStack ax;
-    system_->SolveWithData(AsImage(Vector(prior_rhs / rho_), hr_), model_.Unflatten(omega_ - t_), &xi, &ax);
-    *x = AsVector(xi);
-    ax_ = model_.Flatten(ax);
+    const Shape lr = model_.lr_shape();
+    const Index frames = model_.frames();
+    rhs_.resize(hr_.rows, hr_.cols);
+    AsVector(rhs_) = prior_rhs / rho_;
+    v_.resize(frames);
+    for (Index i = 0; i < frames; ++i) {
+      v_[i].resize(lr.rows, lr.cols);
+      AsVector(v_[i]) = omega_.segment(i * lr.size(), lr.size()) - t_.segment(i * lr.size(), lr.size());
+    }
+    system_->SolveWithDataInto(rhs_, v_, &x_, &ax_frames_, &workspace_);
+    *x = AsVector(x_);
+    for (Index i = 0; i < frames; ++i) ax_.segment(i * lr.size(), lr.size()) = AsVector(ax_frames_[i]);
     return true;
   }
   void UpdateSplit(double alpha) override {
     omega_prev_ = omega_;
     const double c = rho_ * kappa_;
-    const Vector ahat = alpha * ax_ + (1 - alpha) * omega_prev_;
-    const Vector q = ahat + t_;
-    omega_ = (wy_ + c * q).cwiseQuotient(weights_ + Vector::Constant(q.size(), c));
-    t_ += ahat - omega_;
+    // One fused pass per pixel: â = α Ax + (1 − α) ω_prev, ω = (W∘y + c(â + t)) / (W + c), t += â − ω.
+    for (Index p = 0, count = omega_.size(); p < count; ++p) {
+      const double ahat = alpha * ax_[p] + (1 - alpha) * omega_prev_[p];
+      const double w = (wy_[p] + c * (ahat + t_[p])) / (weights_[p] + c);
+      t_[p] += ahat - w;
+      omega_[p] = w;
+    }
   }
   void RescaleDual(double factor) override { t_ /= factor; }
   Split SplitResiduals(double rho) const override {
@@ -350,6 +446,9 @@ class SplitXUpdate final : public XUpdate {
   double kappa_ = 1, rho_ = 1;
   std::unique_ptr<FourierNormalSystem> system_;
   Vector ax_, omega_, omega_prev_, t_;
+  Image rhs_, x_;  // reused every iteration, as are these frames and the workspace
+  ImageStack v_, ax_frames_;
+  FourierNormalSystem::Workspace workspace_;
 };
 
 }  // namespace

@@ -158,18 +158,25 @@ class PlanCache {
   std::map<PlanKey, fftw_plan> plans_;
 };
 
-// A per-thread aligned work buffer (fftw_malloc), grown on demand and kept for the thread's life.
+// Per-thread aligned work buffers (fftw_malloc), grown on demand and kept for the thread's life. Two
+// slots, because a c2r holds its whole-spectrum copy in kSpectrum while the column pass, run partly on the
+// same thread, uses kColumns for its chunks.
+enum Slot { kSpectrum = 0, kColumns = 1 };
 class Scratch {
  public:
-  ~Scratch() { fftw_free(p_); }
-  void* Reserve(std::size_t bytes) {
-    if (bytes > size_) {
-      fftw_free(p_);
-      p_ = fftw_malloc(bytes);
-      if (p_ == nullptr) throw std::bad_alloc();
-      size_ = bytes;
+  ~Scratch() {
+    for (void* p : p_) fftw_free(p);
+  }
+  void* Reserve(Slot slot, std::size_t bytes) {
+    if (bytes > size_[slot]) {
+      fftw_free(p_[slot]);
+      p_[slot] = nullptr;
+      size_[slot] = 0;
+      p_[slot] = fftw_malloc(bytes);
+      if (p_[slot] == nullptr) throw std::bad_alloc();
+      size_[slot] = bytes;
     }
-    return p_;
+    return p_[slot];
   }
   static Scratch& ForThread() {
     thread_local Scratch s;
@@ -177,8 +184,8 @@ class Scratch {
   }
 
  private:
-  void* p_ = nullptr;
-  std::size_t size_ = 0;
+  void* p_[2] = {nullptr, nullptr};
+  std::size_t size_[2] = {0, 0};
 };
 
 fftw_complex* C(const Complex* p) { return reinterpret_cast<fftw_complex*>(const_cast<Complex*>(p)); }
@@ -242,7 +249,41 @@ void RowPass(Kind kind, Index n, Index rows, const In* in, Index in_len, Out* ou
 
 // Column pass: a complex rank-1 transform of length `rows` down each of the `cols` columns of the
 // row-major rows x cols arrays `in` -> `out` (the same array for in place).
+//
+// Two ways, chosen by the shape alone (so the choice cannot vary between runs or thread counts):
+//  * strided: each block of columns is one batched 1-D plan reading the columns in place with stride
+//    `cols`. Fine while the stride does not alias in the cache;
+//  * buffered: chunks of kChunkColumns columns are gathered into contiguous lines of a per-thread buffer,
+//    transformed there by a contiguous batched plan, and scattered back (FFTW's own "dft-buffered"
+//    strategy, which FFTW_MEASURE finds and FFTW_ESTIMATE does not). A stride of a multiple of 256 bytes
+//    (cols % 16 == 0 for complex rows) maps successive rows of a column onto few cache sets, and past
+//    16 MiB every row of a column is a new page: there FFTW_ESTIMATE's strided plans were measured 3 to
+//    10x slower than buffering (256^2 complex: 2.0 ms against 0.20 ms; bench/results/fft.md).
+constexpr Index kChunkColumns = 8;
+
+bool BufferedColumns(Index rows, Index cols) {
+  return cols % 16 == 0 || std::size_t(rows) * std::size_t(cols) * sizeof(Complex) >= (std::size_t(16) << 20);
+}
+
 void ColumnPass(Kind kind, Index rows, Index cols, const Complex* in, Complex* out, FftSettings::Planner planner) {
+  if (BufferedColumns(rows, cols)) {
+    const Index chunks = (cols + kChunkColumns - 1) / kChunkColumns;
+    ParallelFor(chunks, DefaultThreads(), [&](Index b) {
+      const Index c0 = b * kChunkColumns, nb = std::min(kChunkColumns, cols - c0);
+      const fftw_plan p = PlanCache::Get().Plan({kind, 1, rows, 0, nb, 1, rows, 1, rows, true, planner});
+      Complex* buf = static_cast<Complex*>(Scratch::ForThread().Reserve(kColumns, sizeof(Complex) * rows * nb));
+      for (Index i = 0; i < rows; ++i) {
+        const Complex* src = in + i * cols + c0;
+        for (Index c = 0; c < nb; ++c) buf[c * rows + i] = src[c];
+      }
+      fftw_execute_dft(p, C(buf), C(buf));
+      for (Index i = 0; i < rows; ++i) {
+        Complex* dst = out + i * cols + c0;
+        for (Index c = 0; c < nb; ++c) dst[c] = buf[c * rows + i];
+      }
+    });
+    return;
+  }
   const Partition part(cols);
   const bool in_place = in == out;
   ParallelFor(part.count, DefaultThreads(), [&](Index b) {
@@ -304,7 +345,7 @@ void FftC2RInto(const ComplexImage& X, Index cols, Image* x) {
   CountExecution();
   // c2r destroys its input, so the half spectrum goes through a per-thread scratch buffer: copied whole for
   // the one 2-D plan, or written by the (out-of-place) column pass in the blocked path, which costs no pass.
-  Complex* work = static_cast<Complex*>(Scratch::ForThread().Reserve(sizeof(Complex) * X.size()));
+  Complex* work = static_cast<Complex*>(Scratch::ForThread().Reserve(kSpectrum, sizeof(Complex) * X.size()));
   if (!Blocked(rows, cols)) {
     std::memcpy(work, X.data(), sizeof(Complex) * X.size());
     const fftw_plan p = PlanCache::Get().Plan({Kind::kC2R, 2, rows, cols, 1, 1, 0, 1, 0, false, planner});

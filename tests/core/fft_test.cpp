@@ -71,13 +71,14 @@ TEST(FftTest, PlansAreCachedByShape) {
 
 // Reproducibility (fft.hpp): the output bytes depend on the input bytes only, not on the thread count.
 // Every size class the library meets: powers of two, even non-powers (2^a 3^b 5^c 7^d), odd sizes, primes
-// above 7, tall and wide, one-row and one-column images, on both execution paths (one 2-D plan below
-// 192 x 192, blocked row-column above).
+// above 7, tall and wide, one-row and one-column images, on every execution path (one 2-D plan below
+// 192 x 192; blocked row-column above, its column pass strided or buffered: 200 x 382 has a half spectrum
+// of 192 columns, 1024 x 2048 one of 16 MiB).
 const std::vector<Shape>& SizeClasses() {
   static const std::vector<Shape> shapes = {
       {30, 40},   {1, 5},      {5, 1},      {7, 13},    {128, 128}, {192, 192}, {256, 192}, {257, 131},
       {193, 195}, {211, 223},  {200, 384},  {500, 500}, {512, 512}, {1, 40000}, {40000, 1}, {2, 30011},
-      {1000, 96}, {1024, 1024}, {1009, 1013}};
+      {1000, 96}, {1024, 1024}, {1009, 1013}, {200, 382}, {1024, 2048}};
   return shapes;
 }
 

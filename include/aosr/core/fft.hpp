@@ -11,8 +11,10 @@
 //  * A transform smaller than 192 x 192 pixels is one FFTW 2-D plan run directly on the caller's arrays.
 //    From 192 x 192 on it is FFTW's row-column algorithm cut into a fixed number of blocks (at most 8,
 //    a function of the shape only): a row pass (each block a batched 1-D plan over contiguous rows) and
-//    a column pass (each block a batched 1-D plan over a band of columns, strided, in place). The blocks
-//    are the tasks of ParallelFor (parallel.hpp) on DefaultThreads() threads; nothing is copied by us.
+//    a column pass (each block a batched 1-D plan over a band of columns, strided, in place; or, where
+//    the row stride would alias in the cache or the array is large, chunks of 8 columns gathered into a
+//    contiguous buffer, transformed and scattered back). The blocks are the tasks of ParallelFor
+//    (parallel.hpp) on DefaultThreads() threads. Which way is a function of the shape only.
 //    bench/results/fft.md compares this with one FFTW 2-D plan on 1 and 2 threads.
 //  * Reproducibility: with the default planner (kEstimate, whose choices are FFTW's deterministic
 //    heuristics, no timing) the output bytes depend only on the input bytes: not on the run, the thread

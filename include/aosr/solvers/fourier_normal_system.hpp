@@ -48,6 +48,17 @@ class FourierNormalSystem {
   // model frames A x. Requires a prior Factorize.
   void SolveWithData(const Image& rhs, const ImageStack& v, Image* x, ImageStack* ax) const;
 
+  // Buffers that a caller keeps across solves, so that a solve allocates nothing (an ADMM iteration).
+  struct Workspace {
+    ComplexImage half, out;
+    std::vector<ComplexImage> spectra, ax_half;
+  };
+  // The two solves above for an iterative caller: into *x (and *ax), resized only when their shapes
+  // differ, with the caller's buffers, and without the finiteness checks of the inputs, which the caller
+  // guarantees (total_variation.cpp checks ||rhs||² and its data once). Shapes are still checked.
+  void SolveInto(const Image& rhs, Image* x, Workspace* ws) const;
+  void SolveWithDataInto(const Image& rhs, const ImageStack& v, Image* x, ImageStack* ax, Workspace* ws) const;
+
   Index singular_bins() const { return singular_bins_; }
   Index woodbury_bins() const { return woodbury_bins_; }
   Index bins() const { return lr_.size(); }
