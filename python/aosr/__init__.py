@@ -36,8 +36,10 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     __version__,
     calibrate,
     compare_images,
+    compare_images_aligned,
     design,
     evaluate,
+    fourier_shift,
     methods,
     open_dataset,
     psf,
@@ -57,7 +59,8 @@ from ._aosr import (  # noqa: F401  (re-exported API)
 
 __all__ = [
     "CalibrationSet", "Dataset", "Error", "InvalidArgument", "IoError", "NumericalError", "Reconstruction",
-    "ResourceError", "Scene", "calibrate", "compare_images", "data_path", "design", "evaluate", "load_scene",
+    "ResourceError", "Scene", "calibrate", "compare_images", "compare_images_aligned", "data_path", "design",
+    "evaluate", "fourier_shift", "load_scene",
     "methods", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
     "scene_from_dict", "set_fft_planner", "set_memory_limit", "set_threads", "simulate",
     "synthesize_calibration", "threads", "write_fits",

@@ -155,7 +155,8 @@ def _reconstruct_task(task):
     if task["evaluate"]:
         if ds.truth is not None:
             m = aosr.evaluate(rec.image, dataset=ds)
-            record["against_truth"] = {k: m[k] for k in ("psnr_db", "ssim", "rmse", "crop_px")}
+            record["against_truth"] = {k: m[k] for k in ("psnr_db", "ssim", "rmse", "crop_px", "aligned",
+                                                         "offset_hr_px", "offset_mas")}
     return record
 
 

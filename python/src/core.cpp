@@ -123,6 +123,36 @@ void BindCore(py::module_& m) {
       "at each border. PSNR = 10 log10(L^2 / MSE) with L = `peak`, or max - min of the cropped truth when 0\n"
       "(include/aosr/core/metrics.hpp). Returns {'psnr_db', 'ssim', 'rmse', 'crop_px'}.");
   m.def(
+      "compare_images_aligned",
+      [](py::handle truth, py::handle estimate, int crop, double peak) {
+        const Image t = ImageFromArray(truth, "truth"), e = ImageFromArray(estimate, "estimate");
+        const MetricOptions o = Metrics(crop, peak);
+        const AlignedImageMetrics r = WithoutGil([&] { return CompareImagesAligned(t, e, o); });
+        py::dict d;
+        d["psnr_db"] = r.raw.psnr;
+        d["ssim"] = r.raw.ssim;
+        d["rmse"] = r.raw.rmse;
+        d["crop_px"] = crop;
+        d["aligned"] = py::dict(py::arg("psnr_db") = r.aligned.psnr, py::arg("ssim") = r.aligned.ssim,
+                                py::arg("rmse") = r.aligned.rmse);
+        d["offset_px"] = py::dict(py::arg("dy") = r.offset.dy, py::arg("dx") = r.offset.dx);
+        return d;
+      },
+      py::arg("truth"), py::arg("estimate"), py::kw_only(), py::arg("crop") = 0, py::arg("peak") = 0.0,
+      "compare_images, plus the global sub-pixel offset of `estimate` against `truth` (upsampled cross-correlation,\n"
+      "Guizar-Sicairos et al. 2008; estimate ~ truth moved by (dy, dx) px, +dx toward +x) and the scores after moving\n"
+      "the estimate back by it (a Fourier shift on the periodic grid): {'psnr_db', 'ssim', 'rmse', 'crop_px',\n"
+      "'aligned': {'psnr_db', 'ssim', 'rmse'}, 'offset_px': {'dy', 'dx'}} (include/aosr/core/metrics.hpp).");
+  m.def(
+      "fourier_shift",
+      [](py::handle image, double dy, double dx) {
+        const Image x = ImageFromArray(image, "image");
+        return MoveImage(WithoutGil([&] { return FourierShiftImage(x, dy, dx); }));
+      },
+      py::arg("image"), py::arg("dy"), py::arg("dx"),
+      "The image moved by (dy, dx) px on its periodic grid, out(y, x) = image(y - dy, x - dx): a Fourier (sinc)\n"
+      "shift (core/metrics.hpp FourierShiftImage).");
+  m.def(
       "psnr",
       [](py::handle truth, py::handle estimate, int crop, double peak) {
         return Psnr(ImageFromArray(truth, "truth"), ImageFromArray(estimate, "estimate"), Metrics(crop, peak));

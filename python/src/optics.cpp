@@ -54,6 +54,7 @@ void BindOptics(py::module_& m) {
         ee["fraction_of_window"] = p.encircled_energy;
         d["encircled_energy"] = ee;
         d["window_sum"] = p.window_sum;
+        d["core_centroid_lambda_over_d"] = py::dict(py::arg("y") = p.core_centroid_lod[0], py::arg("x") = p.core_centroid_lod[1]);
         d["residual_rms_nm"] = p.residual_rms_nm;
         if (!p.loop_report.empty()) d["closed_loop"] = py::dict(py::arg("sensor") = sensor, py::arg("report") = p.loop_report);
         d["psf"] = MoveImage(std::move(p.psf));

@@ -385,14 +385,20 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         Image t;
         std::vector<PointSource> catalogue;
         int c = crop.value_or(0);
+        double hr_mas = 0.0;
         if (!dataset.is_none()) {
           const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, "aosr.evaluate");
           if (!d->truth) throw InvalidArgument("aosr.evaluate", "dataset", d->manifest_path, "a dataset with a truth image");
           t = *d->truth;
           catalogue = d->stars;
           if (!crop) c = DatasetCrop(d->trustworthy_border_px, d->r);
+          hr_mas = DatasetHrPixelMas(*d);
         } else {
           t = ImageOrFits(truth, "truth");
+          if (py::isinstance<py::str>(truth) || py::hasattr(truth, "__fspath__")) {
+            const std::string path = PathString(truth);
+            hr_mas = WithoutGil([&] { return FitsPixelScaleMas(path); });
+          }
         }
         const Image e = ImageOrFits(estimate, "estimate");
         EvaluationOptions eo;
@@ -400,6 +406,7 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         eo.peak = peak;
         eo.stars = stars;
         eo.aperture_px = aperture;
+        eo.hr_pixel_mas = hr_mas;
         const Evaluation ev = WithoutGil([&] { return EvaluateReconstruction(t, e, catalogue, eo); });
         const ImageMetrics& im = ev.metrics;
         const StarMetrics& sm = ev.stars;
@@ -408,6 +415,13 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         j["psnr_db"] = im.psnr;
         j["ssim"] = im.ssim;
         j["rmse"] = im.rmse;
+        j["aligned"] = py::dict(py::arg("psnr_db") = ev.aligned.psnr, py::arg("ssim") = ev.aligned.ssim,
+                                py::arg("rmse") = ev.aligned.rmse);
+        j["offset_hr_px"] = py::dict(py::arg("dy") = ev.offset.dy, py::arg("dx") = ev.offset.dx);
+        if (ev.offset_mas_known)
+          j["offset_mas"] = py::dict(py::arg("dy") = ev.offset_mas[0], py::arg("dx") = ev.offset_mas[1]);
+        else
+          j["offset_mas"] = py::none();
         if (ev.measured_stars) {
           py::list list;
           for (const StarMeasurement& s : sm.stars) {
@@ -433,7 +447,9 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
       },
       py::arg("estimate"), py::kw_only(), py::arg("truth") = py::none(), py::arg("dataset") = py::none(),
       py::arg("crop") = py::none(), py::arg("peak") = 0.0, py::arg("stars") = 20, py::arg("aperture") = 3.0,
-      R"doc(Compares a reconstruction with the truth, as `aosr evaluate`: PSNR [dB], SSIM, RMSE and, for a dataset
+      R"doc(Compares a reconstruction with the truth, as `aosr evaluate`: PSNR [dB], SSIM, RMSE, raw and after removing
+the global sub-pixel offset of the estimate against the truth ('aligned'), the offset itself ('offset_hr_px' and,
+when the dataset or the truth file's PIXSCALE gives the pixel scale, 'offset_mas'; else None) and, for a dataset
 with a star list, the aperture photometry and centroid errors of the brightest `stars`.
 
 estimate  2-D array or FITS path (the HR grid)

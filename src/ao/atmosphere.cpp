@@ -210,6 +210,7 @@ void Atmosphere::Opd(double t_s, Image* opd) {
   for (auto& layer : layers_) {
     if (layer->active) Accumulate(*layer, t_s, opd->data());
   }
+  if (options_.antithetic) *opd = -*opd;
 }
 
 Image Atmosphere::Opd(double t_s) {
@@ -228,6 +229,7 @@ Image Atmosphere::LayerOpd(int layer, double t_s) {
     Prepare(state, t_s, "Atmosphere::LayerOpd");
     Accumulate(state, t_s, opd.data());
   }
+  if (options_.antithetic) opd = -opd;
   return opd;
 }
 

@@ -274,6 +274,13 @@ ShackHartmann::ShackHartmann(std::shared_ptr<const GeometricSlopeOperator> geome
       g.pixel_scale_lod = s;
       mft_ = std::make_unique<MatrixFourierTransform>(g);
     }
+    // The optical axis on the window's centre ((m - 1)/2, (m - 1)/2): a pixel corner for even m (header
+    // "Sampling"). Both transforms put it on pixel (m/2, m/2), so the field gets the tilt that moves the spot
+    // by delta = (m - 1)/2 - floor(m/2) pixels (-1/2 for even m, 0 for odd): a ramp exp(2 pi i t u) with
+    // t = delta s [lambda/d] and u = (j - (p - 1)/2) / p [d] per axis moves the spot by +t (mft.hpp's and
+    // the FFT path's sign). Constant phases drop out of |E^|^2.
+    const double delta = 0.5 * static_cast<double>(m_ - 1) - static_cast<double>(m_ / 2);
+    const double ramp_per_px = kTwoPi * delta * s / static_cast<double>(p);
     fields_.assign(nv, ComplexImage::Zero(side, side));
     lit_start_.push_back(0);
     norm_.resize(nv);
@@ -286,6 +293,7 @@ ShackHartmann::ShackHartmann(std::shared_ptr<const GeometricSlopeOperator> geome
           lit_pupil_.push_back((a * p + i) * n + (b * p + k));
           lit_local_.push_back(i * side + k);
           lit_amp_.push_back(amp);
+          lit_ramp_.push_back(ramp_per_px * (static_cast<double>(i + k) - static_cast<double>(p - 1)));
         }
       }
       lit_start_.push_back(static_cast<Index>(lit_pupil_.size()));
@@ -299,8 +307,8 @@ ShackHartmann::ShackHartmann(std::shared_ptr<const GeometricSlopeOperator> geome
     for (Index y = 0; y < m_; ++y) {
       for (Index x = 0; x < m_; ++x) {
         const Index t = y * m_ + x;
-        window_x_[t] = static_cast<double>(x - m_ / 2);
-        window_y_[t] = static_cast<double>(y - m_ / 2);
+        window_x_[t] = static_cast<double>(x) - 0.5 * static_cast<double>(m_ - 1);
+        window_y_[t] = static_cast<double>(y) - 0.5 * static_cast<double>(m_ - 1);
         if (use_fft_) {
           const Index fy = ((y - m_ / 2) % q_ + q_) % q_, fx = ((x - m_ / 2) % q_ + q_) % q_;
           window_bin_[t] = fy * q_ + fx;
@@ -373,7 +381,7 @@ void ShackHartmann::MeasureDiffractive(const Image& opd_m, bool noisy, Eigen::Re
   const double* w = opd_m.data();
   // The phases of every lit pixel at once (a vectorised sin/cos), then each lenslet's field.
   const long lit = static_cast<long>(lit_pupil_.size());
-  for (long j = 0; j < lit; ++j) phase_[j] = wavenumber * w[lit_pupil_[j]];
+  for (long j = 0; j < lit; ++j) phase_[j] = wavenumber * w[lit_pupil_[j]] + lit_ramp_[j];
   internal::SinCosBatch(phase_.data(), lit, cos_.data(), sin_.data());
   for (Index v = 0; v < nv; ++v) {
     Complex* field = fields_[v].data();

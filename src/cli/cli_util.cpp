@@ -13,6 +13,7 @@
 #include "aosr/core/memory.hpp"
 #include "aosr/core/parallel.hpp"
 #include "aosr/scene/dataset.hpp"
+#include "aosr/scene/evaluation.hpp"
 
 namespace aosr::cli {
 
@@ -126,6 +127,26 @@ void ApplyExecution(const ExecutionArgs& args) {
                                                 : FftSettings::Planner::kEstimate;
   SetFftSettings(fft);
   if (!args.memory_limit.empty()) SetMemoryLimitBytes(ParseByteSize(args.memory_limit, "--memory-limit"));
+}
+
+void AddAlignedScores(const Evaluation& e, nlohmann::json* j) {
+  (*j)["aligned"] = {{"psnr_db", e.aligned.psnr}, {"ssim", e.aligned.ssim}, {"rmse", e.aligned.rmse}};
+  (*j)["offset_hr_px"] = {{"dy", e.offset.dy}, {"dx", e.offset.dx}};
+  if (e.offset_mas_known)
+    (*j)["offset_mas"] = {{"dy", e.offset_mas[0]}, {"dx", e.offset_mas[1]}};
+  else
+    (*j)["offset_mas"] = nullptr;
+}
+
+std::string AlignedScoresLine(const Evaluation& e) {
+  char buf[256];
+  if (e.offset_mas_known)
+    std::snprintf(buf, sizeof(buf), "aligned (offset dy, dx = %+.3f, %+.3f HR px = %+.2f, %+.2f mas): PSNR %.2f dB, SSIM %.4f",
+                  e.offset.dy, e.offset.dx, e.offset_mas[0], e.offset_mas[1], e.aligned.psnr, e.aligned.ssim);
+  else
+    std::snprintf(buf, sizeof(buf), "aligned (offset dy, dx = %+.3f, %+.3f HR px): PSNR %.2f dB, SSIM %.4f", e.offset.dy,
+                  e.offset.dx, e.aligned.psnr, e.aligned.ssim);
+  return buf;
 }
 
 }  // namespace aosr::cli

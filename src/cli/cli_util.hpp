@@ -4,11 +4,13 @@
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 
 namespace aosr {
 struct Dataset;
+struct Evaluation;
 }
 
 namespace aosr::cli {
@@ -66,6 +68,13 @@ std::set<std::filesystem::path> DatasetInputFiles(const Dataset& d);
 // that say what produced them. Empty until SetCommandLine.
 void SetCommandLine(int argc, const char* const* argv);
 const std::string& CommandLine();
+
+// The alignment part of an evaluation (scene/evaluation.hpp) as JSON members added to `*j`: "aligned" {psnr_db,
+// ssim, rmse}, "offset_hr_px" {dy, dx} and "offset_mas" {dy, dx} (null when the pixel scale is unknown). The same
+// names in `aosr evaluate`, the reconstruct summary and the tradeoff table.
+void AddAlignedScores(const Evaluation& e, nlohmann::json* j);
+// One text line: "aligned (offset dy, dx = ... HR px = ... mas): PSNR ... dB, SSIM ...".
+std::string AlignedScoresLine(const Evaluation& e);
 
 // Joins a directory and a file name.
 std::string JoinPath(const std::string& dir, const std::string& name);

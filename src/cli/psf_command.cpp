@@ -117,6 +117,7 @@ void RunPsf(const PsfArgs& args) {
                         {"fwhm_lambda_over_d", result.fwhm_px / lod_px},
                         {"encircled_energy", {{"radius_lambda_over_d", {1, 2, 5}}, {"fraction_of_window", ee}}},
                         {"window_sum", result.window_sum},
+                        {"core_centroid_lambda_over_d", {{"y", result.core_centroid_lod[0]}, {"x", result.core_centroid_lod[1]}}},
                         {"residual_rms_nm", residual_nm},
                         {"seconds", seconds}};
     if (!args.output.empty()) j["output"] = args.output;
@@ -129,6 +130,8 @@ void RunPsf(const PsfArgs& args) {
   std::printf("  Strehl %.4f   FWHM %.3f lambda/D   residual %.1f nm RMS\n", strehl, result.fwhm_px / lod_px, residual_nm);
   std::printf("  EE(1, 2, 5 lambda/D) = %.4f, %.4f, %.4f of the window (window holds %.4f of all light)\n", ee[0],
               ee[1], ee[2], result.window_sum);
+  std::printf("  core centroid (y, x) = (%+.4f, %+.4f) lambda/D from the optical axis\n", result.core_centroid_lod[0],
+              result.core_centroid_lod[1]);
   if (!loop_report.empty()) std::printf("  loop (%s sensor): %s\n", args.sensor.c_str(), loop_report.c_str());
   std::printf("  %.3f s\n", seconds);
 }

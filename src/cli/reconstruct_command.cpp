@@ -15,6 +15,7 @@
 #include "aosr/core/operators.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
+#include "aosr/scene/evaluation.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "cli_util.hpp"
@@ -262,12 +263,19 @@ void RunReconstruct(const ReconstructArgs& a) {
     if (noise_unscaled)
       j["linear"]["noise_note"] = "weights are a validity mask: noise figures assume sigma = 1 e- per pixel; pass --noise-sigma";
   }
+  std::string aligned_line;
   if (d.truth) {
     MetricOptions mo;
     mo.crop_px = int(d.trustworthy_border_px * d.r);
     if (2 * mo.crop_px + 11 > std::min(d.hr_frame.rows, d.hr_frame.cols)) mo.crop_px = 0;
-    const ImageMetrics m = CompareImages(*d.truth, rec.image, mo);
+    EvaluationOptions eo;
+    eo.crop_px = mo.crop_px;
+    eo.hr_pixel_mas = DatasetHrPixelMas(d);
+    const Evaluation ev = EvaluateReconstruction(*d.truth, rec.image, {}, eo);
+    const ImageMetrics& m = ev.metrics;
     j["against_truth"] = {{"psnr_db", m.psnr}, {"ssim", m.ssim}, {"rmse", m.rmse}, {"crop_px", mo.crop_px}};
+    AddAlignedScores(ev, &j["against_truth"]);
+    aligned_line = AlignedScoresLine(ev);
     if (rec.linear && rec.effective_psf.size() && rec.effective_psf.rows() <= d.hr_frame.rows &&
         rec.effective_psf.cols() <= d.hr_frame.cols) {
       // A linear output with a known PSF estimates the truth seen through that PSF: compare with that too.
@@ -292,6 +300,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (j.contains("against_truth"))
     std::printf("  against the truth (crop %d HR px): PSNR %.2f dB, SSIM %.4f\n", j["against_truth"]["crop_px"].get<int>(),
                 j["against_truth"]["psnr_db"].get<double>(), j["against_truth"]["ssim"].get<double>());
+  if (!aligned_line.empty()) std::printf("    %s\n", aligned_line.c_str());
   if (j.contains("against_truth_through_psf"))
     std::printf("  against the truth seen through the output's effective PSF: PSNR %.2f dB, SSIM %.4f\n",
                 j["against_truth_through_psf"]["psnr_db"].get<double>(),

@@ -62,4 +62,36 @@ std::vector<double> EncircledEnergy(const Image& psf, const std::vector<double>&
   return out;
 }
 
+std::pair<double, double> CoreCentroid(const Image& psf, double radius_px) {
+  const PsfStats stats = MeasurePsf(psf);  // validates the image
+  CheckArgument(std::isfinite(radius_px) && radius_px >= 0.5, "CoreCentroid", "radius_px", radius_px,
+                ">= 0.5 and finite [px]");
+  double cy = static_cast<double>(stats.peak_y), cx = static_cast<double>(stats.peak_x);
+  const double r2 = radius_px * radius_px;
+  for (int pass = 0; pass < 10; ++pass) {
+    double sum = 0.0, sy = 0.0, sx = 0.0;
+    const Index y0 = std::max<Index>(0, static_cast<Index>(std::floor(cy - radius_px)));
+    const Index y1 = std::min<Index>(psf.rows() - 1, static_cast<Index>(std::ceil(cy + radius_px)));
+    const Index x0 = std::max<Index>(0, static_cast<Index>(std::floor(cx - radius_px)));
+    const Index x1 = std::min<Index>(psf.cols() - 1, static_cast<Index>(std::ceil(cx + radius_px)));
+    for (Index y = y0; y <= y1; ++y) {
+      for (Index x = x0; x <= x1; ++x) {
+        const double dy = y - cy, dx = x - cx;
+        if (dy * dy + dx * dx > r2) continue;
+        sum += psf(y, x);
+        sy += psf(y, x) * y;
+        sx += psf(y, x) * x;
+      }
+    }
+    if (!(sum > 0.0)) break;
+    const double ny = sy / sum, nx = sx / sum;
+    const double moved = std::hypot(ny - cy, nx - cx);
+    cy = ny;
+    cx = nx;
+    if (moved < 1e-6) break;
+  }
+  return {cy, cx};
+}
+
 }  // namespace aosr
+

@@ -1,10 +1,28 @@
 #include "aosr/scene/evaluation.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 #include "aosr/core/error.hpp"
+#include "aosr/io/fits.hpp"
 
 namespace aosr {
+
+double DatasetHrPixelMas(const Dataset& d) {
+  constexpr double kMasPerRad = 180.0 / M_PI * 3600.0 * 1000.0;
+  return d.camera_pixel_rad > 0 && d.r > 0 ? d.camera_pixel_rad / d.r * kMasPerRad : 0.0;
+}
+
+double FitsPixelScaleMas(const std::string& path) {
+  const FitsHeader h = ReadFits(path).header;
+  if (h.Find("PIXSCALE") == nullptr) return 0.0;
+  try {
+    const double scale = h.GetDouble("PIXSCALE");
+    return std::isfinite(scale) && scale > 0 ? scale : 0.0;
+  } catch (const InvalidArgument&) {  // not a number: unknown
+    return 0.0;
+  }
+}
 
 Evaluation EvaluateReconstruction(const Image& truth, const Image& estimate, const std::vector<PointSource>& stars,
                                   const EvaluationOptions& o) {
@@ -17,11 +35,19 @@ Evaluation EvaluateReconstruction(const Image& truth, const Image& estimate, con
                 "PSF's half-width, so a frame smaller than the PSF window needs an explicit crop");
   CheckArgument(o.stars >= 1, f, "stars", o.stars, ">= 1");
   CheckArgument(o.aperture_px >= 0.5 && o.aperture_px <= 1000, f, "aperture", o.aperture_px, "0.5 .. 1000 HR px");
+  CheckArgument(std::isfinite(o.hr_pixel_mas) && o.hr_pixel_mas >= 0, f, "hr_pixel_mas", o.hr_pixel_mas,
+                ">= 0 and finite [mas] (0: unknown)");
   MetricOptions mo;
   mo.crop_px = o.crop_px;
   mo.peak = o.peak;
   Evaluation e;
-  e.metrics = CompareImages(truth, estimate, mo);
+  const AlignedImageMetrics am = CompareImagesAligned(truth, estimate, mo);
+  e.metrics = am.raw;
+  e.aligned = am.aligned;
+  e.offset = am.offset;
+  e.offset_mas_known = o.hr_pixel_mas > 0;
+  e.offset_mas[0] = am.offset.dy * o.hr_pixel_mas;
+  e.offset_mas[1] = am.offset.dx * o.hr_pixel_mas;
   if (!stars.empty()) {
     StarMetricsOptions so;
     so.brightest = o.stars;

@@ -115,6 +115,9 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
   out.fwhm_px = stats.fwhm_px;
   out.window_sum = stats.window_sum;
   out.encircled_energy = EncircledEnergy(out.psf, {1.0 * out.lambda_over_d_px, 2.0 * out.lambda_over_d_px, 5.0 * out.lambda_over_d_px});
+  const auto core = CoreCentroid(out.psf, 2.0 * out.lambda_over_d_px);
+  out.core_centroid_lod[0] = (core.first - static_cast<double>(out.psf.rows() / 2)) / out.lambda_over_d_px;
+  out.core_centroid_lod[1] = (core.second - static_cast<double>(out.psf.cols() / 2)) / out.lambda_over_d_px;
   return out;
 }
 

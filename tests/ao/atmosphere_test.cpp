@@ -58,6 +58,17 @@ TEST(AtmosphereTest, TotalIsTheSumOfLayersAndSeedsAreReproducible) {
   EXPECT_GT((d.Opd(0.0) - Atmosphere(ThreeLayers(), 32, 4.0).Opd(0.0)).abs().maxCoeff(), 1e-8);
 }
 
+TEST(AtmosphereTest, AntitheticAtmosphereIsTheNegation) {
+  AtmosphereOptions o = ThreeLayers();
+  Atmosphere a(o, 32, 4.0);
+  o.antithetic = true;
+  Atmosphere b(o, 32, 4.0);
+  for (double t : {0.0, 0.05, 0.2}) {
+    EXPECT_TRUE((b.Opd(t) == -a.Opd(t)).all()) << "t = " << t;
+    EXPECT_TRUE((b.LayerOpd(1, t) == -a.LayerOpd(1, t)).all()) << "t = " << t;
+  }
+}
+
 TEST(AtmosphereTest, ZeroFractionLayerContributesNothing) {
   AtmosphereOptions o = ThreeLayers();
   o.layers.push_back({20000.0, 0.0, 30.0, 0.5});

@@ -129,12 +129,16 @@ TEST(ClosedLoopSlowTest, IntegratorAndPseudoOpenLoop) {
 TEST(ClosedLoopSlowTest, SubExposuresWithDmOffsets) {
   // Three sub-exposures of 0.25 s with tip/tilt offsets of 0, +1 and -1 lambda/D at 2.2 um along x, 20 ms of
   // settling each, diffractive SH (Nyquist, 16 px). Checks: the long-exposure PSF's centroid moves by the
-  // offset within 0.1 lambda/D, and its peak (the offset moves it by ~2 pixels) stays within 8% of the
-  // unshifted exposure's (each exposure sees 0.25 s of different turbulence: measured 0.80, 0.76, 0.80). The
-  // on-axis Strehl is not the figure here: the offset moves the peak off axis. Measured: the shifts come out
-  // ~5% large, because the offset slopes are computed on the diffraction-limited spot (ReferenceOffsetForOpd)
-  // while in closed loop the spots are broadened by the residual and the centroid gain is lower, so the loop
-  // needs a larger tilt to reach them: the SH's "optical gain", which a real system calibrates on sky.
+  // offset within 0.15 lambda/D, their mean magnitude within 1.0 .. 1.15, and its peak (the offset moves it
+  // by ~2 pixels) stays within 8% of the unshifted exposure's (each exposure sees 0.25 s of different
+  // turbulence: measured 0.84, 0.82, 0.84). The on-axis Strehl is not the figure here: the offset moves the
+  // peak off axis. Measured: the shifts come out ~10% large (+1.14, -1.05 lambda/D; each 0.25 s exposure also
+  // carries its own random tilt of a few 0.01), because the offset slopes are computed on the
+  // diffraction-limited spot (ReferenceOffsetForOpd), whose small-tilt centroid gain is 1.035, while in closed
+  // loop the spots are broadened by the residual and the centroid gain is lower, so the loop needs a larger
+  // tilt to reach them: the SH's "optical gain", which a real system calibrates on sky. (~5% large, +1.05 and
+  // -1.05, when the window's axis sat on pixel (m/2, m/2) and the small-tilt gain was 0.93; the flat-spot
+  // bias of that convention, +0.11 lambda/D here, cancelled in the differences.)
   ControllerOptions control;
   test::LoopSystem s = MakePaperSystem(SensorKind::kDiffractive, true, 51, control);
   const ClosedLoopOptions options = KBandScience(2);
@@ -165,8 +169,10 @@ TEST(ClosedLoopSlowTest, SubExposuresWithDmOffsets) {
     std::printf("sub-exposure %d: %s; PSF centroid x %.3f lambda/D, peak Strehl %.4f\n", i,
                 r[i].BriefReport().c_str(), centroid[i], peak[i]);
   }
-  EXPECT_NEAR(centroid[1] - centroid[0], 1.0, 0.1);
-  EXPECT_NEAR(centroid[2] - centroid[0], -1.0, 0.1);
+  EXPECT_NEAR(centroid[1] - centroid[0], 1.0, 0.15);
+  EXPECT_NEAR(centroid[2] - centroid[0], -1.0, 0.15);
+  EXPECT_GT(0.5 * (centroid[1] - centroid[2]), 1.0);
+  EXPECT_LT(0.5 * (centroid[1] - centroid[2]), 1.15);
   EXPECT_NEAR(peak[1] / peak[0], 1.0, 0.08);
   EXPECT_NEAR(peak[2] / peak[0], 1.0, 0.08);
 }

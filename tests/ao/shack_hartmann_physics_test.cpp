@@ -3,6 +3,7 @@
 // law. Fixed seeds; tolerances stated at each check.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -14,6 +15,7 @@ namespace aosr {
 namespace {
 
 constexpr double kD = 8.0;
+constexpr double kPi = 3.14159265358979323846;
 
 Image TiltOpd(Index n, double sx, double sy) {
   Image w(n, n);
@@ -64,15 +66,18 @@ Gains TiltGains(const ShackHartmannOptions& options, double t) {
 }
 
 TEST(ShackHartmannPhysicsTest, DiffractiveCentroidOfASmallTiltMatchesTheGeometricSlope) {
-  // The spot of a lenslet sampled by p = 8 pupil pixels is periodic with period 8 lambda/d, so the plain
-  // centre of gravity over one period sees the diffraction wings wrapped around (as a contiguous detector
-  // sees its neighbours' wings): its gain is below 1, by less with finer spot pixels, and by more with
-  // broader (partially lit) spots and as the spot moves a whole pixel (a wing then wraps to the other side).
-  // Stated tolerances, fully lit lenslets unless said:
-  //  * 2x Nyquist pixels (s = 0.25 lambda/d, 32 x 32 px = 8 lambda/d): within 2.5% of the geometric slope for
-  //    small tilts (t <= 0.05 lambda/d, measured 0.978 .. 0.986), within 12% up to 2 lambda/d;
-  //  * Nyquist pixels (s = 0.5, 16 x 16 px, the paper configuration): gain 0.92 .. 0.94 for t <= 0.05
-  //    lambda/d (measured 0.923 .. 0.936), 0.86 .. 0.95 up to 2 lambda/d, and > 0.84 on every valid lenslet.
+  // The spot of a lenslet sampled by p = 8 pupil pixels is periodic with period 8 lambda/d, and the plain
+  // centre of gravity over one period of pixels sees the diffraction wings wrapped around (as a contiguous
+  // detector sees its neighbours' wings) and the spot's sampling: its gain is not exactly 1, closer to 1 with
+  // finer spot pixels, lower for broader (partially lit) spots and as the spot moves a whole pixel (a wing
+  // then wraps to the other side). With the optical axis on the window's centre (a pixel corner,
+  // shack_hartmann.hpp "Sampling") the small-tilt gain is slightly above 1. Stated tolerances, fully lit
+  // lenslets unless said:
+  //  * 2x Nyquist pixels (s = 0.25 lambda/d, 32 x 32 px = 8 lambda/d): within 1% of the geometric slope for
+  //    small tilts (t <= 0.05 lambda/d, measured 1.006 .. 1.007), 0.91 .. 1.01 up to 2 lambda/d;
+  //  * Nyquist pixels (s = 0.5, 16 x 16 px, the paper configuration): gain 1.02 .. 1.045 for t <= 0.05
+  //    lambda/d (measured 1.033 .. 1.035), 0.91 .. 1.045 up to 2 lambda/d, and > 0.85 on every valid lenslet.
+  // (Before the axis moved to the pixel corner: 0.978 .. 0.986 and 0.923 .. 0.936 for small tilts.)
   // The interaction matrix calibrates the gain of each lenslet around zero; the closed loop needs the
   // response to be monotonic and roughly constant over the residual's tilts (a few 0.1 lambda/d).
   ShackHartmannOptions fine = PaperSensor();
@@ -84,25 +89,26 @@ TEST(ShackHartmannPhysicsTest, DiffractiveCentroidOfASmallTiltMatchesTheGeometri
     std::printf("  %4.2f   %.4f .. %.4f  (%.4f)    %.4f .. %.4f  (%.4f)\n", t, gf.full_lo, gf.full_hi,
                 gf.all_lo, gn.full_lo, gn.full_hi, gn.all_lo);
     if (t <= 0.05) {
-      EXPECT_NEAR(gf.full_lo, 1.0, 0.025) << "tilt " << t;
-      EXPECT_NEAR(gf.full_hi, 1.0, 0.025) << "tilt " << t;
-      EXPECT_GT(gn.full_lo, 0.92) << "tilt " << t;
-      EXPECT_LT(gn.full_hi, 0.94) << "tilt " << t;
+      EXPECT_NEAR(gf.full_lo, 1.0, 0.01) << "tilt " << t;
+      EXPECT_NEAR(gf.full_hi, 1.0, 0.01) << "tilt " << t;
+      EXPECT_GT(gn.full_lo, 1.02) << "tilt " << t;
+      EXPECT_LT(gn.full_hi, 1.045) << "tilt " << t;
     }
     if (t <= 2.0) {
-      EXPECT_GT(gf.full_lo, 0.88) << "tilt " << t;
-      EXPECT_LT(gf.full_hi, 1.0) << "tilt " << t;
-      EXPECT_GT(gn.full_lo, 0.86) << "tilt " << t;
-      EXPECT_LT(gn.full_hi, 0.95) << "tilt " << t;
-      EXPECT_GT(gn.all_lo, 0.84) << "tilt " << t;
+      EXPECT_GT(gf.full_lo, 0.91) << "tilt " << t;
+      EXPECT_LT(gf.full_hi, 1.01) << "tilt " << t;
+      EXPECT_GT(gn.full_lo, 0.91) << "tilt " << t;
+      EXPECT_LT(gn.full_hi, 1.045) << "tilt " << t;
+      EXPECT_GT(gn.all_lo, 0.85) << "tilt " << t;
     }
   }
 }
 
 TEST(ShackHartmannPhysicsTest, SmoothAberrationSeenByBothModes) {
   // A few tens of nm of low-order aberration (phase << 1 rad per lenslet): up to one scalar gain (the
-  // centroid gain of the test above), the diffractive slopes follow the geometric ones within 5% RMS of the
-  // slope vector (measured 3.6%: the gain varies a little with the local tilt).
+  // centroid gain of the test above), the diffractive slopes follow the geometric ones within 7% RMS of the
+  // slope vector (measured 5.6%: the gain varies with the local tilt, 1.035 near 0 to 0.94 at 0.5 lambda/d;
+  // 3.6% before the axis moved to the pixel corner). Best gain measured 0.986.
   const Image a = CircularPupil(128, PupilGeometry{kD, 0.0});
   ShackHartmann diffractive(a, kD, PaperSensor());
   ShackHartmannOptions go = PaperSensor();
@@ -116,9 +122,87 @@ TEST(ShackHartmannPhysicsTest, SmoothAberrationSeenByBothModes) {
   std::printf(
       "smooth aberration: best gain %.4f, |s_diffractive - gain s_geometric| / |s_geometric| = %.4f\n", gain,
       rel);
-  EXPECT_GT(gain, 0.9);
-  EXPECT_LT(gain, 0.97);
-  EXPECT_LT(rel, 0.05);
+  EXPECT_GT(gain, 0.95);
+  EXPECT_LT(gain, 1.02);
+  EXPECT_LT(rel, 0.07);
+}
+
+TEST(ShackHartmannPhysicsTest, BroadSymmetricSpotsReadNoTilt) {
+  // The closed-loop tilt bias of issue 23, at its root. A wavefront even about every lenslet's centre (a
+  // ripple of period d/2 in x and y, peak-to-valley up to 0.6 lambda_wfs) carries no tilt: the geometric
+  // slopes are 0 and the spots broaden (their wings reach the window's edge, as a turbulent residual's do)
+  // but stay centrally symmetric on fully lit lenslets. With the optical axis on the window's centre the
+  // centre of gravity then reads 0 (tolerance 1e-9 lambda/d, rounding); with the axis on pixel (m/2, m/2)
+  // (the old convention) the unpaired edge row and column read -(m/2) x their light, which grows with the
+  // spot's width and which the flat-wavefront reference could not remove. Reported: the fraction of the light
+  // on the window's edge row, times m/2: the order of what the old convention read [px].
+  const Image a = CircularPupil(128, PupilGeometry{kD, 0.0});
+  ShackHartmann sh(a, kD, PaperSensor());
+  const Index n = 128, p = sh.pixels_per_subaperture(), m = sh.spot_size_px();
+  const double lod = sh.options().wavelength_m / sh.subaperture_m();
+  const double full = 0.999 * sh.photons_per_subaperture().maxCoeff();
+  const Index nv = sh.n_valid();
+  std::printf("ripple PV [lambda_wfs]   max |slope| [lambda/d], fully lit   (m/2) x edge-row light [px]\n");
+  for (double pv : {0.1, 0.3, 0.6}) {
+    Image w(n, n);
+    for (Index i = 0; i < n; ++i) {
+      for (Index k = 0; k < n; ++k) {
+        const double uy = (i % p + 0.5) / p - 0.5, ux = (k % p + 0.5) / p - 0.5;  // in d, from the centre
+        w(i, k) = 0.25 * pv * sh.options().wavelength_m * (std::cos(4 * kPi * ux) + std::cos(4 * kPi * uy));
+      }
+    }
+    const Vector s = sh.Measure(w);
+    double worst = 0.0, edge = 0.0;
+    for (Index v = 0; v < nv; ++v) {
+      if (sh.photons_per_subaperture()[v] < full) continue;
+      worst = std::max({worst, std::abs(s[v]), std::abs(s[nv + v])});
+      const Image spot = sh.LastSpot(v);
+      edge = std::max(edge, 0.5 * m * spot.row(0).sum() / spot.sum());
+    }
+    std::printf("  %.1f   %.2e   %.4f\n", pv, worst / lod, edge);
+    EXPECT_LT(worst, 1e-9 * lod) << "ripple " << pv;
+  }
+  // With photon noise at the faint end of the paper's guide stars (R = 13: ~10 photo-electrons per lenslet per
+  // frame) the noisy centre of gravity stays unbiased: given the spot's total count the photons are
+  // multinomial over the pixels, so E[centroid] is the noiseless centroid, 0 here. Mean x and y slopes of the
+  // fully lit lenslets over 1500 frames of the broadest ripple within 4 standard errors of 0 (the standard
+  // error from the samples themselves), and below 0.01 lambda/d.
+  ShackHartmannOptions faint = PaperSensor();
+  faint.noise.photon_noise = true;
+  faint.noise.guide_star_magnitude = 13.0;
+  faint.noise.throughput = 0.5;
+  faint.noise.seed = 77;
+  ShackHartmann noisy(a, kD, faint);
+  Image w(n, n);
+  for (Index i = 0; i < n; ++i) {
+    for (Index k = 0; k < n; ++k) {
+      const double uy = (i % p + 0.5) / p - 0.5, ux = (k % p + 0.5) / p - 0.5;
+      w(i, k) = 0.15 * faint.wavelength_m * (std::cos(4 * kPi * ux) + std::cos(4 * kPi * uy));
+    }
+  }
+  const double faint_full = 0.999 * noisy.photons_per_subaperture().maxCoeff();
+  double sum[2] = {0, 0}, sum2[2] = {0, 0};
+  long count = 0;
+  for (int f = 0; f < 1500; ++f) {
+    const Vector s = noisy.Measure(w);
+    for (Index v = 0; v < nv; ++v) {
+      if (noisy.photons_per_subaperture()[v] < faint_full) continue;
+      for (int axis = 0; axis < 2; ++axis) {
+        const double x = s[axis * nv + v] / lod;
+        sum[axis] += x;
+        sum2[axis] += x * x;
+      }
+      ++count;
+    }
+  }
+  for (int axis = 0; axis < 2; ++axis) {
+    const double mean = sum[axis] / count;
+    const double se = std::sqrt((sum2[axis] / count - mean * mean) / count);
+    std::printf("R = 13 (%.1f e- per lenslet per frame): mean %s slope %+.5f lambda/d, standard error %.5f\n",
+                noisy.photons_per_subaperture().maxCoeff(), axis == 0 ? "x" : "y", mean, se);
+    EXPECT_LT(std::abs(mean), 4 * se);
+    EXPECT_LT(std::abs(mean), 0.01);
+  }
 }
 
 TEST(ShackHartmannPhysicsTest, PhotonNoiseVarianceScalesAsOneOverPhotons) {
@@ -150,9 +234,9 @@ TEST(ShackHartmannPhysicsTest, PhotonNoiseVarianceScalesAsOneOverPhotons) {
       double mx = 0.0, m2 = 0.0;
       const Index m = spot.rows();
       for (Index y = 0; y < m; ++y)
-        for (Index x = 0; x < m; ++x) mx += spot(y, x) * (x - m / 2) / n;
+        for (Index x = 0; x < m; ++x) mx += spot(y, x) * (x - 0.5 * (m - 1)) / n;
       for (Index y = 0; y < m; ++y)
-        for (Index x = 0; x < m; ++x) m2 += spot(y, x) * std::pow(x - m / 2 - mx, 2) / n;
+        for (Index x = 0; x < m; ++x) m2 += spot(y, x) * std::pow(x - 0.5 * (m - 1) - mx, 2) / n;
       pred = m2 / n * px * px;
       photons[c] = n;
       ++count;
@@ -199,7 +283,7 @@ TEST(ShackHartmannPhysicsTest, ReadNoiseAddsAPhotonIndependentTerm) {
   const double n = sh.photons_per_subaperture().maxCoeff();
   const double px2 = std::pow(sh.spot_pixel_scale_rad(), 2);
   double sum_x2 = 0.0;
-  for (Index x = 0; x < m; ++x) sum_x2 += m * std::pow(x - m / 2, 2);
+  for (Index x = 0; x < m; ++x) sum_x2 += m * std::pow(x - 0.5 * (m - 1), 2);
   const double read = 9.0 * sum_x2 / (n * n) * px2;
   Index full = 0;
   while (sh.photons_per_subaperture()[full] < 0.999 * n) ++full;
@@ -207,7 +291,7 @@ TEST(ShackHartmannPhysicsTest, ReadNoiseAddsAPhotonIndependentTerm) {
   const Image spot = sh.LastSpot(full);
   double m2 = 0.0;
   for (Index y = 0; y < m; ++y)
-    for (Index x = 0; x < m; ++x) m2 += spot(y, x) * std::pow(x - m / 2, 2) / n;
+    for (Index x = 0; x < m; ++x) m2 += spot(y, x) * std::pow(x - 0.5 * (m - 1), 2) / n;
   const double photon = m2 / n * px2;
   double sum2 = 0.0;
   int samples = 0;

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "aosr/core/metrics.hpp"
 #include "aosr/io/fits.hpp"
 #include "support/testing.hpp"
 
@@ -54,6 +55,46 @@ TEST_F(EvaluateCliTest, ConstantOffsetGivesTheExactRmseAndPsnr) {
   ASSERT_EQ(text.status, 0) << text.out;
   EXPECT_THAT(text.out, HasSubstr("PSNR"));
   EXPECT_THAT(text.out, HasSubstr("crop 4 px"));
+}
+
+// An estimate moved by a known sub-pixel offset: --json reports the offset (HR px; mas from the truth's PIXSCALE)
+// and the aligned scores; an unmoved estimate has offset 0 and aligned = raw.
+TEST_F(EvaluateCliTest, ReportsTheOffsetAndTheAlignedScores) {
+  // Three Gaussian blobs (sigma 3 px: band-limited to e^-44 at Nyquist, ~0 at the edges, so periodic).
+  Image truth(48, 48);
+  const double blobs[3][3] = {{15, 20, 100}, {30, 12, 60}, {26, 33, 80}};  // y, x, height
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 48; ++x) {
+      truth(y, x) = 10;
+      for (const auto& b : blobs) truth(y, x) += b[2] * std::exp(-((y - b[0]) * (y - b[0]) + (x - b[1]) * (x - b[1])) / 18.0);
+    }
+  aosr::FitsHeader h;
+  h.Set("PIXSCALE", 13.75, "[mas] HR pixel pitch");
+  aosr::WriteFits(Path("truth.fits"), truth, h, aosr::FitsType::kFloat64);
+  aosr::WriteFits(Path("moved.fits"), aosr::FourierShiftImage(truth, 0.3, -0.45), {}, aosr::FitsType::kFloat64);
+  CliRun r = RunCli("evaluate --truth " + Path("truth.fits") + " --estimate " + Path("moved.fits") + " --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(j["offset_hr_px"]["dy"].get<double>(), 0.3, 0.01);
+  EXPECT_NEAR(j["offset_hr_px"]["dx"].get<double>(), -0.45, 0.01);
+  EXPECT_NEAR(j["offset_mas"]["dy"].get<double>(), 0.3 * 13.75, 0.01 * 13.75);
+  EXPECT_NEAR(j["offset_mas"]["dx"].get<double>(), -0.45 * 13.75, 0.01 * 13.75);
+  EXPECT_GT(j["aligned"]["psnr_db"].get<double>(), 50.0);
+  EXPECT_LT(j["psnr_db"].get<double>(), 40.0);  // measured 34.0
+  EXPECT_GT(j["aligned"]["ssim"].get<double>(), j["ssim"].get<double>());
+  const CliRun text = RunCli("evaluate --truth " + Path("truth.fits") + " --estimate " + Path("moved.fits"));
+  ASSERT_EQ(text.status, 0) << text.out;
+  EXPECT_THAT(text.out, HasSubstr("aligned (offset dy, dx = +0.300, -0.450 HR px = +4.1"));
+  EXPECT_THAT(text.out, HasSubstr(" mas): PSNR "));
+  // Unmoved, and a truth without PIXSCALE: offset 0, no mas.
+  aosr::WriteFits(Path("plain.fits"), truth, {}, aosr::FitsType::kFloat64);
+  r = RunCli("evaluate --truth " + Path("plain.fits") + " --estimate " + Path("plain.fits") + " --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["offset_hr_px"]["dy"].get<double>(), 0.0);
+  EXPECT_EQ(j["offset_hr_px"]["dx"].get<double>(), 0.0);
+  EXPECT_TRUE(j["offset_mas"].is_null());
+  EXPECT_TRUE(j["aligned"]["psnr_db"].is_null() || j["aligned"]["psnr_db"] == j["psnr_db"]);
 }
 
 // A simulated star field: evaluating the truth against itself gives zero photometric and astrometric error.

@@ -69,6 +69,16 @@ TEST_F(ReconstructCliTest, EveryMethodWritesAnImageAndATruthfulSummary) {
     EXPECT_TRUE(aosr::AllFinite(x));
     ASSERT_TRUE(j.contains("against_truth")) << j.dump(2);
     psnr[k++] = j["against_truth"]["psnr_db"].get<double>();
+    // Beside the raw scores: the aligned ones and the offset, in HR px and mas (the dataset knows its scale).
+    const nlohmann::json& t = j["against_truth"];
+    ASSERT_TRUE(t.contains("aligned")) << t.dump(2);
+    EXPECT_GE(t["aligned"]["psnr_db"].get<double>(), t["psnr_db"].get<double>() - 0.01) << m;
+    EXPECT_LT(std::abs(t["offset_hr_px"]["dx"].get<double>()), 1.0) << m;
+    ASSERT_TRUE(t["offset_mas"].is_object()) << t.dump(2);
+    // One scale for both axes: mas_x hr_y = mas_y hr_x.
+    EXPECT_NEAR(t["offset_mas"]["dx"].get<double>() * t["offset_hr_px"]["dy"].get<double>(),
+                t["offset_mas"]["dy"].get<double>() * t["offset_hr_px"]["dx"].get<double>(), 1e-9) << m;
+    EXPECT_GT(std::abs(t["offset_mas"]["dx"].get<double>()), std::abs(t["offset_hr_px"]["dx"].get<double>())) << m;
   }
   EXPECT_TRUE(fs::exists(dir_ / "drizzle_weight.fits"));
   EXPECT_GT(psnr[2], psnr[1]);  // Tikhonov beats Drizzle

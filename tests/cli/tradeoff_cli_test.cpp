@@ -98,7 +98,8 @@ TEST_F(TradeoffCliTest, WritesTableJsonAndPictureWithARowPerMethodAndKnob) {
   EXPECT_TRUE(rows[0]["objective"].is_null());  // shift-and-add minimises nothing
 
   const std::string md = ReadText(out / "tradeoff.md");
-  EXPECT_THAT(md, HasSubstr("| method | knob | iterations | termination | time [s] | PSNR [dB] | SSIM |"));
+  EXPECT_THAT(md, HasSubstr("| method | knob | iterations | termination | time [s] | PSNR [dB] | SSIM | aligned PSNR [dB] | "
+                            "aligned SSIM | offset [HR px] |"));
   EXPECT_THAT(md, HasSubstr("tradeoff " + Data() + " -o " + Out("with_truth")));  // the command line
   EXPECT_THAT(md, HasSubstr("![accuracy against time](tradeoff.png)"));
 
@@ -119,6 +120,9 @@ TEST_F(TradeoffCliTest, PsnrAgreesWithReconstruct) {
   EXPECT_EQ(j["metric_crop_px"], k["against_truth"]["crop_px"]);
   EXPECT_DOUBLE_EQ(j["rows"][0]["psnr_db"].get<double>(), k["against_truth"]["psnr_db"].get<double>());
   EXPECT_DOUBLE_EQ(j["rows"][0]["ssim"].get<double>(), k["against_truth"]["ssim"].get<double>());
+  EXPECT_EQ(j["rows"][0]["aligned"]["psnr_db"], k["against_truth"]["aligned"]["psnr_db"]);
+  EXPECT_EQ(j["rows"][0]["offset_hr_px"], k["against_truth"]["offset_hr_px"]);
+  EXPECT_EQ(j["rows"][0]["offset_mas"], k["against_truth"]["offset_mas"]);
 }
 
 TEST_F(TradeoffCliTest, RefusesToOverwriteUnlessForced) {

@@ -89,5 +89,24 @@ TEST(MetricsErrorsTest, ConstantTruthNeedsAnExplicitPeak) {
   EXPECT_NEAR(Rmse(flat, other), 0.1, 1e-15);
 }
 
+TEST(MetricsErrorsTest, OffsetAndShiftArguments) {
+  const Image a = Ramp(20, 20), b = Ramp(20, 21);
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffset(a, b); }),
+              AllOf(HasSubstr("MeasureImageOffset"), HasSubstr("estimate shape"), HasSubstr("20x21")));
+  EXPECT_THAT(ErrorOf([&] { CompareImagesAligned(a, b); }), HasSubstr("estimate shape"));
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffset(Image::Constant(20, 20, 1.0), a); }),
+              AllOf(HasSubstr("MeasureImageOffset"), HasSubstr("truth"), HasSubstr("constant")));
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffset(a, Image::Zero(20, 20)); }),
+              AllOf(HasSubstr("estimate"), HasSubstr("constant")));
+  Image nan = a;
+  nan(3, 3) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffset(a, nan); }), AllOf(HasSubstr("estimate"), HasSubstr("finite")));
+  EXPECT_THAT(ErrorOf([&] { FourierShiftImage(a, std::numeric_limits<double>::infinity(), 0.0); }),
+              AllOf(HasSubstr("FourierShiftImage"), HasSubstr("dy")));
+  EXPECT_THAT(ErrorOf([&] { FourierShiftImage(Image(), 0.0, 0.0); }),
+              AllOf(HasSubstr("FourierShiftImage"), HasSubstr("non-empty")));
+}
+
 }  // namespace
 }  // namespace aosr
+

@@ -19,6 +19,8 @@ TEST(PsfMetricsErrorsTest, BadImagesAndRadiiAreRejected) {
   EXPECT_THAT(ErrorOf([&] { MeasurePsf(nan); }), HasSubstr("non-finite"));
   EXPECT_THAT(ErrorOf([] { EncircledEnergy(Image::Zero(4, 4), {1.0}); }), HasSubstr("psf sum"));
   EXPECT_THAT(ErrorOf([] { EncircledEnergy(Image::Ones(4, 4), {-1.0}); }), HasSubstr("radius"));
+  EXPECT_THAT(ErrorOf([] { CoreCentroid(Image::Ones(4, 4), 0.2); }), HasSubstr("CoreCentroid: invalid radius_px"));
+  EXPECT_THAT(ErrorOf([&] { CoreCentroid(nan, 2.0); }), HasSubstr("non-finite"));
 }
 
 }  // namespace

@@ -22,5 +22,19 @@ TEST(PsfMetricsTest, GaussianFwhmAndEncircledEnergy) {
   EXPECT_NEAR(ee[1], 1 - std::exp(-2.0), 0.01);
 }
 
+// The core centroid finds a displaced core to ~1e-3 px and ignores a far, one-sided halo that moves the plain
+// centroid by more than a pixel.
+TEST(PsfMetricsTest, CoreCentroidFollowsTheCoreNotTheHalo) {
+  const double sigma = 1.5, cy = 32.3, cx = 31.8;
+  Image g(64, 64);
+  for (Index y = 0; y < 64; ++y)
+    for (Index x = 0; x < 64; ++x)
+      g(y, x) = std::exp(-((y - cy) * (y - cy) + (x - cx) * (x - cx)) / (2 * sigma * sigma)) + (x > 50 ? 0.02 : 0.0);
+  const auto core = CoreCentroid(g, 4 * sigma);
+  EXPECT_NEAR(core.first, cy, 2e-3);
+  EXPECT_NEAR(core.second, cx, 2e-3);
+  EXPECT_GT(MeasurePsf(g).centroid_x, cx + 1.0);
+}
+
 }  // namespace
 }  // namespace aosr

@@ -92,6 +92,14 @@ struct AtmosphereOptions {
   // convolution, a = -1/2, 4 x 4 taps: about half the small-scale loss for ~4x the sampling cost).
   enum class Interpolation { kBilinear, kCubic };
   Interpolation interpolation = Interpolation::kBilinear;
+  // The antithetic partner of this seed's atmosphere: every layer's OPD negated. Gaussian zero-mean screens
+  // make OPD and -OPD equally likely, so the pair is a valid sample; averaging a statistic over the pair
+  // cancels its odd part exactly (antithetic variates). E.g. a closed loop whose every element is odd under
+  // OPD -> -OPD (linear sensors and control; a diffractive SH with a window symmetric about the axis, whose
+  // spot of -OPD is its spot of OPD inverted through the axis) turns -OPD into a PSF inverted through the
+  // axis, so the pair's mean centroid is 0 unless the system holds a bias (tests/ao/closed_loop_physics_test).
+  // Default false.
+  bool antithetic = false;
 
   // True when every field is in range; otherwise false and `why` (if non-null) names the bad field, e.g.
   // "layers[2].wind_speed_mps = nan; allowed: >= 0 and finite [m/s]".

@@ -33,8 +33,16 @@
 // pixels) is propagated to its focal plane and detected:
 //  * Sampling. Spot pixels have a pitch s = pixel_scale_lod in lambda_wfs / d (angular pitch s lambda/d
 //    rad); the window is m x m pixels (field_of_view_px; 0 means one full period q, below), the optical axis
-//    at pixel (m/2, m/2) (image.hpp's centred-kernel rule), so pixel (y, x) sits at angle
-//    ((x - m/2) s, (y - m/2) s) lambda/d. Because the lenslet field is sampled by only p pixels, its
+//    on the window's centre ((m - 1)/2, (m - 1)/2), so pixel (y, x) sits at angle
+//    ((x - (m - 1)/2) s, (y - (m - 1)/2) s) lambda/d: for even m (the usual case) the axis falls on the
+//    corner of the four central pixels, as a real SH detector is aligned (a quad cell is the m = 2 case),
+//    and for odd m on the central pixel's centre. The window is then symmetric about the axis, so the
+//    centre of gravity of a symmetric spot is exactly 0 whatever its width. (Before issue 23 the axis sat on
+//    pixel (m/2, m/2), image.hpp's centred-kernel rule: for even m the edge row and column at -m/2 had no
+//    partner at +m/2, so the centroid was biased toward -x, -y by (m/2) x the light on them. The flat-
+//    wavefront reference removed that for the diffraction-limited spot but not for the broader spots of a
+//    turbulent residual, and the closed loop held the difference as a tilt: (0.18, 0.14) lambda/D on the
+//    paper's K-band PSF at r0 = 0.15 m, 0.6 at 0.08 m, 0.07 at 0.25 m.) Because the lenslet field is sampled by only p pixels, its
 //    focal-plane intensity is periodic with period p lambda/d: the window must not exceed one period,
 //    m s <= p (wider windows would alias; a real field stop or the neighbouring lenslets' pixels would catch
 //    that light). E.g. p = 8, s = 0.5 (Nyquist for the diffraction-limited spot): q = 16, m <= 16 pixels
@@ -54,22 +62,25 @@
 //    Economics 12, 39 (1993)), plus Gaussian read noise of read_noise_e electrons RMS. Generators are seeded
 //    from noise.seed (DeriveSeed, random.hpp): the same seed gives the same noise on every platform.
 //  * Centroid. Centre of gravity with a threshold: I' = max(I - t max(I), 0) (t = threshold_fraction), so
-//    negative read-noise pixels never count, then c = sum I' (x - m/2) / sum I' pixels along x (likewise y),
+//    negative read-noise pixels never count, then c = sum I' (x - (m-1)/2) / sum I' pixels along x (likewise y),
 //    and the slope is c s lambda_wfs / d radians (0 when sum I' = 0: a dark lenslet). The centroid's gain
-//    (diffractive / geometric slope) is below 1: a lenslet field sampled by p pixels has a spot that is
+//    (diffractive / geometric slope) is not exactly 1: a lenslet field sampled by p pixels has a spot that is
 //    periodic with period p lambda/d, and the plain centre of gravity over one period sees the diffraction
-//    wings wrapped around (as a contiguous detector sees its neighbours' wings). Measured on the paper's
-//    sensor (p = 8, tests/ao/shack_hartmann_physics_test.cpp): fully lit lenslets 0.92 - 0.94 for small
-//    tilts with Nyquist pixels (s = 0.5, 16 px), 0.978 - 0.986 with s = 0.25 (32 px), partially lit
-//    lenslets down to ~0.87; the gain stays within 0.86 - 0.95 up to 2 lambda/d (the linear range of a 16 px
-//    window), beyond which the spot leaves the window. The interaction matrix calibrates each lenslet's gain.
+//    wings wrapped around (as a contiguous detector sees its neighbours' wings) and the spot's pixelation.
+//    Measured on the paper's sensor (p = 8, tests/ao/shack_hartmann_physics_test.cpp): fully lit lenslets
+//    1.033 - 1.035 for small tilts with Nyquist pixels (s = 0.5, 16 px), 1.006 - 1.007 with s = 0.25 (32 px),
+//    partially lit lenslets down to ~0.86; the gain stays within 0.92 - 1.035 up to 2 lambda/d (the linear
+//    range of a 16 px window), beyond which the spot leaves the window. The interaction matrix calibrates
+//    each lenslet's gain.
 //    A threshold (t > 0) removes the wings, and the gain bias with them, but makes the response to tilts
 //    below ~0.1 lambda/d irregular (pixels cross the threshold): use it against read noise, not for
 //    linearity. The photon-noise variance of the plain centroid is sum I (x - c)^2 / N^2 = <(x - c)^2> / N
 //    (measured within 0.5% of that and of the 1/N law; tested to 5% and 7%).
-//  * Reference: the raw centroids of a flat wavefront (not exactly zero for partially lit lenslets, whose
-//    diffraction pattern is symmetric but sampled on a window with one unpaired edge row), see
-//    wavefront_sensor.hpp.
+//  * Reference: the raw centroids of a flat wavefront, see wavefront_sensor.hpp: the calibration a real
+//    system makes. With the symmetric window they are 0 to rounding on every lenslet (a real amplitude's
+//    |E^|^2 is centrally symmetric, partially lit lenslets included; tested), so a spot of any width that is
+//    symmetric about the axis reads 0 and the closed loop holds no tilt (tests/ao/
+//    closed_loop_physics_test.cpp: long-exposure PSF centroid within 0.01 lambda/D).
 //  Cost per measurement: one complex exponential per lit pixel (vectorised sin/cos), n_valid FFTs of q x q
 //  and the centroids: ~0.24 ms for the paper's 208 lenslets of 16 x 16 on one core, of which the FFTs are
 //  ~0.05 ms; with Poisson noise add one Poisson deviate per pixel (~30 ns each).
@@ -248,6 +259,7 @@ class ShackHartmann final : public WavefrontSensor {
   std::vector<Index> lit_pupil_;      // pupil pixel index of each lit pixel
   std::vector<Index> lit_local_;      // index in the lenslet's q x q (FFT) or p x p (MFT) field
   std::vector<double> lit_amp_;       // its amplitude
+  std::vector<double> lit_ramp_;      // its phase [rad] of the half-pixel centring tilt (0 for odd m)
   std::vector<double> norm_;          // per lenslet: photons per unit |E^|^2
   std::vector<Index> window_bin_;     // FFT path: bin index in the q x q spectrum of each window pixel
   Vector window_x_, window_y_;        // window pixel offsets from the axis [px]

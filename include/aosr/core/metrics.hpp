@@ -91,4 +91,51 @@ struct ImageMetrics {
 };
 ImageMetrics CompareImages(const Image& truth, const Image& estimate, const MetricOptions& opts = {});
 
+// ---------------------------------------------------------------------------------------------------------
+// Scores that separate resolution from astrometry (DESIGN.md §4; the burst super-resolution convention).
+//
+// A reconstruction displaced by a fraction of a pixel loses many dB of PSNR though it resolves exactly as
+// much: the offset is an astrometric error, not a loss of resolution, and the two are judged apart. So
+// beside the raw scores, the GLOBAL SUB-PIXEL OFFSET d = (dy, dx) of the estimate against the truth is
+// measured and the scores are recomputed on the estimate moved back by it.
+//
+// Offset. The estimate is modelled as the truth moved by d on the periodic grid, estimate ≈ S_d truth with
+//     (S_d x)(y, x) = x(y − dy, x − dx)   (a Fourier/sinc shift: +dx moves the scene toward +x, image.hpp),
+// and d is the translation that maximises the circular cross-correlation
+//     c(d) = Σ_p (S_d truth)(p) · estimate(p) = (1/RC) Re Σ_k E(k) T*(k) exp(+2πi (k_y dy/R + k_x dx/C)),
+// which, S_d being unitary, is the least-squares d: it minimises ‖estimate − S_d truth‖² over the whole
+// (uncropped) periodic image. Found as Guizar-Sicairos, Thurman & Fienup, "Efficient subpixel image
+// registration algorithms", Opt. Lett. 33, 156 (2008): the whole-pixel peak of c by one inverse FFT, then
+// c evaluated by matrix-multiply DFTs on a 1/20-px grid over ±1.2 px around it and on a 1/1000-px grid over
+// ±0.06 px around that. The grid step bounds the error at 0.0005 px; on band-limited images the offset is
+// recovered to ~0.001 px (tested to 0.01). Cost ~(R + C)·R·C·0.2 complex multiply-adds: ~60 ms for
+// 512 × 512. On images that are not band-limited (sharp edges on the HR grid) or not periodic the Fourier
+// shift rings; the scores after it are then a lower bound on what a perfect alignment would give.
+//
+// Aligned scores: PSNR, SSIM and RMSE of S_{−d} estimate against the truth, on the same crop and with the same
+// dynamic range L as the raw ones. Aligned ≥ raw up to the crop (c is maximised over the whole image).
+
+// The sub-pixel translation of `estimate` against `truth` [px, rows then cols]: estimate ≈ S_d truth.
+struct ImageOffset {
+  double dy = 0.0;  // rows [px], + toward larger row index
+  double dx = 0.0;  // columns [px], + toward larger column index
+};
+// Errors: as CompareImages' (shapes, empty, non-finite), and a truth or estimate with no structure (constant:
+// no correlation peak).
+ImageOffset MeasureImageOffset(const Image& truth, const Image& estimate);
+
+// S_d image on the periodic grid: out(y, x) = image(y − dy, x − dx), a Fourier (sinc) shift; the real part
+// of the shifted spectrum (the Nyquist row/column of an even side is shifted as cos, which keeps the output
+// real). A zero offset returns the image itself, bit for bit. Errors: empty image, non-finite image or offsets.
+Image FourierShiftImage(const Image& image, double dy, double dx);
+
+struct AlignedImageMetrics {
+  ImageOffset offset;    // of the estimate against the truth [px of the images' grid]
+  ImageMetrics raw;      // CompareImages(truth, estimate)
+  ImageMetrics aligned;  // CompareImages(truth, FourierShiftImage(estimate, −dy, −dx))
+};
+// Raw and aligned scores with the offset (see above). Errors: as CompareImages and MeasureImageOffset.
+AlignedImageMetrics CompareImagesAligned(const Image& truth, const Image& estimate,
+                                         const MetricOptions& opts = {});
+
 }  // namespace aosr

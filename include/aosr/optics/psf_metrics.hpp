@@ -6,8 +6,14 @@
 //  * Encircled energy EE(ρ): the PSF's sum inside a circle of radius ρ pixels around the peak pixel,
 //    divided by the sum over the whole window (so it is relative to the light in the window).
 //  * Centroid: first moment of the window, pixel coordinates (image.hpp conventions).
+//  * Core centroid: the first moment inside a disk of radius ρ pixels centred on the centroid itself, found
+//    by iteration from the peak pixel (10 passes, or until it moves < 1e-6 px): where the core lands,
+//    insensitive to the halo and to the window's edges (an AO PSF's halo holds much of the light but not the
+//    image's position). ρ = 2 λ/D is what ComputePresetPsf uses. Pixel coordinates; subtract
+//    (rows/2, cols/2) for the offset from the optical axis.
 #pragma once
 
+#include <utility>
 #include <vector>
 
 #include "aosr/core/image.hpp"
@@ -24,6 +30,10 @@ struct PsfStats {
 
 // Throws InvalidArgument for an empty, non-finite or non-positive-sum image.
 PsfStats MeasurePsf(const Image& psf);
+
+// The core centroid (y, x) in pixels (above). Throws InvalidArgument for a bad image (as MeasurePsf) or a
+// radius below 0.5 px or non-finite.
+std::pair<double, double> CoreCentroid(const Image& psf, double radius_px);
 
 // EE(ρ) for each radius (pixels, >= 0), around the peak pixel.
 std::vector<double> EncircledEnergy(const Image& psf, const std::vector<double>& radii_px);

@@ -1,13 +1,17 @@
 // How close a reconstruction is to the truth, as `aosr evaluate` and the Python aosr.evaluate() report it: PSNR,
-// SSIM and RMSE (core/metrics.hpp) over the image less a border, and for a star field the aperture photometry and
-// centroid errors of the brightest stars (star_metrics.hpp) with a background annulus 2..5 HR px beyond the
-// aperture.
+// SSIM and RMSE (core/metrics.hpp) over the image less a border, raw and after removing the global sub-pixel
+// offset of the estimate against the truth (CompareImagesAligned: resolution judged apart from astrometry), the
+// offset itself in HR px and, when the HR pixel scale is known, in mas; and for a star field the aperture
+// photometry and centroid errors of the brightest stars (star_metrics.hpp) with a background annulus 2..5 HR px
+// beyond the aperture.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include "aosr/core/image.hpp"
 #include "aosr/core/metrics.hpp"
+#include "aosr/scene/dataset.hpp"
 #include "aosr/scene/objects.hpp"
 #include "aosr/scene/star_metrics.hpp"
 
@@ -18,13 +22,24 @@ struct EvaluationOptions {
   double peak = 0.0;          // PSNR/SSIM dynamic range L, >= 0 (0: max − min of the cropped truth)
   int stars = 20;             // brightest stars measured, >= 1 (with a catalogue)
   double aperture_px = 3.0;   // star aperture radius [HR px], in [0.5, 1000]
+  double hr_pixel_mas = 0.0;  // HR pixel pitch [mas], >= 0 and finite; 0: unknown (offset_mas stays 0)
 };
 
 struct Evaluation {
-  ImageMetrics metrics;
+  ImageMetrics metrics;          // raw: the estimate as it is
+  ImageMetrics aligned;          // after moving the estimate back by `offset` (same crop and L)
+  ImageOffset offset;            // of the estimate against the truth [HR px] (core/metrics.hpp)
+  bool offset_mas_known = false;  // options.hr_pixel_mas > 0
+  double offset_mas[2] = {0, 0};  // (dy, dx) in mas when offset_mas_known, else 0
   bool measured_stars = false;  // a catalogue was given
   StarMetrics stars;
 };
+
+// The HR pixel pitch [mas] for EvaluationOptions::hr_pixel_mas: a dataset's (camera pixel / r; 0 when the dataset
+// does not know its pixel scale), or a FITS image's PIXSCALE keyword (what `aosr simulate` writes on truth.fits;
+// 0 when absent, not a number or not > 0; IoError for an unreadable file).
+double DatasetHrPixelMas(const Dataset& dataset);
+double FitsPixelScaleMas(const std::string& path);
 
 // The crop a dataset's own trustworthy border gives (camera px × r, in HR px).
 inline int DatasetCrop(Index trustworthy_border_px, int r) { return int(trustworthy_border_px * r); }

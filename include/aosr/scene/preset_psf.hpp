@@ -55,6 +55,10 @@ struct PresetPsf {
   double window_sum = 0.0;        // light inside the window
   double residual_rms_nm = 0.0;   // AO residual (analytic, closed loop); 0 for diffraction
   std::vector<double> encircled_energy;  // at 1, 2 and 5 λ/D, fraction of the window
+  // Where the core lands: the core centroid (optics/psf_metrics.hpp, radius 2 λ/D) from the optical axis
+  // (pixel (size/2, size/2)), in λ/D, (y, x). 0 for an aberration-free PSF; a closed loop whose sensor holds a
+  // tilt shows it here (issue 23's Shack-Hartmann bias was 0.13, 0.17).
+  double core_centroid_lod[2] = {0.0, 0.0};
   std::string loop_report;        // closed loop: the loop's BriefReport
 };
 
