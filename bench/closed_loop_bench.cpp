@@ -1,12 +1,12 @@
 // Time per closed-loop iteration for the paper's system (8 m, 128-pixel pupil, three frozen-flow layers,
 // 16 x 16 Shack-Hartmann at 640 nm, 17 x 17 Fried DM, integrator at 800 Hz, K-band PSF 128 x 128 at Nyquist
 // every frame), split by stage, against the FFT floor: the number of FFTs one iteration needs times the time
-// FFTW takes for one FFT of that size (planned with FFTW_MEASURE, out of place, single thread).
+// FFTW takes for one FFT of that size (planned with FFTW_MEASURE, out of place, single thread, minimum over 15 batches).
 //
 // Usage: closed_loop_bench [--sensor diffractive|geometric|ideal|all] [--frames N] [--psf-every K]
 //                          [--pupil N] [--seed S]
-// Reference point (the issue): HCIPy needs ~24 ms per iteration of this system on 2 cores; the goal is 10x
-// less, ~2.4 ms.
+// Reference point (the issue): HCIPy needs ~24 ms per iteration of this system on 2 cores; issue 22 asks for
+// <= 1.2 ms with the science PSF every frame (20x less, 3x the FFT floor).
 #include <fftw3.h>
 
 #include <algorithm>
@@ -75,7 +75,7 @@ Args Parse(int argc, char** argv) {
   return a;
 }
 
-// Microseconds per out-of-place complex FFT of rows x cols with a FFTW_MEASURE plan (median of 5 batches).
+// Microseconds per out-of-place complex FFT of rows x cols with a FFTW_MEASURE plan (minimum over 15 batches).
 double FftMicroseconds(int rows, int cols) {
   const int size = rows * cols;
   fftw_complex* in = fftw_alloc_complex(size);
@@ -87,7 +87,7 @@ double FftMicroseconds(int rows, int cols) {
   }
   const int reps = std::max(20, 4000000 / (size * 8));
   std::vector<double> batches;
-  for (int b = 0; b < 5; ++b) {
+  for (int b = 0; b < 15; ++b) {
     const auto t0 = Clock::now();
     for (int r = 0; r < reps; ++r) fftw_execute(plan);
     batches.push_back(1e6 * Since(t0) / reps);
@@ -95,8 +95,7 @@ double FftMicroseconds(int rows, int cols) {
   fftw_destroy_plan(plan);
   fftw_free(in);
   fftw_free(out);
-  std::sort(batches.begin(), batches.end());
-  return batches[2];
+  return *std::min_element(batches.begin(), batches.end());  // the least disturbed of 15 batches
 }
 
 void RunOne(const Args& args, const std::string& kind) {
@@ -173,7 +172,7 @@ void RunOne(const Args& args, const std::string& kind) {
   for (const auto& row : rows) {
     std::printf("  %-15s %8.4f  %5.1f%%\n", row.name, row.s * per, 100.0 * row.s / t.Total());
   }
-  std::printf("  %-15s %8.4f  (wall clock incl. bookkeeping %.4f ms; HCIPy ~24 ms on 2 cores, goal 2.4 ms)\n",
+  std::printf("  %-15s %8.4f  (wall clock incl. bookkeeping %.4f ms; HCIPy ~24 ms on 2 cores; goal 1.2 ms, 3x the FFT floor)\n",
               "total", t.Total() * per, 1e3 * wall / r.steps);
 
   // FFT floor: what one iteration must spend in FFTs at FFTW's speed.

@@ -259,8 +259,8 @@ void ClosedLoop::ScienceStage(bool psf_frame) {
   const double strehl = std::norm(on_axis) / (sum_amplitude_ * sum_amplitude_);
   r.strehl.push_back(strehl);
   if (psf_frame) {
-    const ComplexImage spectrum = FftForward(field_);
-    accumulator_ += spectrum.abs2();
+    FftForwardInto(field_, &spectrum_);
+    accumulator_ += spectrum_.abs2();
     ++r.psf_frames;
     r.psf_strehl_sum += strehl;
   }

@@ -391,8 +391,8 @@ void ShackHartmann::MeasureDiffractive(const Image& opd_m, bool noisy, Eigen::Re
     double* spot = &spots_(v, 0);
     const double norm = norm_[v];
     if (use_fft_) {
-      const ComplexImage spectrum = FftForward(fields_[v]);
-      const Complex* x = spectrum.data();
+      FftForwardInto(fields_[v], &spectrum_);
+      const Complex* x = spectrum_.data();
       for (Index t = 0; t < m2; ++t) spot[t] = norm * std::norm(x[window_bin_[t]]);
     } else {
       const ComplexImage out = mft_->Apply(fields_[v]);

@@ -75,14 +75,36 @@ class PlanCache {
   }
 
   fftw_plan Plan(const PlanKey& key) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto it = plans_.find(key);
-    if (it != plans_.end()) return it->second;
-    fftw_plan plan = Make(key);
-    if (plan == nullptr)
-      throw Error("FFTW failed to make a plan for shape " + std::to_string(key.n0) + "x" + std::to_string(key.n1) +
-                  ", howmany " + std::to_string(key.howmany));
-    plans_.emplace(key, plan);
+    // A per-thread memo of the last few plans looked up: loops of small transforms (a Shack-Hartmann
+    // sensor's 200 lenslet spots per frame) then skip the lock and the map. Entries carry the cache's
+    // generation, so Reset() invalidates every thread's memo.
+    struct Memo {
+      PlanKey key;
+      fftw_plan plan = nullptr;
+      std::uint64_t generation = 0;
+    };
+    constexpr int kMemo = 4;
+    thread_local Memo memo[kMemo];
+    thread_local int next = 0;
+    const std::uint64_t generation = generation_.load(std::memory_order_acquire);
+    for (const Memo& m : memo)
+      if (m.plan != nullptr && m.generation == generation && !(m.key < key) && !(key < m.key)) return m.plan;
+    fftw_plan plan = nullptr;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      auto it = plans_.find(key);
+      if (it != plans_.end()) {
+        plan = it->second;
+      } else {
+        plan = Make(key);
+        if (plan == nullptr)
+          throw Error("FFTW failed to make a plan for shape " + std::to_string(key.n0) + "x" +
+                      std::to_string(key.n1) + ", howmany " + std::to_string(key.howmany));
+        plans_.emplace(key, plan);
+      }
+    }
+    memo[next] = {key, plan, generation};
+    next = (next + 1) % kMemo;
     return plan;
   }
 
@@ -90,6 +112,7 @@ class PlanCache {
   // process would. For the run-to-run reproducibility test only: no transform may be running.
   void Reset() {
     std::lock_guard<std::mutex> lock(mutex_);
+    generation_.fetch_add(1, std::memory_order_acq_rel);
     for (auto& [key, plan] : plans_) fftw_destroy_plan(plan);
     plans_.clear();
     fftw_forget_wisdom();
@@ -156,6 +179,7 @@ class PlanCache {
   std::mutex mutex_;
   FftSettings settings_;
   std::map<PlanKey, fftw_plan> plans_;
+  std::atomic<std::uint64_t> generation_{1};
 };
 
 // Per-thread aligned work buffers (fftw_malloc), grown on demand and kept for the thread's life. Two
@@ -389,11 +413,17 @@ ComplexImage FftForward(const ComplexImage& x) {
   return X;
 }
 
+void FftForwardInto(const ComplexImage& x, ComplexImage* X) { FullComplex("FftForward", Kind::kForward, x, X); }
+
 ComplexImage FftInverse(const ComplexImage& X) {
   ComplexImage x;
-  FullComplex("FftInverse", Kind::kInverse, X, &x);
-  x /= static_cast<double>(X.rows() * X.cols());
+  FftInverseInto(X, &x);
   return x;
+}
+
+void FftInverseInto(const ComplexImage& X, ComplexImage* x) {
+  FullComplex("FftInverse", Kind::kInverse, X, x);
+  *x /= static_cast<double>(X.rows() * X.cols());
 }
 
 Index NextFastFftSize(Index n) {

@@ -187,6 +187,7 @@ class ClosedLoop {
   std::vector<double> phase_, cos_, sin_;  // per lit pixel (scratch)
   double sum_amplitude_ = 0.0, energy_ = 0.0;
   ComplexImage field_;  // 2n x 2n, zero outside the lit pixels
+  ComplexImage spectrum_;  // its DFT, reused every PSF frame
   Image accumulator_;   // sum of |DFT E|^2 over PSF frames
   std::unique_ptr<MatrixFourierTransform> lattice_mft_;
   std::unique_ptr<Recorder> recorder_;

@@ -264,6 +264,7 @@ class ShackHartmann final : public WavefrontSensor {
   std::vector<Index> window_bin_;     // FFT path: bin index in the q x q spectrum of each window pixel
   Vector window_x_, window_y_;        // window pixel offsets from the axis [px]
   std::vector<ComplexImage> fields_;  // per valid lenslet: the (padded) field buffer
+  ComplexImage spectrum_;             // FFT path: one lenslet's spectrum, reused for every lenslet
   std::unique_ptr<MatrixFourierTransform> mft_;
   Image spots_;                            // n_valid x m^2, the last measurement's spots [e-]
   std::vector<double> phase_, cos_, sin_;  // per lit pixel: phase [rad] and its cos, sin (scratch)

@@ -55,6 +55,9 @@ void FftC2RInto(const ComplexImage& X, Index cols, Image* x);
 // Full complex transforms; Forward unnormalised, Inverse divided by R*C.
 ComplexImage FftForward(const ComplexImage& x);
 ComplexImage FftInverse(const ComplexImage& X);
+// The same into *X / *x (a separate array), resized only when its shape differs.
+void FftForwardInto(const ComplexImage& x, ComplexImage* X);
+void FftInverseInto(const ComplexImage& X, ComplexImage* x);
 
 // Number of distinct plans made so far (for tests and benchmarks of the cache).
 std::size_t FftPlanCount();
