@@ -34,7 +34,7 @@ struct DemoArgs {
   double lambda = -1;  // < 0: choose by GCV
   std::string prior = "gradient";
   bool map = true;     // --no-map leaves MAP out (the slowest method)
-  int map_iterations = 60;  // L-BFGS cap for MAP (0: the library's default, to convergence)
+  int map_iterations = 40;  // L-BFGS cap for MAP (0: the library's default, to convergence)
   bool json = false;
   std::string out_dir;
   ExecutionArgs exec;
@@ -342,7 +342,7 @@ void RegisterDemo(CLI::App& app) {
       ->check(CLI::IsMember({"identity", "gradient", "laplacian"}));
   cmd->add_flag("!--no-map", args->map, "leave MAP (the slowest method) out");
   cmd->add_option("--map-iterations", args->map_iterations,
-                  "MAP: L-BFGS iteration cap (0: to convergence, ~6x slower for ~0.5 dB on the default scene)")
+                  "MAP: L-BFGS iteration cap (0: to convergence, ~9x slower and no better on the default scene)")
       ->capture_default_str()->check(CLI::Range(0, 100000));
   AddExecutionOptions(cmd, &args->exec);
   cmd->add_flag("--json", args->json, "print the results as JSON (no progress messages)");
