@@ -152,8 +152,11 @@ TEST(DiffractionTargetTest, AiryFwhmAtTheDatasetsWavelengthAndSampling) {
     EXPECT_NEAR(psf.sum(), 1.0, 1e-12);
     const double fwhm_lod = MeasurePsf(psf).fwhm_px / double(r);  // λ/D is r HR pixels
     std::printf("r = %d: FWHM %.4f lambda/D\n", r, fwhm_lod);
-    if (r == 8) EXPECT_NEAR(fwhm_lod, 1.03, 0.03);
-    if (r == 4) EXPECT_NEAR(fwhm_lod, 1.03, 0.04);
+    if (r == 8) {
+      EXPECT_NEAR(fwhm_lod, 1.03, 0.03);
+    } else if (r == 4) {
+      EXPECT_NEAR(fwhm_lod, 1.03, 0.04);
+    }
     Index py = 0, px = 0;
     psf.maxCoeff(&py, &px);
     EXPECT_EQ(py, 32);  // centred at (K/2, K/2)
