@@ -18,7 +18,8 @@
 // 3. Galaxy sizes and shapes (galaxy-field): Gaussian-weighted second moments of each galaxy on each output
 //    against the same moments of the truth seen through that output's effective PSF.
 //
-// Usage: build/bench/science_bench [--quick] [--part all|resolution|stars|galaxies] [--out FILE]
+// Usage: build/bench/science_bench [--quick] [--part all|resolution|stars|galaxies|defaults] [--out FILE]
+//   (defaults: only the photometry of the linear methods with each one's default --weights auto, ~3 min)
 //   (FILE: e.g. bench/results/science.md; about 20 minutes for all parts on 2 cores)
 #include <unistd.h>
 
@@ -440,10 +441,9 @@ void Photometry(const std::string& scene, int r, aosr::DatasetWeights weights, b
       patch["objects"] = nlohmann::json::array({{{"type", "stars"}, {"count", 60}, {"magnitude_range", {14, 21}}}});
     }
     const Loaded l = Simulate(scene, patch, weights);
-    const ReconstructionProblem& p = l.dp.problem;
     const std::vector<aosr::PointSource>& stars = l.d.stars;
     total_stars += stars.size();
-    const Index side = std::min<Index>(64, p.model->hr_shape().rows / 2 * 2);
+    const Index side = std::min<Index>(64, l.dp.problem.model->hr_shape().rows / 2 * 2);
     const Index stamp = std::min<Index>(side - 8, 6 * r + 1);
     // Scored stars keep half a stamp plus up to 4 camera pixels from the edge (the periodic model wraps there);
     // the scene's trustworthy border (set by its 64 λ/D PSF window, mostly faint halo) would leave few stars.
@@ -456,11 +456,21 @@ void Photometry(const std::string& scene, int r, aosr::DatasetWeights weights, b
     }
     const double typical = std::exp(log_mean / double(stars.size()));
     const double median_flux = Median(fluxes);
-    header = l.name + ", r = " + std::to_string(r) + ", HR " + std::to_string(p.model->hr_shape().rows) + "², N = " +
-             std::to_string(p.frame_count()) + "; weights: " + l.dp.weights_source;
-    const Index hr = p.model->hr_shape().rows;
+    header = l.name + ", r = " + std::to_string(r) + ", HR " + std::to_string(l.dp.problem.model->hr_shape().rows) +
+             "², N = " + std::to_string(l.dp.problem.frame_count()) + "; weights: " +
+             (weights == aosr::DatasetWeights::kAuto ? std::string("each method's default (--weights auto)")
+                                                     : l.dp.weights_source);
+    const Index hr = l.dp.problem.model->hr_shape().rows;
     for (std::size_t mi = 0; mi < methods.size(); ++mi) {
       const Method& m = methods[mi];
+      // kAuto: the problem `aosr reconstruct -m METHOD` builds (--weights auto resolves per method).
+      aosr::DatasetProblemOptions dpo;
+      dpo.weights = weights;
+      dpo.method = m.options.method;
+      const aosr::DatasetProblem own = weights == aosr::DatasetWeights::kAuto ? aosr::ProblemFromDataset(l.d, dpo) : l.dp;
+      const ReconstructionProblem& p = own.problem;
+      if (weights == aosr::DatasetWeights::kAuto && seed == seeds.front())
+        std::fprintf(stderr, "%s: weights %s\n", m.label.c_str(), own.weights_source.c_str());
       const Reconstruction rec = aosr::Reconstruct(p, m.options);
       // The PSF over all r² sub-pixel phases: Drizzle's and shift-and-add's response depends on the phase when
       // N < r², and stars sit at every phase. TV and MAP (a full solve per phase) over 2 x 2 of them.
@@ -671,7 +681,7 @@ int main(int argc, char** argv) {
       out_file = argv[++i];
       command += " --out " + out_file;
     } else {
-      std::fprintf(stderr, "usage: science_bench [--quick] [--part all|resolution|stars|galaxies] [--out FILE]\n");
+      std::fprintf(stderr, "usage: science_bench [--quick] [--part all|resolution|stars|galaxies|defaults] [--out FILE]\n");
       return 2;
     }
   }
@@ -702,7 +712,16 @@ int main(int argc, char** argv) {
         "fall in bright stars' cores and the combination turns flux-dependent, biasing bright stars low.\n";
   Photometry("crowded-stars.json", 2, aosr::DatasetWeights::kMask, false, quick, md);
   if (!quick) Photometry("crowded-stars.json", 4, aosr::DatasetWeights::kMask, false, quick, md);
-  Photometry("crowded-stars.json", 2, aosr::DatasetWeights::kAuto, true, quick, md);
+  Photometry("crowded-stars.json", 2, aosr::DatasetWeights::kDataset, true, quick, md);
+  }
+  if (part == "defaults") {
+    md << "\n## Photometry with the default weights (crowded star field)\n\n"
+       << "The linear methods as `aosr reconstruct -m METHOD` runs them with `--weights auto`: source-independent "
+          "background (sky + read-noise) inverse variances, one per frame, for every linear method "
+          "(include/aosr/solvers/dataset_problem.hpp; here from the simulation's detector model, so uniform). The "
+          "same methods with the dataset's Poisson inverse variances (`--weights poisson`, what `auto` meant before): "
+          "bench/results/science.md, last table.\n";
+    Photometry("crowded-stars.json", 2, aosr::DatasetWeights::kAuto, true, quick, md);
   }
   if (part == "all" || part == "galaxies") Galaxies("galaxy-field.json", quick, md);
   const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -158,6 +158,8 @@ class Reconstruction:
     @property
     def masked_pixels(self) -> int: ...
 
+# weights: 'auto' | 'background' | 'dataset' | 'poisson' (= 'dataset') | 'mask'; options['target_psf']:
+# 'auto' | 'diffraction' | FWHM in HR px | (K, K) kernel (docs/python.md).
 def reconstruct(dataset: Union[Dataset, PathLike], method: str = "tikhonov", *, weights: str = "auto",
                 offsets: str = "auto", model_psfs: Union[ArrayLike, str, None] = None,
                 progress: Optional[Callable[[ProgressDict], Optional[bool]]] = None, **options: Any) -> Reconstruction: ...

@@ -140,12 +140,17 @@ OptionTable<MapOptions> MapTable() {
 
 OptionTable<TargetPsfOptions> LinearTable() {
   OptionTable<TargetPsfOptions> t;
-  t.Custom("target_psf", "'auto' | float FWHM [HR px] | (K, K) array",
-           "the target PSF: automatic Gaussian, a Gaussian of this FWHM, or a kernel at HR sampling (the CLI's --target-psf)",
+  t.Custom("target_psf", "'auto' | 'diffraction' | float FWHM [HR px] | (K, K) array",
+           "the target PSF: automatic Gaussian, the telescope's diffraction-limited PSF at the dataset's wavelength, "
+           "a Gaussian of this FWHM, or a kernel at HR sampling (the CLI's --target-psf)",
            [](TargetPsfOptions& o, py::handle v) {
              if (py::isinstance<py::str>(v)) {
-               if (v.cast<std::string>() != "auto") OptionError("target_psf", py::repr(v), "'auto', a FWHM in HR px or a kernel");
-               o.kind = TargetPsfKind::kAuto;
+               const std::string name = v.cast<std::string>();
+               if (name != "auto" && name != "diffraction")
+                 OptionError("target_psf", py::repr(v), "'auto', 'diffraction', a FWHM in HR px or a kernel");
+               // 'diffraction': an image target whose kernel aosr.reconstruct computes from the dataset.
+               o.kind = name == "auto" ? TargetPsfKind::kAuto : TargetPsfKind::kImage;
+               o.image = Image();
              } else if (py::isinstance<py::float_>(v) || (py::isinstance<py::int_>(v) && !py::isinstance<py::bool_>(v))) {
                o.kind = TargetPsfKind::kGaussian;
                o.fwhm_hr_px = v.cast<double>();
@@ -156,6 +161,7 @@ OptionTable<TargetPsfOptions> LinearTable() {
            },
            [](const TargetPsfOptions& o) -> py::object {
              if (o.kind == TargetPsfKind::kAuto) return py::str("auto");
+             if (o.kind == TargetPsfKind::kImage && o.image.size() == 0) return py::str("diffraction");
              if (o.kind == TargetPsfKind::kGaussian) return py::cast(o.fwhm_hr_px);
              return py::str("(kernel)");
            })
@@ -398,8 +404,15 @@ void BindSolvers(py::module_& m) {
         o.progress = poll.Callback();
         auto out = std::make_shared<PyReconstruction>();
         out->method = ToString(o.method);
+        dpo.method = o.method;
+        std::string warning;
         WithoutGil([&] {
+          if (o.linear.kind == TargetPsfKind::kImage && o.linear.image.size() == 0) {  // target_psf='diffraction'
+            if (o.method == ReconstructionMethod::kLinear) o.linear.image = DiffractionTargetPsf(*d);
+            else o.linear.kind = TargetPsfKind::kAuto;  // only the linear method reads it
+          }
           const DatasetProblem dp = ProblemFromDataset(*d, dpo);
+          warning = dp.warning;
           out->rec = Reconstruct(dp.problem, o);
           out->weights_source = dp.weights_source;
           out->offsets_source = dp.offsets_source;
@@ -407,6 +420,8 @@ void BindSolvers(py::module_& m) {
           out->masked_pixels = dp.masked_pixels;
         });
         poll.RaiseIfPending();  // Ctrl-C (KeyboardInterrupt) or the progress callable's exception
+        if (!warning.empty() && PyErr_WarnEx(PyExc_UserWarning, ("aosr.reconstruct: " + warning).c_str(), 1) != 0)
+          throw py::error_already_set();
         return out;
       },
       py::arg("dataset"), py::arg("method") = "tikhonov", py::kw_only(), py::arg("weights") = "auto",
@@ -417,7 +432,11 @@ the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and 
 dataset     an aosr.Dataset (simulate, open_dataset, Dataset.from_arrays) or a dataset folder / manifest path
 method      'shift-add' | 'shift-add-median' | 'drizzle' | 'tikhonov' (lambda by GCV) | 'linear' (target PSF)
             | 'tv' | 'map'
-weights     'auto' (inverse variances when the dataset has them) | 'dataset' | 'mask'
+weights     'auto' ('background' for the linear methods shift-add, drizzle, tikhonov and linear; for tv and map the
+            dataset's inverse variances when it has them, else 'mask') | 'background' (sky + read-noise inverse variances, one per
+            frame, source-independent: from the detector model or estimated from the frames) | 'dataset' = 'poisson'
+            (the dataset's inverse variances, source photon noise included; a UserWarning with a photometric
+            method: they bias bright sources low) | 'mask'
 offsets     registration offsets for shift-add/drizzle: 'auto' | 'dm' | 'centroids'
 model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) array, or 'nominal'
 progress    optional callable(dict) called during tv/map (stage, iteration, total, value, value_name,

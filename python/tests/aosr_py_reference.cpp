@@ -46,7 +46,9 @@ int main(int argc, char** argv) {
     double best = 1e300;
     for (int k = 0; k < repeat; ++k) {
       const auto t0 = std::chrono::steady_clock::now();
-      const DatasetProblem dp = ProblemFromDataset(d, {});
+      DatasetProblemOptions dpo;
+      dpo.method = o.method;  // --weights auto resolves per method, as the CLI and Python do
+      const DatasetProblem dp = ProblemFromDataset(d, dpo);
       rec = Reconstruct(dp.problem, o);
       best = std::min(best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     }

@@ -187,3 +187,40 @@ def test_reconstruct_rejects_a_bad_dataset_argument():
     with pytest.raises(aosr.IoError) as e:
         aosr.reconstruct("/nonexistent/folder", "tikhonov")
     assert isinstance(e.value, OSError) and "/nonexistent/folder" in str(e.value)
+
+
+def test_default_weights_are_source_independent_for_linear_methods(demo_dir, cli, tmp_path):
+    """Issue 24: weights='auto' means background (sky + read noise) inverse variances for the linear methods, the
+    dataset's for tv/map; 'poisson' names the source-dependent ones and warns next to a linear method."""
+    import json
+    import warnings
+    ds = aosr.open_dataset(demo_dir)
+    for method in ("linear", "drizzle", "tikhonov"):
+        rec = aosr.reconstruct(ds, method)
+        assert rec.weights_source == "background variances from the detector model (e-^-2)", method
+        j = json.loads(cli("reconstruct", demo_dir, "-m", method, "-o", tmp_path / f"{method}.fits", "--json").stdout)
+        assert j["weights"] == rec.weights_source
+    assert aosr.reconstruct(ds, "tv", iterations=3).weights_source == "dataset inverse variances (e-^-2)"
+    assert aosr.reconstruct(ds, "linear", weights="background").weights_source.startswith("background variances")
+    with pytest.warns(UserWarning, match="bias bright sources low"):
+        rec = aosr.reconstruct(ds, "drizzle", weights="poisson")
+    assert rec.weights_source == "dataset inverse variances (e-^-2)"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        aosr.reconstruct(ds, "drizzle")  # no warning by default
+    # A simulation in memory carries the same detector model as a dataset on disk.
+    mem = aosr.simulate(aosr.load_scene(aosr.data_path("scenes", "demo.json")), seed=1)
+    assert aosr.reconstruct(mem, "linear").weights_source == "background variances from the detector model (e-^-2)"
+
+
+def test_diffraction_target_psf(demo_dir, cli, tmp_path):
+    """target_psf='diffraction' (the CLI's --target-psf diffraction): the telescope's Airy pattern at the dataset's
+    wavelength on the HR grid: the demo's camera pixel is lambda/D and r = 2, so the pattern is point-sampled at
+    lambda/(2D), where psf_metrics' FWHM reads 0.903 lambda/D = 1.81 HR px (1.02 lambda/D at lambda/(8D))."""
+    import json
+    rec = aosr.reconstruct(demo_dir, "linear", target_psf="diffraction")
+    assert abs(rec.linear["target_fwhm_hr_px"] - 1.81) < 0.02
+    j = json.loads(cli("reconstruct", demo_dir, "-m", "linear", "--target-psf", "diffraction", "-o",
+                       tmp_path / "d.fits", "--json").stdout)
+    assert j["linear"]["target_fwhm_hr_px"] == rec.linear["target_fwhm_hr_px"]
+    assert aosr.reconstruct_options()["linear_target_psf"]["default"] == "auto"

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
+#include <vector>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -61,11 +63,15 @@ struct ReconstructArgs {
   ExecutionArgs exec;
 };
 
-// --target-psf: "auto" | "gaussian:<FWHM in HR pixels>" | a FITS file holding the kernel at HR sampling.
+// --target-psf: "auto" | "diffraction" | "gaussian:<FWHM in HR pixels>" | a FITS file holding the kernel at HR
+// sampling. "diffraction" is resolved once the dataset is read (DiffractionTargetPsf).
 void ParseTargetPsf(const std::string& spec, TargetPsfOptions* o) {
-  constexpr const char* kAllowed = "auto | gaussian:<FWHM in HR px> | <kernel>.fits (HR sampling, centred)";
+  constexpr const char* kAllowed =
+      "auto | diffraction | gaussian:<FWHM in HR px> | <kernel>.fits (HR sampling, centred)";
   if (spec == "auto") {
     o->kind = TargetPsfKind::kAuto;
+  } else if (spec == "diffraction") {
+    o->kind = TargetPsfKind::kImage;  // the kernel comes from the dataset's telescope
   } else if (spec.rfind("gaussian:", 0) == 0) {
     o->kind = TargetPsfKind::kGaussian;
     std::size_t used = 0;
@@ -153,7 +159,14 @@ void RunReconstruct(const ReconstructArgs& a) {
   } else if (!a.model_psfs.empty()) {
     dpo.model_psfs = ReadFits(a.model_psfs).planes;
   }
+  if (a.target_psf == "diffraction") {
+    if (o.method == ReconstructionMethod::kLinear) o.linear.image = DiffractionTargetPsf(d);
+    else o.linear.kind = TargetPsfKind::kAuto;  // only the linear method reads it
+  }
+  dpo.method = o.method;
   const DatasetProblem dp = ProblemFromDataset(d, dpo);
+  // The caution about the weights: on stderr, or under --json in the JSON's "warning" (stdout stays JSON).
+  if (!dp.warning.empty() && !a.json) std::fprintf(stderr, "aosr reconstruct: warning: %s\n", dp.warning.c_str());
 
   progress.Step(std::string("reconstructing with ") + ToString(o.method) + " (" + std::to_string(d.size()) +
                 " frames of " + ToString(d.frame) + ", r = " + std::to_string(d.r) + ")");
@@ -225,6 +238,7 @@ void RunReconstruct(const ReconstructArgs& a) {
                       {"frames", d.size()},
                       {"r", d.r},
                       {"weights", dp.weights_source},
+                      {"weights_option", a.weights},
                       {"offsets", dp.offsets_source},
                       {"model_psfs_replaced", dp.model_psfs_replaced},
                       {"masked_pixels", dp.masked_pixels},
@@ -239,6 +253,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                         {"frame_residual_rms", rec.summary.frame_residual_rms}}},
                       {"seconds_total", rec.seconds_total}};
   if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
+  if (!dp.background_sigma_e.empty()) j["background_sigma_e"] = dp.background_sigma_e;
+  if (!dp.warning.empty()) j["warning"] = dp.warning;
   // Noise figures need absolute weights: a validity mask is relative (every pixel weight 1, σ = --noise-sigma).
   const bool noise_unscaled = rec.linear && dp.weights_source == "validity mask" &&
                               !(a.noise_sigma_option && a.noise_sigma_option->count() > 0);
@@ -268,20 +284,39 @@ void RunReconstruct(const ReconstructArgs& a) {
     MetricOptions mo;
     mo.crop_px = int(d.trustworthy_border_px * d.r);
     if (2 * mo.crop_px + 11 > std::min(d.hr_frame.rows, d.hr_frame.cols)) mo.crop_px = 0;
+    Image estimate = rec.image;
+    std::optional<Image> seen;
+    if (rec.linear && rec.effective_psf.size() && rec.effective_psf.rows() <= d.hr_frame.rows &&
+        rec.effective_psf.cols() <= d.hr_frame.cols)
+      seen = ToImage(PeriodicConvolutionFromKernel(d.hr_frame, rec.effective_psf)->Apply(AsVector(*d.truth)), d.hr_frame);
+    if (rec.linear) {
+      // A linear output keeps the sky the truth has not: estimate it as the difference of the two images'
+      // background levels (medians over the scored region) and subtract it before scoring.
+      const Image& ref = seen ? *seen : *d.truth;
+      const Index c = mo.crop_px, rows = d.hr_frame.rows - 2 * c, cols = d.hr_frame.cols - 2 * c;
+      auto median = [&](const Image& img) {
+        std::vector<double> v;
+        v.reserve(std::size_t(rows * cols));
+        for (Index y = 0; y < rows; ++y)
+          for (Index x = 0; x < cols; ++x) v.push_back(img(c + y, c + x));
+        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+        return v[v.size() / 2];
+      };
+      const double sky = median(estimate) - median(ref);
+      estimate -= sky;
+      j["sky_subtracted_e"] = sky;
+    }
     EvaluationOptions eo;
     eo.crop_px = mo.crop_px;
     eo.hr_pixel_mas = DatasetHrPixelMas(d);
-    const Evaluation ev = EvaluateReconstruction(*d.truth, rec.image, {}, eo);
+    const Evaluation ev = EvaluateReconstruction(*d.truth, estimate, {}, eo);
     const ImageMetrics& m = ev.metrics;
     j["against_truth"] = {{"psnr_db", m.psnr}, {"ssim", m.ssim}, {"rmse", m.rmse}, {"crop_px", mo.crop_px}};
     AddAlignedScores(ev, &j["against_truth"]);
     aligned_line = AlignedScoresLine(ev);
-    if (rec.linear && rec.effective_psf.size() && rec.effective_psf.rows() <= d.hr_frame.rows &&
-        rec.effective_psf.cols() <= d.hr_frame.cols) {
+    if (seen) {
       // A linear output with a known PSF estimates the truth seen through that PSF: compare with that too.
-      const Image seen = ToImage(
-          PeriodicConvolutionFromKernel(d.hr_frame, rec.effective_psf)->Apply(AsVector(*d.truth)), d.hr_frame);
-      const ImageMetrics t = CompareImages(seen, rec.image, mo);
+      const ImageMetrics t = CompareImages(*seen, estimate, mo);
       j["against_truth_through_psf"] = {{"psnr_db", t.psnr}, {"ssim", t.ssim}, {"rmse", t.rmse}};
     }
   }
@@ -297,6 +332,9 @@ void RunReconstruct(const ReconstructArgs& a) {
                 "--noise-sigma (the frames' noise in e-)\n");
   std::printf("  weights: %s; offsets: %s%s\n", dp.weights_source.c_str(), dp.offsets_source.c_str(),
               dp.model_psfs_replaced ? ("; model PSFs replaced by " + a.model_psfs).c_str() : "");
+  if (j.contains("sky_subtracted_e"))
+    std::printf("  sky subtracted before scoring: %.4g e- per HR pixel (output's median level minus the truth's)\n",
+                j["sky_subtracted_e"].get<double>());
   if (j.contains("against_truth"))
     std::printf("  against the truth (crop %d HR px): PSNR %.2f dB, SSIM %.4f\n", j["against_truth"]["crop_px"].get<int>(),
                 j["against_truth"]["psnr_db"].get<double>(), j["against_truth"]["ssim"].get<double>());
@@ -326,7 +364,9 @@ void RegisterReconstruct(CLI::App& app) {
       "--progress", a->progress,
       "show progress on stderr even with --json or when stderr is not a terminal (then as lines, at most "
       "one a second; by default it shows only on a terminal without --json)");
-  cmd->add_option("--weights", a->weights, "auto | dataset (inverse variances) | mask (uniform on valid pixels)")
+  cmd->add_option("--weights", a->weights, "auto (background for the linear methods shift-add, drizzle, tikhonov, linear; dataset for tv, map) | background (sky + read-noise "
+                  "inverse variances, source-independent: detector model or estimated per frame) | dataset = poisson (the "
+                  "dataset's inverse variances, source photon noise included) | mask (uniform on valid pixels)")
       ->capture_default_str();
   cmd->add_option("--offsets", a->offsets, "registration offsets for shift-add/drizzle: auto | dm | centroids")
       ->capture_default_str();
@@ -352,8 +392,8 @@ void RegisterReconstruct(CLI::App& app) {
       ->capture_default_str()
       ->check(NonNegativeFinite());
   cmd->add_option("--target-psf", a->target_psf,
-                  "linear: output PSF: auto (Gaussian, FWHM max(PSF FWHM, 1 camera px)) | gaussian:<FWHM HR px> | "
-                  "<kernel>.fits")
+                  "linear: output PSF: auto (Gaussian, FWHM max(PSF FWHM, 1 camera px)) | diffraction (the telescope's "
+                  "diffraction-limited PSF at the dataset's wavelength, HR sampling) | gaussian:<FWHM HR px> | <kernel>.fits")
       ->capture_default_str();
   cmd->add_option("--leakage", a->leakage, "linear: leakage bound epsilon, U <= U_min + epsilon, in (0, 1)")
       ->capture_default_str()

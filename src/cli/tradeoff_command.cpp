@@ -115,7 +115,8 @@ std::vector<std::string> Methods(const TradeoffArgs& a) {
   return out;
 }
 
-std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProblem& dp, int crop_px,
+std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProblem& dp,
+                     const DatasetProblem& dp_photometric, int crop_px,
                      const std::vector<Row>& rows) {
   const bool truth = d.truth.has_value();
   std::ostringstream os;
@@ -123,7 +124,11 @@ std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProbl
      << "Command: `" << CommandLine() << "` (aosr " << AOSR_VERSION << ", " << DefaultThreads()
      << " thread(s)).\n\n"
      << "Dataset: " << d.size() << " frames of " << ToString(d.frame) << " camera px, r = " << d.r << " (HR "
-     << ToString(d.hr_frame) << "); weights: " << dp.weights_source << "; "
+     << ToString(d.hr_frame) << "); weights: " << dp.weights_source
+     << (dp_photometric.weights_source != dp.weights_source
+             ? " (shift-add, drizzle, tikhonov: " + dp_photometric.weights_source + ")"
+             : std::string())
+     << "; "
      << (truth ? "truth given: PSNR/SSIM (core/metrics.hpp, L = the cropped truth's range) on the truth " +
                      (crop_px > 0 ? "cropped by " + std::to_string(crop_px) +
                                         " HR px per side (the dataset's trustworthy border), as "
@@ -286,8 +291,13 @@ void RunTradeoff(const TradeoffArgs& a) {
     if (inputs.count(fs::weakly_canonical(p)))
       throw InvalidArgument(kCmd, "-o", a.out_dir,
                             "a folder where no output (" + p + ") is one of the dataset's input files");
-  const DatasetProblem dp = ProblemFromDataset(d, dpo);
-  const ReconstructionProblem& p = dp.problem;
+  // As `aosr reconstruct` does: `--weights auto` means background (source-independent) weights for the
+  // linear methods (shift-add, drizzle, tikhonov) and the dataset's weights for tv and map (dataset_problem.hpp).
+  DatasetProblemOptions dpo_model = dpo, dpo_photometric = dpo;
+  dpo_model.method = ReconstructionMethod::kTotalVariation;
+  dpo_photometric.method = ReconstructionMethod::kDrizzle;
+  const DatasetProblem dp = ProblemFromDataset(d, dpo_model);
+  const DatasetProblem dp_photometric = ProblemFromDataset(d, dpo_photometric);
   EnsureDirectory(a.out_dir);
 
   MetricOptions mo;
@@ -299,6 +309,7 @@ void RunTradeoff(const TradeoffArgs& a) {
   // One run: the row (without the change column) and its estimate.
   const auto run = [&](const std::string& method, ReconstructOptions o, Row row, Image* image) {
     o.method = ParseReconstructionMethod(method);
+    const ReconstructionProblem& p = IsLinearMethod(o.method) ? dp_photometric.problem : dp.problem;
     progress.Step(method + " " + row.knob);
     o.progress = bar.Callback();
     Reconstruction rec = Reconstruct(p, o);
@@ -400,6 +411,7 @@ void RunTradeoff(const TradeoffArgs& a) {
                       {"r", d.r},
                       {"hr_shape", {d.hr_frame.rows, d.hr_frame.cols}},
                       {"weights", dp.weights_source},
+                      {"weights_linear_methods", dp_photometric.weights_source},
                       {"threads", DefaultThreads()},
                       {"has_truth", d.truth.has_value()},
                       {"metric_crop_px", d.truth ? nlohmann::json(mo.crop_px) : nlohmann::json(nullptr)},
@@ -417,7 +429,7 @@ void RunTradeoff(const TradeoffArgs& a) {
   FigureOptions fo;
   fo.columns = 2;
   WriteFigure(png_path, Panels(name, d.truth.has_value(), methods, rows), fo);
-  const std::string md = Markdown(a, d, dp, mo.crop_px, rows);
+  const std::string md = Markdown(a, d, dp, dp_photometric, mo.crop_px, rows);
   AtomicWrite(md_path, [&](const std::string& tmp) {
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (!f) throw IoError(md_path, "cannot open for writing");

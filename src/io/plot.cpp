@@ -404,4 +404,110 @@ void WriteFigure(const std::string& path, const std::vector<LinePlot>& panels, c
   WriteRgbImage(path, RenderFigure(panels, options));
 }
 
+bool PanelFigureOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (columns < 1) return fail("columns = " + std::to_string(columns) + "; allowed: >= 1");
+  if (gap_px < 0 || gap_px > 200) return fail("gap_px = " + std::to_string(gap_px) + "; allowed: 0..200");
+  if (!(text_scale > 0 && text_scale <= 4)) return fail("text_scale = " + ToString(text_scale) + "; allowed: (0, 4]");
+  return true;
+}
+
+RgbImage RenderImagePanels(const std::vector<ImagePanel>& panels, const PanelFigureOptions& options) {
+  constexpr const char* kPanelsFn = "RenderImagePanels";
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kPanelsFn) + ": invalid PanelFigureOptions: " + why);
+  CheckArgument(!panels.empty(), kPanelsFn, "panels", "0 panels", "at least one");
+  int cell_w = 0, cell_h = 0;
+  for (std::size_t i = 0; i < panels.size(); ++i) {
+    const ImagePanel& p = panels[i];
+    const std::string name = "panels[" + std::to_string(i) + "]";
+    CheckArgument(p.image.size() > 0, kPanelsFn, name + ".image", "empty", "a non-empty image");
+    CheckArgument(p.zoom >= 1 && p.zoom <= 64, kPanelsFn, name + ".zoom", p.zoom, "1..64");
+    for (const PanelBox& b : p.boxes)
+      CheckArgument(b.top >= 0 && b.left >= 0 && b.height >= 1 && b.width >= 1 && b.top + b.height <= p.image.rows() &&
+                        b.left + b.width <= p.image.cols(),
+                    kPanelsFn, name + ".boxes",
+                    "(" + std::to_string(b.top) + ", " + std::to_string(b.left) + ", " + std::to_string(b.height) +
+                        ", " + std::to_string(b.width) + ")",
+                    "inside the " + ToString(ShapeOf(p.image)) + " image, at least 1 x 1");
+    cell_w = std::max<int>(cell_w, int(p.image.cols()) * p.zoom);
+    cell_h = std::max<int>(cell_h, int(p.image.rows()) * p.zoom);
+  }
+  const double sub_scale = 0.9 * options.text_scale;
+  const int line1 = TextSize("Ag", options.text_scale).height, line2 = TextSize("Ag", sub_scale).height;
+  auto split = [](const std::string& t) {
+    std::vector<std::string> lines;
+    std::size_t start = 0;
+    while (start <= t.size() && !t.empty()) {
+      const std::size_t nl = t.find('\n', start);
+      lines.push_back(t.substr(start, nl == std::string::npos ? std::string::npos : nl - start));
+      if (nl == std::string::npos) break;
+      start = nl + 1;
+    }
+    return lines;
+  };
+  std::size_t sub_lines = 1;
+  for (const ImagePanel& p : panels) sub_lines = std::max(sub_lines, split(p.subtitle).size());
+  const int pad = std::max(3, line1 / 2);
+  const int band = line1 + int(sub_lines) * (line2 + pad) + 2 * pad;  // title band above each image
+  const int n = int(panels.size());
+  const int cols = std::min(options.columns, n), rows = (n + cols - 1) / cols, gap = options.gap_px;
+  const std::vector<std::string> caption = split(options.caption);
+  const int caption_h = caption.empty() ? 0 : int(caption.size()) * (line2 + pad) + pad;
+  const int fig_w = cols * cell_w + (cols + 1) * gap,
+            fig_h = caption_h + rows * (cell_h + band) + (rows + 1) * gap;
+  CheckMemory(6.0 * double(fig_w) * double(fig_h), std::string(kPanelsFn) + ": a figure of " + std::to_string(n) + " panels");
+  cv::Mat fig(fig_h, fig_w, CV_8UC3, kWhite);
+  const cv::Scalar kBox(14, 127, 255);  // orange (BGR)
+  for (std::size_t k = 0; k < caption.size(); ++k)
+    cv::putText(fig, Ascii(caption[k]), cv::Point(gap, gap + int(k + 1) * (line2 + pad)), kFont, sub_scale, kBlack, 1,
+                cv::LINE_AA);
+  for (int i = 0; i < n; ++i) {
+    const ImagePanel& p = panels[std::size_t(i)];
+    const int x0 = gap + (i % cols) * (cell_w + gap), y0 = caption_h + gap + (i / cols) * (cell_h + band + gap);
+    if (!p.title.empty()) {
+      const std::string t = Ascii(p.title);
+      const cv::Size z = TextSize(t, options.text_scale);
+      cv::putText(fig, t, cv::Point(x0 + std::max(0, (cell_w - z.width) / 2), y0 + pad + line1), kFont,
+                  options.text_scale, kBlack, 2, cv::LINE_AA);
+    }
+    const std::vector<std::string> lines = split(p.subtitle);
+    for (std::size_t k = 0; k < lines.size(); ++k) {
+      const std::string t = Ascii(lines[k]);
+      const cv::Size z = TextSize(t, sub_scale);
+      cv::putText(fig, t,
+                  cv::Point(x0 + std::max(0, (cell_w - z.width) / 2), y0 + pad + line1 + int(k + 1) * (line2 + pad)),
+                  kFont, sub_scale, kAxisGrey, 1, cv::LINE_AA);
+    }
+    const int w = int(p.image.cols()) * p.zoom, h = int(p.image.rows()) * p.zoom;
+    const int ix = x0 + (cell_w - w) / 2, iy = y0 + band;
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const double v = p.image(y / p.zoom, x / p.zoom);
+        const int g = std::isnan(v) ? 0 : int(std::lround(255.0 * std::clamp(v, 0.0, 1.0)));
+        fig.at<cv::Vec3b>(iy + y, ix + x) = cv::Vec3b(std::uint8_t(g), std::uint8_t(g), std::uint8_t(g));
+      }
+    for (const PanelBox& b : p.boxes)
+      cv::rectangle(fig, cv::Rect(ix + int(b.left) * p.zoom, iy + int(b.top) * p.zoom, int(b.width) * p.zoom,
+                                  int(b.height) * p.zoom),
+                    kBox, std::max(1, p.zoom), cv::LINE_8);
+  }
+  RgbImage out;
+  out.rows = fig.rows;
+  out.cols = fig.cols;
+  out.rgb.resize(std::size_t(3) * fig.rows * fig.cols);
+  for (int y = 0; y < fig.rows; ++y)
+    for (int x = 0; x < fig.cols; ++x) {
+      const cv::Vec3b& bgr = fig.at<cv::Vec3b>(y, x);
+      std::uint8_t* o = &out.rgb[std::size_t(3) * (std::size_t(y) * fig.cols + x)];
+      o[0] = bgr[2];
+      o[1] = bgr[1];
+      o[2] = bgr[0];
+    }
+  return out;
+}
+
 }  // namespace aosr

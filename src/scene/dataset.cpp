@@ -106,6 +106,34 @@ OrderedJson SceneJson(const SceneSpec& scene, const nlohmann::json* scene_json) 
   return OrderedJson();
 }
 
+// The manifest's "noise" section (provenance: the detector model of the simulation).
+OrderedJson NoiseJson(const SceneSpec& scene, const Simulation& sim) {
+  const DetectorOptions& d = scene.detector;
+  OrderedJson noise;
+  noise["model"] = NoiseModelName(d);
+  noise["photon_noise"] = d.noise_model == NoiseModel::kPhysical && d.enable_photon_noise;
+  noise["read_noise_e"] = d.noise_model == NoiseModel::kPhysical && d.enable_read_noise ? d.read_noise_e : 0.0;
+  noise["peak_noise_fraction"] = d.noise_model == NoiseModel::kPeakFraction ? d.peak_noise_fraction : 0.0;
+  // kPeakFraction: the σ actually drawn (p · the sequence's largest expected λ), electrons.
+  noise["sigma_e"] = sim.frames.empty() ? 0.0 : sim.frames.front().noise_sigma_e;
+  noise["background_e_per_s"] = d.enable_background ? d.background_e_per_s : 0.0;
+  noise["dark_current_e_per_s"] = d.enable_dark_current ? d.dark_current_e_per_s : 0.0;
+  noise["saturation"] = d.enable_saturation;
+  noise["saturation_adu"] = d.saturation_adu;
+  noise["quantize"] = d.enable_quantization;
+  noise["fill_factor"] = d.fill_factor;
+  noise["frame_time_s"] = d.exposure_time_s;
+  noise["total_exposure_s"] = scene.total_exposure_s;
+  if (d.enable_bad_pixels) {
+    OrderedJson b;
+    if (!scene.bad_pixel_file.empty()) b["file"] = scene.bad_pixel_file;
+    else b["fraction"] = scene.bad_pixel_fraction;
+    b["count"] = Index((d.bad_pixel_mask == 0).count());
+    noise["bad_pixels"] = b;
+  }
+  return noise;
+}
+
 OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline, const Simulation& sim,
                           const nlohmann::json* scene_json) {
   const SceneGeometry& g = sim.geometry;
@@ -150,29 +178,7 @@ OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline,
     m["stars"] = stars;
   }
 
-  OrderedJson noise;
-  noise["model"] = NoiseModelName(d);
-  noise["photon_noise"] = d.noise_model == NoiseModel::kPhysical && d.enable_photon_noise;
-  noise["read_noise_e"] = d.noise_model == NoiseModel::kPhysical && d.enable_read_noise ? d.read_noise_e : 0.0;
-  noise["peak_noise_fraction"] = d.noise_model == NoiseModel::kPeakFraction ? d.peak_noise_fraction : 0.0;
-  // kPeakFraction: the σ actually drawn (p · the sequence's largest expected λ), electrons.
-  noise["sigma_e"] = sim.frames.empty() ? 0.0 : sim.frames.front().noise_sigma_e;
-  noise["background_e_per_s"] = d.enable_background ? d.background_e_per_s : 0.0;
-  noise["dark_current_e_per_s"] = d.enable_dark_current ? d.dark_current_e_per_s : 0.0;
-  noise["saturation"] = d.enable_saturation;
-  noise["saturation_adu"] = d.saturation_adu;
-  noise["quantize"] = d.enable_quantization;
-  noise["fill_factor"] = d.fill_factor;
-  noise["frame_time_s"] = d.exposure_time_s;
-  noise["total_exposure_s"] = scene.total_exposure_s;
-  if (d.enable_bad_pixels) {
-    OrderedJson b;
-    if (!scene.bad_pixel_file.empty()) b["file"] = scene.bad_pixel_file;
-    else b["fraction"] = scene.bad_pixel_fraction;
-    b["count"] = Index((d.bad_pixel_mask == 0).count());
-    noise["bad_pixels"] = b;
-  }
-  m["noise"] = noise;
+  m["noise"] = NoiseJson(scene, sim);
 
   OrderedJson s;
   s["scene"] = {{"name", scene.name}, {"source", scene.source}, {"json", SceneJson(scene, scene_json)}};
@@ -346,6 +352,10 @@ void PrepareSimulationOutput(const std::string& dir, const SceneSpec& scene) {
   if (!fs::exists(dir, ec) && (!fs::create_directories(dir, ec) || ec))
     throw IoError(dir, "cannot create the folder: " + (ec ? ec.message() : std::string("unknown reason")));
   if (::access(dir.c_str(), W_OK | X_OK) != 0) throw IoError(dir, "the folder is not writable");
+}
+
+nlohmann::json SimulationNoiseJson(const SceneSpec& scene, const Simulation& sim) {
+  return nlohmann::json::parse(NoiseJson(scene, sim).dump());
 }
 
 void WriteSimulation(const std::string& dir, const SceneSpec& scene, const ScenePipeline& pipeline,

@@ -1,10 +1,13 @@
 #include "aosr/scene/dataset_memory.hpp"
 
 #include <cmath>
+#include <filesystem>
+#include <system_error>
 #include <string>
 #include <utility>
 
 #include "aosr/core/error.hpp"
+#include "aosr/io/config.hpp"
 #include "aosr/io/wcs.hpp"
 
 namespace aosr {
@@ -73,6 +76,17 @@ Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim) {
   if (ds.offsets.empty()) ds.offsets.assign(n, DmOffset{});
   ds.truth = sim.truth;
   ds.stars = sim.stars;
+  // The provenance a reconstruction reads from a manifest on disk: the detector model (background weights) and
+  // the scene's telescope (the diffraction target), so memory and disk give the same reconstruction.
+  ds.manifest = {{"noise", SimulationNoiseJson(scene, sim)}};
+  std::error_code ec;
+  if (!scene.source.empty() && std::filesystem::is_regular_file(scene.source, ec)) {
+    try {
+      ds.manifest["simulation"] = {{"scene", {{"name", scene.name}, {"source", scene.source}, {"json", ReadJsonFile(scene.source)}}}};
+    } catch (const Error&) {
+      // provenance only: without it the diffraction target is refused by name
+    }
+  }
   ds.trustworthy_border_px = g.trustworthy_border_px;
   ds.camera_pixel_rad = g.camera_pixel_rad;
   ds.wavelength_m = g.wavelength_m;

@@ -247,8 +247,8 @@ void AddPointSources(Image* image, const std::vector<PointSource>& sources) {
   }
 }
 
-Image DemoObject(Shape shape) {
-  CheckShape("DemoObject", shape, kDemoMinSide);
+UsafOptions DemoUsafOptions(Shape shape) {
+  CheckShape("DemoUsafOptions", shape, kDemoMinSide);
   UsafOptions options;
   options.first_group = -2;
   options.last_group = 1;
@@ -256,6 +256,26 @@ Image DemoObject(Shape shape) {
   options.bar_value = 1.0;
   const LayoutMm layout = MakeLayout(options.first_group, options.last_group);
   options.pixels_per_mm = 0.9 * std::min(shape.rows / layout.height, shape.cols / layout.width);
+  return options;
+}
+
+PixelRect DemoFinestBars(Shape shape) {
+  const UsafOptions options = DemoUsafOptions(shape);
+  double top = 1e300, left = 1e300, bottom = -1e300, right = -1e300;
+  for (const UsafElement& e : UsafElements(shape, options)) {
+    if (e.group < 0) continue;
+    top = std::min(top, e.box.top);
+    left = std::min(left, e.box.left);
+    bottom = std::max(bottom, e.box.bottom());
+    right = std::max(right, e.box.right());
+  }
+  return {top, left, bottom - top, right - left};
+}
+
+Image DemoObject(Shape shape) {
+  CheckShape("DemoObject", shape, kDemoMinSide);
+  const UsafOptions options = DemoUsafOptions(shape);
+  const LayoutMm layout = MakeLayout(options.first_group, options.last_group);
   Image image = UsafTarget(shape, options);
 
   // The empty part of the target's box: right of group -2's column and below group -1's, out to the box's

@@ -183,5 +183,56 @@ TEST(RgbImageTest, RoundTripsThroughPngAndRefusesBadShapes) {
   EXPECT_FALSE(std::filesystem::exists(dir.File("b.png")));
 }
 
+// Labelled image panels (the `aosr demo` montage): cell geometry, nearest-neighbour zoom, boxes, errors.
+TEST(ImagePanelsTest, ZoomedPixelsAreSquaresOfTheirGreyAndBoxesAreOrange) {
+  ImagePanel a;
+  a.image = Image::Zero(8, 8);
+  a.image(2, 3) = 1.0;  // one white pixel
+  a.title = "truth";
+  a.subtitle = "PSNR 30.0 dB\n1.0 s";
+  a.zoom = 4;
+  a.boxes = {{4, 4, 3, 3}};
+  ImagePanel b;
+  b.image = Image::Constant(16, 16, 0.5);
+  b.title = "method";
+  PanelFigureOptions o;
+  o.columns = 2;
+  o.gap_px = 10;
+  const RgbImage img = RenderImagePanels({a, b}, o);
+  // Two cells of 32 px (the widest magnified image), three gaps.
+  EXPECT_EQ(img.cols, 2 * 32 + 3 * 10);
+  // Find the zoomed white pixel: a 4 x 4 white square in the left cell, whose image starts at x = 10.
+  int white = CountColour(img, {255, 255, 255}, 0, 0, 10, img.rows, 42);
+  int black = CountColour(img, {0, 0, 0}, 0, 0, 10, img.rows, 42);
+  EXPECT_GE(black, 8 * 8 * 16 - 16 - 3 * 3 * 16) << "the dark image, zoomed";
+  EXPECT_GT(white, 16) << "background and the white pixel";
+  // The grey panel: 16 x 16 pixels of 128 zoomed by 1, centred in its 32 px cell.
+  const int grey = CountColour(img, {128, 128, 128}, 0, 0, 52, img.rows, 84);
+  EXPECT_GE(grey, 16 * 16);
+  EXPECT_LE(grey, 16 * 16 + 20) << "plus a few anti-aliased title pixels";
+  // The box outline in orange.
+  EXPECT_GT(CountColour(img, {255, 127, 14}, 0, 0, 10, img.rows, 42), 3 * 4 * 4);
+  EXPECT_EQ(RenderImagePanels({a, b}, o).rgb, img.rgb);  // deterministic
+  // A caption adds a band on top.
+  o.caption = "line one\nline two";
+  EXPECT_GT(RenderImagePanels({a, b}, o).rows, img.rows);
+}
+
+TEST(ImagePanelsTest, BadInputGetsAClearError) {
+  ImagePanel p;
+  EXPECT_THAT(ErrorOf([&] { RenderImagePanels({p}); }), HasSubstr("panels[0].image"));
+  p.image = Image::Zero(4, 4);
+  p.zoom = 0;
+  EXPECT_THAT(ErrorOf([&] { RenderImagePanels({p}); }), HasSubstr("panels[0].zoom"));
+  p.zoom = 1;
+  p.boxes = {{2, 2, 3, 1}};
+  EXPECT_THAT(ErrorOf([&] { RenderImagePanels({p}); }), HasSubstr("panels[0].boxes"));
+  p.boxes.clear();
+  EXPECT_THAT(ErrorOf([&] { RenderImagePanels({}); }), HasSubstr("panels"));
+  PanelFigureOptions o;
+  o.columns = 0;
+  EXPECT_THAT(ErrorOf([&] { RenderImagePanels({p}, o); }), HasSubstr("columns = 0"));
+}
+
 }  // namespace
 }  // namespace aosr

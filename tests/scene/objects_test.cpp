@@ -224,5 +224,24 @@ TEST(DemoObjectTest, ContainsTheFivePointSources) {
   }
 }
 
+TEST(DemoObjectTest, FinestBarsBoxHoldsGroupsZeroAndOneInsideTheField) {
+  const Shape shape{256, 256};
+  const UsafOptions opts = DemoUsafOptions(shape);
+  EXPECT_NEAR(UsafTarget(shape, opts).sum() + 3.5, DemoObject(shape).sum(), 1e-8);  // the options DemoObject uses
+  const PixelRect box = DemoFinestBars(shape);
+  EXPECT_GT(box.top, 0.0);
+  EXPECT_GT(box.left, 0.0);
+  EXPECT_LT(box.bottom(), 256.0);
+  EXPECT_LT(box.right(), 256.0);
+  int inside = 0;
+  for (const UsafElement& e : UsafElements(shape, opts)) {
+    const bool in = e.box.top >= box.top && e.box.left >= box.left && e.box.bottom() <= box.bottom() + 1e-9 &&
+                    e.box.right() <= box.right() + 1e-9;
+    EXPECT_EQ(in, e.group >= 0) << "group " << e.group << " element " << e.element;
+    inside += in;
+  }
+  EXPECT_EQ(inside, 12);
+}
+
 }  // namespace
 }  // namespace aosr

@@ -86,4 +86,37 @@ RgbImage RenderFigure(const std::vector<LinePlot>& panels, const FigureOptions& 
 void WriteFigure(const std::string& path, const std::vector<LinePlot>& panels,
                  const FigureOptions& options = {});
 
+// ---- Labelled image panels (pictures rather than curves) ---------------------------------------------------
+// A grid of grey-scale images, each magnified by an integer factor (nearest neighbour, so every pixel stays a
+// visible square), with a title and subtitle lines above it and optional outlined boxes on it: the figure of
+// `aosr demo` (truth, an input frame, each reconstruction with its name and score, zoomed insets).
+// Cells are filled left to right then top to bottom in `columns` columns; every cell is as wide as the widest
+// magnified image and as tall as the tallest, plus the title band; an image sits centred at the top of its
+// cell's image area, on the background.
+
+struct PanelBox {
+  // In the panel image's pixels (before magnification): rows [top, top + height), cols [left, left + width).
+  Index top = 0, left = 0, height = 0, width = 0;
+};
+
+struct ImagePanel {
+  Image image;             // display values in [0, 1] (0 black, 1 white; NaN black), row 0 at the top, non-empty
+  std::string title;       // first text line (bold), e.g. the method; may be empty
+  std::string subtitle;    // text below the title, e.g. "PSNR 30.4 dB"; '\n' starts another line; may be empty
+  int zoom = 1;            // integer magnification, 1..64
+  std::vector<PanelBox> boxes;  // outlined in the figure's box colour (orange), e.g. where an inset comes from
+};
+
+struct PanelFigureOptions {
+  int columns = 4;         // >= 1 (fewer if there are fewer panels)
+  int gap_px = 8;          // white space between cells and around the figure, 0..200
+  double text_scale = 0.5; // Hershey font scale of the titles, (0, 4]; subtitles and caption are drawn at 0.9x
+  std::string caption;     // text above the whole figure, left-aligned; '\n' starts another line; may be empty
+  bool IsValid(std::string* why) const;
+};
+
+// InvalidArgument (naming the panel and field) for no panel, an empty image, a zoom out of range, a box
+// outside its image, or invalid options.
+RgbImage RenderImagePanels(const std::vector<ImagePanel>& panels, const PanelFigureOptions& options = {});
+
 }  // namespace aosr

@@ -112,6 +112,11 @@ inline constexpr const char* kManifestFileName = "manifest.json";
 void WriteSimulation(const std::string& dir, const SceneSpec& scene, const ScenePipeline& pipeline,
                      const Simulation& sim, const nlohmann::json* scene_json = nullptr);
 
+// The manifest's "noise" section WriteSimulation writes for `sim` (the detector model: noise model, read noise,
+// sky and dark rates, frame time, quantisation, ...): provenance, which source-independent weights read
+// (solvers/dataset_problem.hpp, DatasetWeights::kBackground). DatasetFromSimulation puts it in its manifest.
+nlohmann::json SimulationNoiseJson(const SceneSpec& scene, const Simulation& sim);
+
 // What WriteSimulation checks before writing, for callers that want to fail before a long simulation: no
 // output file in `dir` is an input of `scene` (InvalidArgument), and `dir` is (or can be created as) a
 // writable folder (IoError naming it). Creates `dir` if needed.

@@ -18,7 +18,8 @@ namespace aosr {
 
 // The Dataset of `sim` (pipeline.Run() of `scene`) as LoadDataset reads what WriteSimulation(dir, scene,
 // pipeline, sim) writes, its sky coordinates (frame 0's camera WCS) included. manifest_path and expected_file are
-// empty; manifest is null.
+// empty; manifest holds the provenance reconstructions read: "noise" (SimulationNoiseJson) and, when the scene
+// came from a file, "simulation"/"scene" (name, source, json).
 // InvalidArgument if `sim` does not match `scene`.
 Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim);
 

@@ -150,4 +150,11 @@ void AddPointSources(Image* image, const std::vector<PointSource>& sources);
 // never share a pixel, and they sit on the background, away from the bars.
 Image DemoObject(Shape shape);
 
+// The USAF options DemoObject renders with on `shape` (groups -2..1, background 0.05, bars 1, its scale).
+UsafOptions DemoUsafOptions(Shape shape);
+
+// The bounding box (HR pixels, unclipped) of the demo target's two finest groups (0 and 1): the bars whose
+// widths straddle the camera's and the HR grid's resolution limits, what `aosr demo` zooms on.
+PixelRect DemoFinestBars(Shape shape);
+
 }  // namespace aosr

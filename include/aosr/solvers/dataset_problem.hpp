@@ -5,12 +5,30 @@
 // var_e = gain² var_ADU, so w_e = w_ADU / gain².
 //
 // Weights (DatasetWeights):
-//   kAuto       the dataset's inverse-variance weights when it has them (simulations write them), else the
-//               validity mask (1 usable, 0 not: relative weights, frame noise assumed uniform).
-//   kDataset    the dataset's weights; an error if it has none.
+//   kAuto       the method's safe default (DatasetProblemOptions::method): kBackground for the methods whose
+//               output is linear in the data (drizzle, linear, shift-add, shift-add-median, tikhonov: the ones
+//               bench/results/science.md shows biased by source-dependent weights, bright stars -11 % to -42 %);
+//               for tv and map (non-linear: their bias is the regulariser's, and inverse variances help their
+//               fit) and when no method is given, the dataset's inverse-variance weights when it has them
+//               (simulations write them), else the validity mask.
+//   kDataset    the dataset's weights ("dataset", also named "poisson": for a simulation they are the inverse
+//               variances at the expected signal, the sources' own photon noise included); an error if it has
+//               none. Source-dependent weights make any weighted combination flux-dependent: bright stars come
+//               out low (bench/results/science.md: -11 % for linear, -16 % for Tikhonov, -42 % for Drizzle at
+//               K 14-15 on crowded-stars); DatasetProblem::warning says so when they meet a linear method.
 //   kMask       the validity mask only (uniform weights on usable pixels). With no bad pixel this makes the
 //               problem Fourier-exact (ReconstructionProblem::HasUniformWeights), the fastest path, at the
 //               cost of treating bright and faint pixels alike.
+//   kBackground inverse variances that do not depend on the sources: one noise variance σ_i² per frame, of the
+//               sky, dark current and read noise, on the valid pixels (w_i = valid_i / σ_i², e⁻⁻²). σ_i² comes
+//               from the detector model when the manifest carries one (simulations' "noise" section:
+//               read² + (sky + dark)·t_frame + g²/12 with quantisation, or the peak-fraction σ²), else it is
+//               estimated from the frame itself: σ̂ = 1.4826 · MAD(d) / √2 of the differences d of
+//               horizontally adjacent valid pixels (a smooth background cancels in d; sources, a minority of
+//               the pixels, do not move a median). Estimated values of the frames that agree within 5 standard
+//               errors of the estimate (SE(σ̂²)/σ̂² ≈ 2.3/√n_pairs, the MAD's 37 % efficiency) are pooled to
+//               their mean, so frames of one exposure sequence get one weight and, with no pixel masked, the
+//               problem stays Fourier-exact. With no noise at all (noise model "none") it is the mask.
 // Pixels the dataset marks invalid (bad, saturated, non-finite in the file) always get weight 0.
 //
 // The model. MultiFrameModel::FromKernels on the frames' HR footprint with the dataset's PSFs (the nominal
@@ -31,18 +49,32 @@
 #include <string>
 #include <vector>
 
+#include <optional>
+
 #include "aosr/scene/dataset.hpp"
 #include "aosr/solvers/problem.hpp"
+#include "aosr/solvers/reconstruct.hpp"
 
 namespace aosr {
 
-enum class DatasetWeights { kAuto, kDataset, kMask };
+enum class DatasetWeights { kAuto, kDataset, kMask, kBackground };
 enum class DatasetOffsets { kAuto, kDmShifts, kPsfCentroids };
-DatasetWeights ParseDatasetWeights(const std::string& name);  // "auto" | "dataset" | "mask"
+// "auto" | "dataset" | "poisson" (= dataset) | "mask" | "background"
+DatasetWeights ParseDatasetWeights(const std::string& name);
 DatasetOffsets ParseDatasetOffsets(const std::string& name);  // "auto" | "dm" | "centroids"
+
+// What kAuto means for `method` (top of the file): kBackground for the linear methods (IsLinearMethod),
+// kAuto's dataset-or-mask rule (returned as kAuto) for tv and map.
+DatasetWeights AutoWeights(ReconstructionMethod method);
+// True for the methods whose output is a linear combination of the frames (drizzle, linear, shift-add,
+// shift-add-median, tikhonov): the ones source-dependent weights turn flux-dependent.
+bool IsLinearMethod(ReconstructionMethod method);
 
 struct DatasetProblemOptions {
   DatasetWeights weights = DatasetWeights::kAuto;
+  // The method the problem is for: resolves kAuto (top of the file) and sets DatasetProblem::warning. Empty:
+  // kAuto is the dataset-or-mask rule and nothing is warned.
+  std::optional<ReconstructionMethod> method;
   DatasetOffsets offsets = DatasetOffsets::kAuto;
   // Empty: the dataset's PSFs. Else N PSFs (or one shared), centred, at HR sampling, each of positive
   // finite sum (renormalised to unit sum), of any even or odd size.
@@ -53,7 +85,11 @@ struct DatasetProblemOptions {
 
 struct DatasetProblem {
   ReconstructionProblem problem;
-  std::string weights_source;  // "dataset inverse variances (e-^-2)" | "validity mask"
+  // "dataset inverse variances (e-^-2)" | "validity mask" | "background variances from the detector model
+  // (e-^-2)" | "background variances estimated from the frames (e-^-2)"
+  std::string weights_source;
+  std::vector<double> background_sigma_e;  // kBackground: σ_i per frame (e⁻) behind the weights; else empty
+  std::string warning;         // non-empty: a caution about the choice (source-dependent weights, photometry)
   std::string offsets_source;  // "dm shifts" | "psf centroids"
   bool model_psfs_replaced = false;
   Index masked_pixels = 0;     // pixels of weight 0 over all frames
@@ -67,5 +103,18 @@ DatasetProblem ProblemFromDataset(const Dataset& dataset, const DatasetProblemOp
 // The first moments of a centred kernel about its centre pixel (K/2, K/2), in its pixels. The kernel must
 // have a positive sum.
 FrameOffset KernelCentroid(const Image& centred_kernel);
+
+// The background noise σ (e⁻) of one frame in electrons, estimated from the data as kBackground does (top of
+// the file): 1.4826 · MAD / √2 of the differences of horizontally adjacent pixels whose `valid` is non-zero.
+// 0 when fewer than 8 such pairs exist. `se_relative`, when non-null, gets the relative standard error of σ̂².
+double EstimateBackgroundSigma(const Image& frame_e, const Image& valid, double* se_relative = nullptr);
+
+// The diffraction-limited PSF of the dataset's telescope at its wavelength, sampled on the HR grid (pitch
+// camera pixel / r), centred at (K/2, K/2), unit sum, K = min(64, HR side) rounded down to even and limited by
+// the pupil grid's alias-free field: the target of `--target-psf diffraction`. The telescope (aperture,
+// obstruction, spiders, pupil sampling) comes from the scene the manifest names, or from a simulation's
+// provenance (manifest "simulation"/"scene"/"json"); the wavelength and camera pixel from the dataset when it
+// states them, else from the telescope preset. InvalidArgument naming the manifest when it carries no scene.
+Image DiffractionTargetPsf(const Dataset& dataset);
 
 }  // namespace aosr
