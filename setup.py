@@ -3,10 +3,11 @@
 One CMake build makes the extension module (aosr._aosr) and the command line (the `aosr` launcher and the
 aosr-engine program it runs, src/cli/launcher/launcher.cpp); this script copies them into the wheel:
 
-    aosr/                       the package: python/aosr/*.py, *.pyi, py.typed, _aosr*.so, and data/ (scenes,
-                                telescope presets, calibration specs: what aosr.data_path() and presets by name use)
+    aosr/                       the package: python/aosr/*.py, *.pyi, py.typed, _aosr*.so, libaosr_oiio.so (PNG/TIFF
+                                I/O, loaded on first use) and data/ (scenes, telescope presets, calibration specs:
+                                what aosr.data_path() and presets by name use)
     <prefix>/bin/aosr           the command (a venv's bin/, or ~/.local/bin with --user)
-    <prefix>/libexec/aosr/aosr-engine
+    <prefix>/libexec/aosr/aosr-engine, libaosr_oiio.so
     <prefix>/share/aosr/data/   the data folder again, for the command (the launcher sets AOSR_DATA_DIR to it)
 
 The CMake build folder is $AOSR_CMAKE_BUILD_DIR if set (e.g. the checkout's ./build that scripts/setup.sh made:
@@ -53,7 +54,7 @@ class CMakeBuild(build_ext):
                         "-DAOSR_BUILD_TESTS=OFF", "-DAOSR_BUILD_BENCH=OFF", "-DAOSR_BUILD_FUZZ=OFF",
                         "-DAOSR_BUILD_PYTHON=ON", f"-DPython3_EXECUTABLE={sys.executable}"])
         jobs = os.environ.get("CMAKE_BUILD_PARALLEL_LEVEL") or str(min(os.cpu_count() or 1, 2))
-        self.spawn(["cmake", "--build", BUILD, "--target", "aosr_python", "aosr_cli", "-j", jobs])
+        self.spawn(["cmake", "--build", BUILD, "--target", "aosr_python", "aosr_cli", "aosr_oiio", "-j", jobs])
         built = glob.glob(os.path.join(BUILD, "python", "aosr", "_aosr*.so"))
         if len(built) != 1:
             raise RuntimeError(f"setup.py: expected one extension module in {BUILD}/python/aosr, found {built} "
@@ -62,6 +63,9 @@ class CMakeBuild(build_ext):
             target = self.get_ext_fullpath(ext.name)
             os.makedirs(os.path.dirname(target), exist_ok=True)
             shutil.copy2(built[0], target)
+            # PNG/TIFF I/O (OpenImageIO), loaded by the module on first use from its own folder
+            # (src/io/oiio_plugin/oiio_plugin.hpp).
+            shutil.copy2(os.path.join(BUILD, "libaosr_oiio.so"), os.path.dirname(target))
         # The package's data/ (build_py has run: build_lib holds the .py files).
         data = os.path.join(self.build_lib, "aosr", "data")
         shutil.rmtree(data, ignore_errors=True)
@@ -73,7 +77,8 @@ def data_files():
     wants these paths relative to setup.py's folder."""
     build = os.path.relpath(BUILD, ROOT)
     files = [("bin", [os.path.join(build, "aosr")]),
-             ("libexec/aosr", [os.path.join(build, "libexec", "aosr", "aosr-engine")])]
+             ("libexec/aosr", [os.path.join(build, "libexec", "aosr", "aosr-engine"),
+                               os.path.join(build, "libaosr_oiio.so")])]
     for dirpath, _, names in sorted(os.walk(os.path.join(ROOT, "data"))):
         rel = os.path.relpath(dirpath, ROOT)
         files.append((os.path.join("share", "aosr", rel), sorted(os.path.join(rel, n) for n in names)))

@@ -37,6 +37,10 @@ assert os.path.exists(aosr.data_path('telescopes', 'paper-8m.json')), aosr.data_
 assert aosr.data_path().startswith('$tmp'), aosr.data_path()"
   "$cmd" --version
   "$cmd" psf paper-8m --mode diffraction --size 32 --json > psf.json   # a preset by name: the installed data
+  # PNG output through the installed OpenImageIO plugin (libexec/aosr/libaosr_oiio.so), not the build tree's.
+  LD_DEBUG=files "$cmd" demo -o demo > /dev/null 2> ld.log
+  test -s demo/montage.png
+  grep -q "file=$tmp/[^ ]*/libaosr_oiio.so" ld.log || { echo "pip_install_test: plugin not loaded from $tmp" >&2; exit 1; }
   "$py" "$example" | tee example.out
   grep -q "^tv: converged after .* PSNR .* dB, SSIM" example.out
   [ "$where" = venv ] || return 0   # the whole python suite once (the venv); the user site: the above
