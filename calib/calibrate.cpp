@@ -111,26 +111,50 @@ CalibrationResult Calibrate(const CalibrationSet& set_in, const CalibrateOptions
   const int n = int(set.modes.size());
   result.modes.resize(n);
   result.threads = std::min(options.threads, n);
-  std::atomic<int> next{0};
+  std::atomic<int> next{0}, done{0};
+  std::atomic<bool> stop{false};
+  std::vector<char> fitted(n, 0);
   std::exception_ptr error;
   std::mutex error_mutex;
-  auto worker = [&]() {
-    while (true) {
+  // Only the calling thread reports (core/progress.hpp: never concurrently, never from a pool thread).
+  ProgressReporter reporter(options.progress, "calibrate", n, "gain");
+  reporter.Start();
+  auto worker = [&](bool reports) {
+    while (!stop) {
       const int m = next++;
       if (m >= n) return;
       try {
         result.modes[m] = CalibrateMode(set, m, options);
+        fitted[m] = 1;
       } catch (...) {
         std::lock_guard<std::mutex> lock(error_mutex);
         if (!error) error = std::current_exception();
       }
+      const int d = ++done;
+      if (reports && !reporter.Report(d, result.modes[m].final_fit.gain, d == n)) stop = true;
     }
   };
   std::vector<std::thread> pool;
-  for (int t = 1; t < result.threads; ++t) pool.emplace_back(worker);
-  worker();
+  for (int t = 1; t < result.threads; ++t) pool.emplace_back(worker, false);
+  worker(true);
   for (std::thread& t : pool) t.join();
+  if (!stop) reporter.Finish(done, n > 0 ? result.modes[n - 1].final_fit.gain : 0.0);
+  reporter.RethrowIfThrown();
   if (error) std::rethrow_exception(error);
+  if (stop) {
+    result.cancelled = true;
+    for (int m = 0; m < n; ++m)
+      if (!fitted[m]) {
+        ModeCalibration& mc = result.modes[m];
+        mc.mode = m;
+        mc.name = set.modes[m].name;
+        mc.noll = set.modes[m].noll;
+        mc.joint.termination = mc.final_fit.termination = Termination::kUserCancelled;
+        mc.joint.message = mc.final_fit.message = "not fitted: cancelled by the caller";
+      }
+    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return result;
+  }
 
   // Twin image (modal_fit.hpp): |F{A e^{iφ}}|² is unchanged by φ(u) -> −φ(−u), which flips the even-m static
   // terms and leaves the odd-m ones. Only a poked mode of even m (and g > 0) pins the branch; a mode of odd m

@@ -238,6 +238,15 @@ CalibrationSet LoadCalibrationSet(const std::string& path) {
   return set;
 }
 
+std::vector<std::string> CalibrationSetInputFiles(const CalibrationSet& set) {
+  if (set.source.empty() || set.source == "<memory>") return {};
+  std::vector<std::string> inputs = {set.source};
+  const std::filesystem::path dir = std::filesystem::path(set.source).parent_path();
+  for (const CalibrationFrame& f : set.frames)
+    if (!f.file.empty()) inputs.push_back((dir / f.file).string());
+  return inputs;
+}
+
 void WriteCalibrationSet(const std::string& dir, const CalibrationSet& set) {
   std::error_code ec;
   fs::create_directories(fs::path(dir) / "frames", ec);

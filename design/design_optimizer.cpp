@@ -12,6 +12,7 @@
 #include <random>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/progress.hpp"
 #include "aosr/solvers/ceres_termination.hpp"
 
 namespace aosr {
@@ -103,9 +104,13 @@ class CeresDesignFunction : public ceres::FirstOrderFunction {
   Vector* best_theta_;
 };
 
-class ProgressCallback : public ceres::IterationCallback {
+// Per L-BFGS iteration: the text line of options.progress, and the report of options.progress_callback
+// (`reporter`, shared by all starts; `done` iterations of earlier starts). A cancellation ends the start at
+// its current point (SOLVER_TERMINATE_SUCCESSFULLY keeps it; OptimizeDesign then runs no further start).
+class IterationReport : public ceres::IterationCallback {
  public:
-  ProgressCallback(const DesignOptimizerOptions& o, int start) : o_(o), start_(start) {}
+  IterationReport(const DesignOptimizerOptions& o, int start, ProgressReporter* reporter, int done)
+      : o_(o), start_(start), reporter_(reporter), done_(done) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
     if (o_.progress) {
       char buf[200];
@@ -113,12 +118,15 @@ class ProgressCallback : public ceres::IterationCallback {
                     o_.starts, s.iteration, s.cost, s.gradient_max_norm, s.cumulative_time_in_seconds);
       o_.progress(buf);
     }
+    if (s.iteration > 0 && !reporter_->Report(done_ + s.iteration, s.cost)) return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     return ceres::SOLVER_CONTINUE;
   }
 
  private:
   const DesignOptimizerOptions& o_;
   int start_;
+  ProgressReporter* reporter_;
+  int done_;
 };
 
 }  // namespace
@@ -158,7 +166,9 @@ DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParame
     std::mt19937_64 rng(options.seed);
     std::normal_distribution<double> n01;
     std::vector<std::string> messages;
-    for (int k = 0; k < options.starts; ++k) {
+    ProgressReporter reporter(options.progress_callback, "design", options.starts * options.max_iterations, "J");
+    reporter.Start();
+    for (int k = 0; k < options.starts && !reporter.cancelled(); ++k) {
       Vector theta = theta_raster;
       if (k > 0)
         for (Index q = 0; q < theta.size(); ++q) theta[q] += options.start_spread * scale * n01(rng);
@@ -173,7 +183,7 @@ DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParame
       co.function_tolerance = options.function_tolerance;
       co.parameter_tolerance = options.parameter_tolerance;
       co.logging_type = ceres::SILENT;
-      ProgressCallback callback(options, k);
+      IterationReport callback(options, k, &reporter, s.iterations);
       co.callbacks.push_back(&callback);
       // Gradient tolerance relative to the start's gradient (Ceres' is absolute).
       {
@@ -198,6 +208,7 @@ DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParame
           new CeresDesignFunction(objective, p, scale, &evaluations, &start_best, &start_theta));
       ceres::GradientProblemSolver::Summary cs;
       ceres::Solve(co, problem, z.data(), &cs);
+      reporter.RethrowIfThrown();
       s.evaluations += evaluations;
       s.iterations += std::max<int>(0, int(cs.iterations.size()) - 1);
       s.start_objectives.push_back(start_best);
@@ -213,7 +224,15 @@ DesignResult OptimizeDesign(const DesignCriterion& objective, const DesignParame
         s.improved = true;
       }
     }
+    const bool cancelled = reporter.cancelled();
+    reporter.Finish(s.iterations, best);
     s.message = s.improved ? messages[s.best_start] : "no start improved on start 0 (the raster)";
+    if (cancelled) {
+      s.termination = Termination::kUserCancelled;
+      s.message = "cancelled by the caller after " + std::to_string(s.iterations) + " iterations in " +
+                  std::to_string(s.start_objectives.size()) + " of " + std::to_string(options.starts) +
+                  " starts; best so far: " + s.message;
+    }
   }
   result.parameters = p.parameters() ? best_theta : Vector();
   result.coefficients = p.Coefficients(result.parameters);

@@ -34,6 +34,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   opt.max_iterations = o.iterations;
   opt.seed = o.seed;
   opt.progress = [&step](const std::string& m) { step(m); };
+  opt.progress_callback = o.progress;
 
   step("building the design model of " + scene.name + ": N = " + std::to_string(scene.frames) +
                 ", r = " + std::to_string(scene.r));
@@ -98,6 +99,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   // and the raster is kept unless the design wins there too.
   nlohmann::json validation;
   const bool validate = o.validation_realisations > 0 && result.summary.improved &&
+                        result.summary.termination != Termination::kUserCancelled &&
                         (o.objective == "B" || oo.realisations > 0);
   if (validate) {
     const std::uint64_t fresh = o.seed + 1000003;

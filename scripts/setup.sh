@@ -16,6 +16,8 @@ packages=(cmake g++ make pkg-config
 # The Python package (python/, `import aosr`): pybind11 bindings built for Debian's /usr/bin/python3, numpy and
 # astropy for users and tests, Dask's distributed scheduler for aosr.distributed, pytest for the python tests.
 packages+=(pybind11-dev python3-dev python3-numpy python3-astropy python3-dask python3-distributed python3-pytest)
+# `pip install .` (pyproject.toml, setup.py) with Debian's pip, setuptools and wheel, and virtualenvs (python3-venv).
+packages+=(python3-pip python3-venv python3-setuptools python3-wheel)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -32,12 +34,18 @@ jobs=$(nproc 2>/dev/null || echo 2)
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "$@"
 cmake --build build -j"$jobs"
 
-# `import aosr` for /usr/bin/python3: a .pth file in its user site-packages naming build/python, where the build
-# assembles the extension module and the package's .py files (python/CMakeLists.txt). Rewritten on every run:
-# the checkout set up last is the one Python imports.
-if [ -d build/python/aosr ]; then
-  site=$(/usr/bin/python3 -m site --user-site)
-  mkdir -p "$site"
-  echo "$PWD/build/python" > "$site/aosr.pth"
-  echo "setup: /usr/bin/python3 imports aosr from $PWD/build/python (via $site/aosr.pth)"
+# `import aosr` and the `aosr` command for /usr/bin/python3's user: the package pip-installed into the user site
+# (~/.local; README.md, "Python"), from this build folder (nothing is recompiled or downloaded). Debian 12 marks
+# /usr/bin/python3 externally managed (PEP 668), so pip wants --break-system-packages even for a --user install,
+# which writes only below ~/.local. AOSR_SETUP_PIP=0 skips this step. An aosr.pth that an earlier version of this
+# script wrote (it pointed the user site at build/python) is removed: one route, not two that shadow each other.
+site=$(/usr/bin/python3 -m site --user-site)
+if [ -f "$site/aosr.pth" ]; then
+  rm -f "$site/aosr.pth"
+  echo "setup: removed $site/aosr.pth (replaced by pip install --user)"
+fi
+if [ "${AOSR_SETUP_PIP:-1}" != 0 ] && [ -d build/python/aosr ]; then
+  AOSR_CMAKE_BUILD_DIR="$PWD/build" PIP_DISABLE_PIP_VERSION_CHECK=1 /usr/bin/python3 -m pip install -q --user \
+    --no-build-isolation --no-index --break-system-packages .
+  echo "setup: /usr/bin/python3 imports aosr from $site (pip install --user); the command: $(/usr/bin/python3 -m site --user-base)/bin/aosr"
 fi

@@ -24,7 +24,8 @@ namespace {
 
 // The CG recurrence on M⁻¹N (M⁻¹ = I when `preconditioner` is null). Residuals r are of the true system.
 SolverSummary Solve(const char* function, const LinearOperator& normal, const LinearOperator* preconditioner,
-                    const Vector& b, Vector* x, const ConjugateGradientOptions& options) {
+                    const Vector& b, Vector* x, const ConjugateGradientOptions& options,
+                    const ConjugateGradientProgress& progress) {
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument(std::string(function) + ": options." + why);
   CheckArgument(normal.rows() == normal.cols(), function, "normal", normal.name(), "a square operator");
@@ -57,6 +58,8 @@ SolverSummary Solve(const char* function, const LinearOperator& normal, const Li
   auto floor = [&] { return kFloorFactor * eps * (bnorm + n_norm * x->norm()); };
   s.termination = Termination::kMaxIterations;
   if (bnorm == 0 || rnorm <= options.tolerance * bnorm) s.termination = Termination::kConverged;
+  ProgressReporter reporter(progress.callback, progress.stage, options.max_iterations, "residual");
+  auto relative = [&] { return bnorm > 0 ? rnorm / bnorm : 0.0; };
   while (s.termination == Termination::kMaxIterations && s.iterations < options.max_iterations) {
     if (!(rz > 0)) {
       // r != 0 here, so rᵀM⁻¹r <= 0 means M⁻¹ is not positive definite, or that r is rounding noise.
@@ -108,7 +111,15 @@ SolverSummary Solve(const char* function, const LinearOperator& normal, const Li
     const double rz_new = r.dot(z);
     p = z + (rz_new / rz) * p;
     rz = rz_new;
+    if (!reporter.Report(s.iterations, relative(), s.iterations == options.max_iterations)) {
+      s.termination = Termination::kUserCancelled;
+      s.message = "cancelled by the caller after " + std::to_string(s.iterations) + " iterations (relative residual " +
+                  ToString(relative()) + ")";
+      break;
+    }
   }
+  reporter.Finish(s.iterations, relative());
+  reporter.RethrowIfThrown();
   s.final_cost = bnorm > 0 ? rnorm / bnorm : 0.0;
   if (s.message.empty()) s.message = "relative residual " + ToString(s.final_cost);
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -118,14 +129,15 @@ SolverSummary Solve(const char* function, const LinearOperator& normal, const Li
 }  // namespace
 
 SolverSummary ConjugateGradient(const LinearOperator& normal, const Vector& b, Vector* x,
-                                const ConjugateGradientOptions& options) {
-  return Solve("ConjugateGradient", normal, nullptr, b, x, options);
+                                const ConjugateGradientOptions& options, const ConjugateGradientProgress& progress) {
+  return Solve("ConjugateGradient", normal, nullptr, b, x, options, progress);
 }
 
 SolverSummary PreconditionedConjugateGradient(const LinearOperator& normal,
                                               const LinearOperator& preconditioner, const Vector& b,
-                                              Vector* x, const ConjugateGradientOptions& options) {
-  return Solve("PreconditionedConjugateGradient", normal, &preconditioner, b, x, options);
+                                              Vector* x, const ConjugateGradientOptions& options,
+                                              const ConjugateGradientProgress& progress) {
+  return Solve("PreconditionedConjugateGradient", normal, &preconditioner, b, x, options, progress);
 }
 
 }  // namespace aosr

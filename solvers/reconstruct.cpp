@@ -114,14 +114,21 @@ const char* ToString(ReconstructionMethod m) {
   return "unknown";
 }
 
+const std::vector<ReconstructionMethod>& ReconstructionMethods() {
+  static const std::vector<ReconstructionMethod> methods = {
+      ReconstructionMethod::kShiftAddMean, ReconstructionMethod::kShiftAddMedian, ReconstructionMethod::kDrizzle,
+      ReconstructionMethod::kTikhonov,     ReconstructionMethod::kLinear,         ReconstructionMethod::kTotalVariation,
+      ReconstructionMethod::kMap};
+  return methods;
+}
+
 ReconstructionMethod ParseReconstructionMethod(const std::string& name) {
-  for (ReconstructionMethod m : {ReconstructionMethod::kShiftAddMean, ReconstructionMethod::kShiftAddMedian,
-                                 ReconstructionMethod::kDrizzle, ReconstructionMethod::kTikhonov,
-                                 ReconstructionMethod::kLinear, ReconstructionMethod::kTotalVariation,
-                                 ReconstructionMethod::kMap})
+  std::string allowed;
+  for (ReconstructionMethod m : ReconstructionMethods()) {
     if (name == ToString(m)) return m;
-  throw InvalidArgument("ParseReconstructionMethod", "method", name,
-                        "shift-add | shift-add-median | drizzle | tikhonov | linear | tv | map");
+    allowed += (allowed.empty() ? "" : " | ") + std::string(ToString(m));
+  }
+  throw InvalidArgument("ParseReconstructionMethod", "method", name, allowed);
 }
 
 Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options) {
@@ -166,6 +173,7 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
     case ReconstructionMethod::kTikhonov: {
       check(options.tikhonov.IsValid(&why), "tikhonov");
       TikhonovOptions t = WithGcvLambda(problem, options.tikhonov);
+      if (options.progress) t.progress = options.progress;
       TikhonovResult r = ReconstructTikhonov(problem, t);
       out.image = std::move(r.image);
       if (r.summary.std_computed) {

@@ -1242,7 +1242,16 @@ TikhonovResult Reconstruct(const char* function, const ReconstructionProblem& pr
         "spectral sums, which only the Fourier path (uniform weights, periodic boundary) has (Reconstruct in "
         "reconstruct.hpp chooses them on the unweighted frames)");
   const bool use_cg = options.method == TikhonovMethod::kConjugateGradient || !fourier_exact;
-  if (!use_cg) return FourierPath(problem, options, start);
+  if (!use_cg) {
+    // A direct solve, reported as one step (TikhonovOptions::progress): nothing is left to cut short when a
+    // cancellation is seen, so the result is complete and says so (core/progress.hpp's rule for a last step).
+    ProgressReporter stage(options.progress, "tikhonov", 1, "lambda");
+    stage.Start();
+    TikhonovResult r = FourierPath(problem, options, start);
+    stage.Finish(1, r.summary.lambda);
+    stage.RethrowIfThrown();
+    return r;
+  }
   return ConjugateGradientPath(function, problem, options, start);
 }
 

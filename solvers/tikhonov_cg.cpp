@@ -143,8 +143,17 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   Vector x = Vector::Zero(hr.size());
   SolverSummary last;
   const LargeLambdaExpansion expansion(pm, w_stack, y, PriorSymbolImage(options, hr));
+  // Every PCG solve reports to options.progress (stage "tikhonov-cg"); once one is cancelled, no further solve
+  // runs (a λ search returns the last iterate, the std draws are skipped).
+  const ConjugateGradientOptions& cg = options.cg;
+  const ConjugateGradientProgress cg_progress{options.progress, "tikhonov-cg"};
+  bool cancelled = false;
   // One solve at λ, warm-started from the previous x; returns Σ w (y − A x)².
   auto solve = [&](double lambda) {
+    if (cancelled) {
+      const Vector res = y - a->Apply(x);
+      return res.dot(AsVector(w_stack).cwiseProduct(res));
+    }
     if (expansion.Applies(lambda)) {
       x = expansion.Solve(lambda);
       last = SolverSummary();
@@ -159,10 +168,11 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
       const OperatorPtr m =
           FourierInverseOperator(hr, pm.r(), sys.Inverses(lambda / w_bar, nullptr, &wb), 1.0 / w_bar);
       s.woodbury_bins = wb;
-      last = PreconditionedConjugateGradient(*normal, *m, b, &x, options.cg);
+      last = PreconditionedConjugateGradient(*normal, *m, b, &x, cg, cg_progress);
     } else {
-      last = ConjugateGradient(*normal, b, &x, options.cg);
+      last = ConjugateGradient(*normal, b, &x, cg, cg_progress);
     }
+    if (last.termination == Termination::kUserCancelled) cancelled = true;
     s.iterations += last.iterations;
     const Vector res = y - a->Apply(x);
     return res.dot(AsVector(w_stack).cwiseProduct(res));
@@ -198,6 +208,7 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   s.final_solve_iterations = last.iterations;
   if (last.termination != Termination::kConverged && s.termination == Termination::kConverged)
     s.termination = last.termination;
+  if (cancelled) s.termination = Termination::kUserCancelled;
 
   const Image x_grid = ToImage(x, hr);
   if (!AllFinite(x_grid))
@@ -219,7 +230,9 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy)
     s.message += "; weighted residual " + ToString(s.weighted_residual) + " vs target " +
                  ToString(s.discrepancy_target);
-  if (options.compute_std) {
+  if (options.compute_std && cancelled) {
+    s.message += "; posterior std not computed (cancelled by the caller)";
+  } else if (options.compute_std) {
     // Exact only when C is block-circulant (uniform weights, periodic): then w̄ = w₀ and the system is `sys`.
     if (!padded && problem.HasUniformWeights()) {
       s.std_computed = PosteriorStd(sys, lambda / w_bar, options.noise_sigma * options.noise_sigma / w_bar,
@@ -234,7 +247,7 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
       const OperatorPtr prior_op = TikhonovPriorOperator(hr, options);
       const OperatorPtr m = FourierInverseOperator(hr, pm.r(), sys.Inverses(lambda / w_bar, nullptr, nullptr), 1.0 / w_bar);
       const Vector sqrt_w = AsVector(w_stack).cwiseMax(0.0).cwiseSqrt();
-      ConjugateGradientOptions draw_cg = options.cg;
+      ConjugateGradientOptions draw_cg = cg;
       draw_cg.tolerance = std::max(options.cg.tolerance, 1e-6);  // the draws' sampling error is ~√(2/K)
       Image sum2 = Image::Zero(hr.rows, hr.cols), sum4 = Image::Zero(hr.rows, hr.cols);
       int draw_iterations = 0;
@@ -247,9 +260,11 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
         const Vector b_s = options.noise_sigma * (a->ApplyAdjoint(sqrt_w.cwiseProduct(z1)) +
                                                   std::sqrt(lambda) * prior_op->ApplyAdjoint(z2));
         Vector xs = Vector::Zero(hr.size());
-        const SolverSummary d = options.precondition ? PreconditionedConjugateGradient(*normal, *m, b_s, &xs, draw_cg)
-                                                     : ConjugateGradient(*normal, b_s, &xs, draw_cg);
+        const SolverSummary d = options.precondition
+                                    ? PreconditionedConjugateGradient(*normal, *m, b_s, &xs, draw_cg, cg_progress)
+                                    : ConjugateGradient(*normal, b_s, &xs, draw_cg, cg_progress);
         draw_iterations += d.iterations;
+        cancelled = d.termination == Termination::kUserCancelled;
         ok = d.termination == Termination::kConverged || d.termination == Termination::kStagnated;
         const Image x2 = ToImage(xs, hr).square();
         sum2 += x2;
@@ -268,6 +283,9 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
         s.mean_posterior_variance = result.posterior_std.square().mean();
         s.message += "; posterior std from " + std::to_string(options.std_samples) + " posterior draws (" +
                      std::to_string(draw_iterations) + " PCG iterations)";
+      } else if (cancelled) {
+        s.termination = Termination::kUserCancelled;
+        s.message += "; posterior std not computed (cancelled by the caller)";
       } else {
         s.message += "; posterior std not computed (a posterior draw's PCG did not converge)";
       }

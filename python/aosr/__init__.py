@@ -119,8 +119,19 @@ def scene_from_dict(json, source="<dict>", overrides=None):
     return Scene(json, source)
 
 
+# An installed package (pip install .) ships its own copy of data/; the library's presets by name use it too.
+# Run from a build folder (PYTHONPATH=build/python) the package has none and the source tree's data/ is used.
+_PACKAGE_DATA = _os.path.join(_os.path.dirname(_os.path.abspath(__file__)), "data")
+if _os.path.isdir(_os.path.join(_PACKAGE_DATA, "telescopes")):
+    _aosr._set_default_data_dir(_PACKAGE_DATA)
+    _DATA_DIR = _PACKAGE_DATA
+else:
+    _DATA_DIR = _aosr._data_dir
+
+
 def data_path(*parts):
-    """A path inside the source tree's data/ folder (scenes, telescopes, calibration specs), e.g.
-    ``aosr.data_path("scenes", "demo.json")``. Set AOSR_DATA_DIR to use another data folder."""
-    root = _os.environ.get("AOSR_DATA_DIR") or _aosr._data_dir
+    """A path inside aosr's data/ folder (scenes, telescopes, calibration specs), e.g.
+    ``aosr.data_path("scenes", "demo.json")``: the installed package's copy, or the source tree's data/ when the
+    package runs from a build folder. Set AOSR_DATA_DIR to use another data folder."""
+    root = _os.environ.get("AOSR_DATA_DIR") or _DATA_DIR
     return _os.path.join(root, *parts)

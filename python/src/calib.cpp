@@ -7,6 +7,7 @@
 #include "aosr/calib/calibration_set.hpp"
 #include "aosr/calib/report.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/io/atomic_file.hpp"
 #include "bindings.hpp"
 #include "common.hpp"
 
@@ -77,6 +78,8 @@ void BindCalib(py::module_& m) {
         std::string why;
         if (!o.IsValid(&why)) throw InvalidArgument("aosr.synthesize_calibration: " + why);
         const std::string out = output.is_none() ? std::string() : PathString(output);
+        // As the CLI: the manifest written must not be the spec read.
+        if (!out.empty()) CheckNotSameFile((std::filesystem::path(out) / kCalibrationSetFileName).string(), {spec});
         auto set = std::make_shared<CalibrationSet>(WithoutGil([&] {
           CalibrationSet s = SynthesizeCalibrationSet(o);
           s.truth["spec"] = spec;
@@ -99,7 +102,8 @@ Returns an aosr.CalibrationSet (its .truth holds the injected gains).)doc");
 
   m.def(
       "calibrate",
-      [](py::object set, int threads, int static_max_noll, double tolerance, bool point_source, py::object output) {
+      [](py::object set, int threads, int static_max_noll, double tolerance, bool point_source, py::object output,
+         py::object progress) {
         CalibrateOptions o;
         o.threads = threads;
         o.fit.static_max_noll = static_max_noll;
@@ -115,20 +119,35 @@ Returns an aosr.CalibrationSet (its .truth holds the injected gains).)doc");
           s = std::make_shared<const CalibrationSet>(WithoutGil([&] { return LoadCalibrationSet(path); }));
         }
         const std::string out = output.is_none() ? std::string() : PathString(output);
+        const std::string json_path = (std::filesystem::path(out) / "calibration.json").string();
+        const std::string png_path = (std::filesystem::path(out) / "report.png").string();
+        if (!out.empty()) {
+          // As `aosr calibrate`: never overwrite an input (the set's manifest or a frame), checked before any fit.
+          const std::vector<std::string> inputs = CalibrationSetInputFiles(*s);
+          CheckNotSameFile(json_path, inputs);
+          CheckNotSameFile(png_path, inputs);
+        }
+        PythonProgress poll(progress);
+        o.progress = poll.Callback();
+        bool cancelled = false;
         nlohmann::json j = WithoutGil([&] {
           const CalibrationResult result = Calibrate(*s, o);
+          cancelled = result.cancelled;
+          if (cancelled) return nlohmann::json();
           nlohmann::json json = CalibrationToJson(*s, result);
           if (!out.empty()) {
             EnsureFolder(out);
-            WriteCalibrationJson((std::filesystem::path(out) / "calibration.json").string(), json);
-            WriteCalibrationReport((std::filesystem::path(out) / "report.png").string(), *s, result);
+            WriteCalibrationJson(json_path, json);
+            WriteCalibrationReport(png_path, *s, result);
           }
           return json;
         });
+        poll.RaiseIfPending();  // Ctrl-C (KeyboardInterrupt) or the progress callable's exception
+        if (cancelled) return py::object(py::none());  // the progress callable returned False: nothing written
         return FromJson(j);
       },
       py::arg("set"), py::kw_only(), py::arg("threads") = 2, py::arg("static_max_noll") = 8, py::arg("tolerance") = 0.05,
-      py::arg("point_source") = false, py::arg("output") = py::none(),
+      py::arg("point_source") = false, py::arg("output") = py::none(), py::arg("progress") = py::none(),
       R"doc(Fits the DM's modal gains from a calibration set, as `aosr calibrate SET -o OUT`.
 
 set               an aosr.CalibrationSet or a set folder / calibration-set.json
@@ -136,9 +155,13 @@ threads           modes fitted in parallel
 static_max_noll   fit the static aberration Z4..Z<K> common to a mode's frames (0: none)
 tolerance         relative gain change tolerated in the linear range
 point_source      do not fit the source size
-output            also write calibration.json and report.png into this folder
-Returns the calibration as the dict calibration.json holds. The GIL is released; the fit cannot be
-interrupted midway (Ctrl-C is seen when it returns).)doc");
+output            also write calibration.json and report.png into this folder; refused (InvalidArgument) when
+                  one of them would be an input file (the set's manifest or a frame), as the CLI refuses
+progress          optional callable(dict) called after each mode fit (stage 'calibrate', iteration = modes
+                  done, total = modes, value = that mode's gain); returning False cancels: then None is
+                  returned and nothing is written
+Returns the calibration as the dict calibration.json holds. The GIL is released; Ctrl-C stops the fit after the
+modes in flight and raises KeyboardInterrupt (nothing is written).)doc");
 }
 
 }  // namespace aosr::python

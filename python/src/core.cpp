@@ -8,6 +8,7 @@
 #include "aosr/core/memory.hpp"
 #include "aosr/core/metrics.hpp"
 #include "aosr/core/parallel.hpp"
+#include "aosr/scene/telescope.hpp"
 #include "common.hpp"
 
 namespace aosr::python {
@@ -77,6 +78,9 @@ void BindCore(py::module_& m) {
   SetDefaultThreads(std::min(int(std::max(1u, std::thread::hardware_concurrency())), 256));
   m.attr("__version__") = AOSR_VERSION;
   m.attr("_data_dir") = AOSR_SOURCE_DATA_DIR;
+  m.def("_set_default_data_dir", &SetDefaultDataDirectory, py::arg("dir"),
+        "Points the library's default data folder (telescope presets by name) at `dir`; $AOSR_DATA_DIR still wins.\n"
+        "aosr/__init__.py calls it when the package ships its own data/ (a pip install).");
 
   m.def(
       "set_threads", [](int threads) {

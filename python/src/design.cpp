@@ -18,7 +18,7 @@ void BindDesign(py::module_& m) {
          const std::string& prior, int iterations, int threads, std::uint64_t seed, const std::string& objective,
          const std::string& loss, int training_scenes, std::vector<std::string> training, double training_zoom,
          double noise_sigma, int validation_realisations, double map_lambda, double epsilon,
-         const std::string& map_prior) {
+         const std::string& map_prior, py::object progress) {
         DesignStudyOptions o;
         o.param = param;
         o.modes = modes;
@@ -65,14 +65,19 @@ void BindDesign(py::module_& m) {
         }
         const std::string out = output.is_none() ? std::string() : PathString(output);
         const std::string cal = calibration.is_none() ? std::string() : PathString(calibration);
+        PythonProgress poll(progress);
+        o.progress = poll.Callback();
         DesignStudy study = WithoutGil([&] {
           DesignStudy s = RunDesignStudy(*spec, o);
+          if (s.result.summary.termination == Termination::kUserCancelled) return s;  // nothing written
           if (!cal.empty()) ApplyCalibrationToDesignFile(cal, s.result.offsets, &s.file);
           if (!out.empty()) WriteDesignFile(out, s.file);
           return s;
         });
+        poll.RaiseIfPending();  // Ctrl-C (KeyboardInterrupt) or the progress callable's exception
         nlohmann::json j = study.summary;
-        j["output"] = out.empty() ? nlohmann::json() : nlohmann::json(out);
+        const bool cancelled = study.result.summary.termination == Termination::kUserCancelled;
+        j["output"] = out.empty() || cancelled ? nlohmann::json() : nlohmann::json(out);
         j["design"] = study.file;
         return FromJson(j);
       },
@@ -83,7 +88,7 @@ void BindDesign(py::module_& m) {
       py::arg("objective") = "A", py::arg("loss") = "l1", py::arg("training_scenes") = 3,
       py::arg("training") = std::vector<std::string>(), py::arg("training_zoom") = 1.0, py::arg("noise_sigma") = 0.04,
       py::arg("validation_realisations") = 4, py::arg("map_lambda") = -1.0, py::arg("epsilon") = 1e-3,
-      py::arg("map_prior") = "charbonnier-tv",
+      py::arg("map_prior") = "charbonnier-tv", py::arg("progress") = py::none(),
       R"doc(Designs the N per-exposure DM offsets of a scene, as `aosr design SCENE` (include/aosr/design/design_study.hpp).
 
 scene       a scene path or aosr.Scene (its telescope, AO, camera, r and N)
@@ -92,8 +97,11 @@ calibration a calibration.json: the file's frames become the commands for the ca
 param, modes, rms_max [nm], strehl_min, starts, realisations, screens, lambda_, prior, iterations, threads,
 seed, objective ('A' | 'B'), loss, training_scenes, training (image paths), training_zoom, noise_sigma,
 validation_realisations, map_lambda (< 0: automatic), epsilon, map_prior: the CLI's options of the same names.
+progress    optional callable(dict) called during the optimisation (stage 'design', iteration = L-BFGS iterations
+            over all starts, total = starts x iterations, value = J); returning False stops it: the best design
+            so far is returned with its termination 'cancelled', unvalidated, and no file is written.
 Returns the dict `aosr design --json` prints (without total_seconds); its "design" is the design file.
-The GIL is released; the optimisation cannot be interrupted midway.)doc");
+The GIL is released; Ctrl-C stops the optimisation after the current iteration and raises KeyboardInterrupt.)doc");
 }
 
 }  // namespace aosr::python

@@ -131,13 +131,17 @@ void BindScene(py::module_& m) {
 
   m.def(
       "simulate",
-      [](const PyScene& scene, std::optional<std::uint64_t> seed, py::object calibration, py::object output) {
+      [](const PyScene& scene, std::optional<std::uint64_t> seed, py::object calibration, py::object output,
+         py::object progress) {
         nlohmann::json json = scene.json;
         std::optional<std::string> out;
         if (!output.is_none()) out = PathString(output);
         std::optional<std::string> cal;
         if (!calibration.is_none()) cal = PathString(calibration);
-        Dataset d = WithoutGil([&] {
+        PythonProgress poll(progress);
+        const ProgressCallback callback = poll.Callback();
+        bool cancelled = false;
+        std::optional<Dataset> d = WithoutGil([&]() -> std::optional<Dataset> {
           // As `aosr simulate [--set seed=S] [--calibration C] [-o OUT]`: the same JSON, the same parse.
           if (seed) json["seed"] = *seed;
           SceneSpec spec = ParseScene(json, scene.source);
@@ -149,20 +153,29 @@ void BindScene(py::module_& m) {
           }
           const ScenePipeline pipeline(std::move(spec));
           if (out) PrepareSimulationOutput(*out, pipeline.scene());
-          const Simulation sim = pipeline.Run();
+          const Simulation sim = pipeline.Run(callback);
+          if (sim.cancelled) {
+            cancelled = true;
+            return std::nullopt;
+          }
           if (out) WriteSimulation(*out, pipeline.scene(), pipeline, sim, &json);
           return DatasetFromSimulation(pipeline.scene(), sim);
         });
-        return WrapDataset(std::move(d));
+        poll.RaiseIfPending();  // Ctrl-C (KeyboardInterrupt) or the progress callable's exception
+        if (cancelled) return py::object(py::none());
+        return WrapDataset(std::move(*d));
       },
       py::arg("scene"), py::kw_only(), py::arg("seed") = py::none(), py::arg("calibration") = py::none(),
-      py::arg("output") = py::none(),
+      py::arg("output") = py::none(), py::arg("progress") = py::none(),
       R"doc(Simulates the scene's N frames (object, optics, AO, DM offsets, detector) and returns the dataset.
 
 seed         replaces the scene's seed (as `aosr simulate --set seed=S`); None keeps it. Same scene and seed:
              the same bytes.
 calibration  a calibration.json: the simulated DM applies each commanded mode times its gain
 output       also write the dataset folder (frames.fits, ..., manifest.json) as `aosr simulate -o` does
+progress     optional callable(dict) called after the object, each distinct PSF and each later stage (stage
+             'simulate', iteration of total steps); returning False cancels: then None is returned and no dataset
+             is written. Ctrl-C stops the run at the next step and raises KeyboardInterrupt.
 
 The returned Dataset holds what open_dataset() would read from that folder, bit for bit.)doc");
 

@@ -439,8 +439,8 @@ weights     'auto' ('background' for the linear methods shift-add, drizzle, tikh
             method: they bias bright sources low) | 'mask'
 offsets     registration offsets for shift-add/drizzle: 'auto' | 'dm' | 'centroids'
 model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) array, or 'nominal'
-progress    optional callable(dict) called during tv/map (stage, iteration, total, value, value_name,
-            elapsed_seconds); returning False cancels (termination 'cancelled')
+progress    optional callable(dict) called during tikhonov, tv and map (stage, iteration, total, value,
+            value_name, elapsed_seconds); returning False cancels (termination 'cancelled')
 **options   the CLI's options under their names (lambda_, lambda_rule, prior, boundary, std, noise_sigma, mu,
             iterations, positivity, likelihood, read_noise, kernel, pixfrac, target_psf, leakage, noise_probes,
             auto_regularisation) and every field
@@ -449,8 +449,8 @@ progress    optional callable(dict) called during tv/map (stage, iteration, tota
             aosr.reconstruct_options() lists them all with their defaults.
 
 Returns an aosr.Reconstruction (image, aux, aux_name, summary dict, regularisation, seconds_total).
-The GIL is released during the solve; Ctrl-C stops tv/map after the current iteration and raises
-KeyboardInterrupt. Errors: InvalidArgument (a ValueError) naming the option, IoError for unreadable files.)doc");
+The GIL is released during the solve; Ctrl-C stops tv/map (and tikhonov's CG path) after the current
+iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) naming the option, IoError for unreadable files.)doc");
 
   m.def("reconstruct_options", &ReconstructOptionsHelp,
         "{option: {'type', 'default', 'doc'}} for every keyword option of aosr.reconstruct (defaults as the CLI's).");
@@ -458,14 +458,11 @@ KeyboardInterrupt. Errors: InvalidArgument (a ValueError) naming the option, IoE
       "methods",
       [] {
         std::vector<std::string> names;
-        for (ReconstructionMethod mth :
-             {ReconstructionMethod::kShiftAddMean, ReconstructionMethod::kShiftAddMedian, ReconstructionMethod::kDrizzle,
-              ReconstructionMethod::kTikhonov, ReconstructionMethod::kLinear, ReconstructionMethod::kTotalVariation,
-              ReconstructionMethod::kMap})
-          names.push_back(ToString(mth));
+        for (ReconstructionMethod mth : ReconstructionMethods()) names.push_back(ToString(mth));
         return names;
       },
-      "The reconstruction methods aosr.reconstruct accepts.");
+      "The reconstruction methods aosr.reconstruct accepts: the library's list (solvers/reconstruct.hpp,\n"
+      "ReconstructionMethods), the one ParseReconstructionMethod checks names against.");
 }
 
 }  // namespace aosr::python

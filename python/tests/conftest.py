@@ -9,6 +9,10 @@ import pytest
 
 import aosr
 
+# python/tests/pip_install_test.sh runs these tests against a pip-installed package: make sure that is the one.
+if os.environ.get("AOSR_EXPECT_INSTALLED_UNDER"):
+    assert aosr.__file__.startswith(os.environ["AOSR_EXPECT_INSTALLED_UNDER"]), aosr.__file__
+
 SOURCE_DIR = os.environ.get("AOSR_SOURCE_DIR", os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..")))
 
 

@@ -1,6 +1,7 @@
 """aosr.distributed on a real `dask scheduler` with two `dask worker` processes on localhost: a batch of
 datasets reconstructed identically to the serial loop, and a worker killed mid-run losing nothing."""
 import contextlib
+import importlib.util
 import json
 import os
 import shutil
@@ -22,11 +23,11 @@ OPTIONS = {"iterations": 40}  # tv: ~0.5 s per dataset, long enough to kill a wo
 
 
 def _dask_command(name):
-    """`dask-scheduler` / `dask-worker` (Debian's python3-distributed), else the modules behind them."""
-    exe = shutil.which(f"dask-{name}")
-    if exe:
-        return [exe]
-    return [sys.executable, "-m", f"distributed.cli.dask_{name}"]
+    """The modules behind `dask-scheduler` / `dask-worker` run by this interpreter (Debian's scripts run
+    /usr/bin/python3, which would not see an aosr installed in a virtualenv), else the scripts."""
+    if importlib.util.find_spec(f"distributed.cli.dask_{name}"):
+        return [sys.executable, "-m", f"distributed.cli.dask_{name}"]
+    return [shutil.which(f"dask-{name}") or f"dask-{name}"]
 
 
 @pytest.fixture(scope="module")

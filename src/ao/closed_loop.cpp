@@ -320,7 +320,8 @@ ClosedLoopResult ClosedLoop::Run(double duration_s, double settling_s) {
 }
 
 std::vector<ClosedLoopResult> ClosedLoop::RunSubExposures(const std::vector<Image>& dm_offsets_m,
-                                                          double exposure_s, double settling_s) {
+                                                          double exposure_s, double settling_s,
+                                                          const std::function<bool(int)>& after_each) {
   const char* fn = "ClosedLoop::RunSubExposures";
   CheckArgument(!dm_offsets_m.empty(), fn, "dm_offsets_m", "empty", "at least one DM offset");
   const double t = controller_->frame_time_s();
@@ -346,6 +347,7 @@ std::vector<ClosedLoopResult> ClosedLoop::RunSubExposures(const std::vector<Imag
   for (const Vector& offset : offsets) {
     wfs_->SetReferenceOffset(offset);
     results.push_back(Run(exposure_s, settling_s));
+    if (after_each && !after_each(int(results.size()))) break;
   }
   return results;
 }

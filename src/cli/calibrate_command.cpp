@@ -87,9 +87,7 @@ void RunCalibrate(const CalibrateArgs& a) {
   if (!o.IsValid(&why)) throw InvalidArgument("aosr calibrate: " + why);
   const CalibrationSet set = LoadCalibrationSet(a.set);
   const std::string json_path = JoinPath(a.out_dir, "calibration.json"), png_path = JoinPath(a.out_dir, "report.png");
-  std::vector<std::string> inputs = {set.source};
-  const std::filesystem::path dir = std::filesystem::path(set.source).parent_path();
-  for (const CalibrationFrame& f : set.frames) inputs.push_back((dir / f.file).string());
+  const std::vector<std::string> inputs = CalibrationSetInputFiles(set);
   CheckNotSameFile(json_path, inputs);
   CheckNotSameFile(png_path, inputs);
   EnsureDirectory(a.out_dir);

@@ -14,6 +14,9 @@ int main(int argc, char** argv) {
       "aosr: super-resolved imaging with adaptive optics.\n"
       "The DM adds a designed phase to each of N sub-exposures; reconstructing the N undersampled frames\n"
       "jointly gives an image r times finer than the camera's pixels."};
+  // A fixed name (not argv[0]): the help reads "Usage: aosr ...", however the program was started (the launcher,
+  // src/cli/launcher/launcher.cpp, serves the same text from build time).
+  app.name("aosr");
   app.set_version_flag("--version", std::string("aosr ") + AOSR_VERSION);
   app.require_subcommand(1);
   aosr::cli::RegisterDemo(app);

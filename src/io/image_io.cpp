@@ -1,18 +1,24 @@
 #include "aosr/io/image_io.hpp"
 
-#include <OpenImageIO/imageio.h>
+#include <dlfcn.h>
+#include <link.h>
+#include <limits.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/memory.hpp"
 #include "aosr/io/atomic_file.hpp"
 #include "aosr/io/fits.hpp"
+#include "oiio_plugin/oiio_plugin.hpp"
 
 namespace aosr {
 namespace {
@@ -49,9 +55,111 @@ std::vector<T> Quantise(const Image& t, double max_value) {
   return out;
 }
 
-std::string OiioError(const std::string& fallback) {
-  std::string e = OIIO::geterror();
-  return e.empty() ? fallback : e;
+// ---- OpenImageIO, loaded on first use (oiio_plugin/oiio_plugin.hpp says why and where it is looked up) ----
+
+struct OiioPlugin {
+  AosrOiioWriteFn write = nullptr;
+  AosrOiioOpenFn open = nullptr;
+  AosrOiioReadFn read = nullptr;
+  AosrOiioCloseFn close = nullptr;
+  std::string error;  // why it could not be loaded
+};
+
+std::string FolderOf(const std::string& file) {
+  std::error_code ec;
+  const std::filesystem::path p = std::filesystem::weakly_canonical(file, ec);
+  return (ec ? std::filesystem::path(file) : p).parent_path().string();
+}
+
+const OiioPlugin& Oiio() {
+  static OiioPlugin plugin;
+  static std::once_flag once;
+  std::call_once(once, [] {
+    std::vector<std::string> candidates;
+    if (const char* env = std::getenv("AOSR_OIIO_PLUGIN"); env && *env) candidates.push_back(env);
+    Dl_info info;
+    link_map* map = nullptr;
+    if (dladdr1(reinterpret_cast<void*>(&FolderOf), &info, reinterpret_cast<void**>(&map), RTLD_DL_LINKMAP) != 0 &&
+        map != nullptr) {
+      // In a shared object (the Python module) its own path; in the program itself (its link map has no name:
+      // dladdr would give argv[0], which the launcher's exec leaves as the launcher's) /proc/self/exe.
+      std::string self = map->l_name ? map->l_name : "";
+      if (self.empty()) {
+        char exe[PATH_MAX];
+        const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+        if (n > 0) self.assign(exe, std::size_t(n));
+      }
+      const std::string dir = FolderOf(self);
+      candidates.push_back(dir + "/libaosr_oiio.so");
+      candidates.push_back(dir + "/../lib/aosr/libaosr_oiio.so");
+    }
+    candidates.push_back(AOSR_OIIO_PLUGIN_BUILD_PATH);
+    std::string tried;
+    for (const std::string& c : candidates) {
+      std::error_code ec;
+      if (!std::filesystem::exists(c, ec)) {
+        tried += (tried.empty() ? "" : ", ") + c;
+        continue;
+      }
+      void* handle = dlopen(c.c_str(), RTLD_NOW | RTLD_LOCAL);
+      if (!handle) {
+        const char* e = dlerror();
+        plugin.error = "cannot load " + c + ": " + (e ? e : "dlopen failed");
+        return;
+      }
+      plugin.write = reinterpret_cast<AosrOiioWriteFn>(dlsym(handle, "aosr_oiio_write"));
+      plugin.open = reinterpret_cast<AosrOiioOpenFn>(dlsym(handle, "aosr_oiio_open"));
+      plugin.read = reinterpret_cast<AosrOiioReadFn>(dlsym(handle, "aosr_oiio_read"));
+      plugin.close = reinterpret_cast<AosrOiioCloseFn>(dlsym(handle, "aosr_oiio_close"));
+      if (!plugin.write || !plugin.open || !plugin.read || !plugin.close) {
+        plugin.error = c + " lacks the aosr_oiio_* entry points (a stale build?)";
+        plugin.write = nullptr;
+      }
+      return;  // never dlclose'd: OpenImageIO keeps global state
+    }
+    plugin.error = "libaosr_oiio.so (aosr's OpenImageIO plugin) not found; looked for " + tried +
+                   " (set AOSR_OIIO_PLUGIN to its path)";
+  });
+  return plugin;
+}
+
+// The plugin, or IoError naming `path` and why PNG/TIFF I/O is unavailable.
+const OiioPlugin& OiioFor(const std::string& path) {
+  const OiioPlugin& p = Oiio();
+  if (!p.write) throw IoError(path, "PNG/TIFF I/O is unavailable: " + p.error);
+  return p;
+}
+
+// An opened input image, closed when it goes out of scope.
+class OiioInput {
+ public:
+  explicit OiioInput(const std::string& path) : plugin_(OiioFor(path)), path_(path) {
+    handle_ = plugin_.open(path.c_str(), &spec_, error_, sizeof error_);
+    if (!handle_) throw IoError(path, error_);
+  }
+  ~OiioInput() { plugin_.close(handle_); }
+  OiioInput(const OiioInput&) = delete;
+  OiioInput& operator=(const OiioInput&) = delete;
+  const AosrOiioSpec& spec() const { return spec_; }
+  void Read(int type, void* buffer) {
+    if (!plugin_.read(handle_, type, buffer, error_, sizeof error_)) throw IoError(path_, error_);
+  }
+
+ private:
+  const OiioPlugin& plugin_;
+  std::string path_;
+  AosrOiioSpec spec_;
+  void* handle_ = nullptr;
+  char error_[1024] = {0};
+};
+
+// Writes through the plugin (to `tmp`, the atomic write's temporary file); IoError naming `path`.
+void OiioWrite(const std::string& path, const std::string& tmp, const std::string& format, int width, int height,
+               int channels, int type, const void* pixels) {
+  const OiioPlugin& p = OiioFor(path);
+  char error[1024] = {0};
+  if (!p.write(format.c_str(), tmp.c_str(), width, height, channels, type, pixels, error, sizeof error))
+    throw IoError(path, error);
 }
 
 }  // namespace
@@ -133,30 +241,25 @@ void WriteViewImage(const std::string& path, const Image& img, const ViewOptions
   std::vector<std::uint8_t> u8;
   std::vector<std::uint16_t> u16;
   std::vector<float> f32;
-  OIIO::TypeDesc type;
+  int type;
   const void* pixels = nullptr;
   if (options.bits == 8) {
     u8 = Quantise<std::uint8_t>(t, 255.0);
-    type = OIIO::TypeDesc::UINT8;
+    type = kAosrOiioUint8;
     pixels = u8.data();
   } else if (options.bits == 16) {
     u16 = Quantise<std::uint16_t>(t, 65535.0);
-    type = OIIO::TypeDesc::UINT16;
+    type = kAosrOiioUint16;
     pixels = u16.data();
   } else {
     f32.assign(t.data(), t.data() + t.size());
-    type = OIIO::TypeDesc::FLOAT;
+    type = kAosrOiioFloat;
     pixels = f32.data();
   }
 
   AtomicWrite(path, [&](const std::string& tmp) {
-    // Created by format name: the temporary file's name does not end in the format's extension.
-    auto out = OIIO::ImageOutput::create(format);
-    if (!out) throw IoError(path, OiioError("no OpenImageIO writer for " + format));
-    const OIIO::ImageSpec spec(static_cast<int>(img.cols()), static_cast<int>(img.rows()), 1, type);
-    if (!out->open(tmp, spec)) throw IoError(path, "cannot open for writing: " + out->geterror());
-    if (!out->write_image(type, pixels)) throw IoError(path, "cannot write pixels: " + out->geterror());
-    if (!out->close()) throw IoError(path, "cannot close: " + out->geterror());
+    // Written by format name: the temporary file's name does not end in the format's extension.
+    OiioWrite(path, tmp, format, static_cast<int>(img.cols()), static_cast<int>(img.rows()), 1, type, pixels);
   });
 }
 
@@ -175,29 +278,22 @@ void WriteRgbImage(const std::string& path, const RgbImage& img) {
   CheckArgument(img.rgb.size() == static_cast<size_t>(3 * img.rows * img.cols), "WriteRgbImage", "rgb.size()",
                 img.rgb.size(), "3 * rows * cols = " + std::to_string(3 * img.rows * img.cols));
   AtomicWrite(path, [&](const std::string& tmp) {
-    auto out = OIIO::ImageOutput::create(format);
-    if (!out) throw IoError(path, OiioError("no OpenImageIO writer for " + format));
-    const OIIO::ImageSpec spec(static_cast<int>(img.cols), static_cast<int>(img.rows), 3, OIIO::TypeDesc::UINT8);
-    if (!out->open(tmp, spec)) throw IoError(path, "cannot open for writing: " + out->geterror());
-    if (!out->write_image(OIIO::TypeDesc::UINT8, img.rgb.data())) throw IoError(path, "cannot write pixels: " + out->geterror());
-    if (!out->close()) throw IoError(path, "cannot close: " + out->geterror());
+    OiioWrite(path, tmp, format, static_cast<int>(img.cols), static_cast<int>(img.rows), 3, kAosrOiioUint8,
+              img.rgb.data());
   });
 }
 
 RgbImage ReadRgbImage(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "no such file (or not a regular file)");
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) throw IoError(path, "cannot open as an image: " + OiioError("unknown format"));
-  const OIIO::ImageSpec& spec = in->spec();
-  const int channels = spec.nchannels;
+  OiioInput in(path);
+  const AosrOiioSpec& spec = in.spec();
+  const int channels = spec.channels;
   if (channels < 1 || spec.width < 1 || spec.height < 1 || spec.depth > 1) throw IoError(path, "empty or volume image");
   CheckMemory((1.0 * channels + 3.0) * double(spec.width) * double(spec.height),
               path + ": an image of " + std::to_string(spec.height) + "x" + std::to_string(spec.width) + " pixels");
   std::vector<std::uint8_t> buffer(static_cast<size_t>(spec.width) * spec.height * channels);
-  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::UINT8, buffer.data()))
-    throw IoError(path, "cannot read pixels: " + in->geterror());
-  in->close();
+  in.Read(kAosrOiioUint8, buffer.data());
   RgbImage img;
   img.rows = spec.height;
   img.cols = spec.width;
@@ -216,13 +312,12 @@ Image ReadImage(const std::string& path) {
   if (!std::filesystem::is_regular_file(path, ec)) throw IoError(path, "is not a regular file (a device, FIFO or socket)");
   if (LooksLikeFits(path)) return ReadFitsImage(path);
 
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) throw IoError(path, "cannot open as an image: " + OiioError("unknown format"));
-  const OIIO::ImageSpec& spec = in->spec();
+  OiioInput in(path);
+  const AosrOiioSpec& spec = in.spec();
   if (spec.depth > 1)
     throw IoError(path, "volume images (depth " + std::to_string(spec.depth) + ") are not supported");
   if (spec.deep) throw IoError(path, "deep images are not supported");
-  const int channels = spec.nchannels;
+  const int channels = spec.channels;
   const Index rows = spec.height, cols = spec.width;
   if (channels < 1 || rows < 1 || cols < 1) throw IoError(path, "empty image");
   CheckMemory((4.0 * channels + 8.0) * double(rows) * double(cols),
@@ -230,10 +325,7 @@ Image ReadImage(const std::string& path) {
                   std::to_string(channels) + " channel(s)");
 
   std::vector<float> buffer(static_cast<size_t>(rows * cols * channels));
-  if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, buffer.data())) {
-    throw IoError(path, "cannot read pixels: " + in->geterror());
-  }
-  in->close();
+  in.Read(kAosrOiioFloat, buffer.data());
 
   // Colour channels: all but alpha and depth (z); a lone alpha-like channel is used as it is.
   std::vector<int> colour;

@@ -4,6 +4,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <limits>
 #include <map>
 #include <memory>
 
@@ -437,6 +439,12 @@ Image ScenePipeline::RenderObject(std::vector<PointSource>* stars) const {
 
 ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
                                       std::vector<double>* strehl, SimulationCounters* counters) const {
+  return ComputePsfs(distinct, window_fraction, strehl, counters, {});
+}
+
+ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
+                                      std::vector<double>* strehl, SimulationCounters* counters,
+                                      const std::function<bool(int)>& step) const {
   const SceneSpec& s = scene_;
   const Index n = s.telescope.pupil_px;
   const Image amplitude = s.telescope.PupilAmplitude();
@@ -467,7 +475,11 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
     std::unique_ptr<ClosedLoop> loop = system.MakeLoop(lo);
     std::vector<Image> offsets;
     for (const DmOffset& o : s.offsets.frames) offsets.push_back(ExposureOpd(s, o, Image(), dm.get()));
-    const std::vector<ClosedLoopResult> results = loop->RunSubExposures(offsets, s.ao.time_per_frame_s, s.ao.settling_s);
+    bool go = true;
+    const std::vector<ClosedLoopResult> results = loop->RunSubExposures(
+        offsets, s.ao.time_per_frame_s, s.ao.settling_s,
+        step ? std::function<bool(int)>([&](int) { return go = step(1); }) : std::function<bool(int)>());
+    if (!go) return {};
     for (int i = 0; i < s.frames; ++i) {
       raw[i] = results[i].psf;
       raw_strehl[i] = results[i].psf_strehl;
@@ -491,6 +503,7 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
         raw[d] = diffraction->Compute(amplitude, opd);
         raw_strehl[d] = StrehlFromPupil(amplitude, WithoutTilt(opd, amplitude), sampling.wavelength_m);
       }
+      if (step && !step(1)) return {};
     }
   }
   if (counters) counters->psfs_computed += distinct_count_;
@@ -512,9 +525,24 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
   return psfs;
 }
 
-Simulation ScenePipeline::Run() const {
+Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   using Clock = std::chrono::steady_clock;
   const auto t_run = Clock::now();
+  // Steps: the object, each distinct PSF, the nominal PSFs (closed loop), convolution, pixels, detector.
+  const bool closed_loop = scene_.ao.mode == AoSpec::Mode::kClosedLoop;
+  const int total = 4 + distinct_count_ + (closed_loop ? 1 : 0);
+  ProgressReporter reporter(progress, "simulate", total, "");
+  int done = 0;
+  // Counts `n` steps done; false when the caller asked to stop (or its callback threw: `stop` rethrows that).
+  auto advance = [&](int n) {
+    done += n;
+    return reporter.Report(done, std::numeric_limits<double>::quiet_NaN(), done == total);
+  };
+  auto stop = [&](Simulation* sim) {
+    reporter.RethrowIfThrown();
+    sim->cancelled = true;
+    sim->seconds = Seconds(t_run);
+  };
   const std::uint64_t fft0 = FftExecutionCount();
   const std::uint64_t screens0 = PhaseScreensGenerated();
   const SceneGeometry& g = geometry_;
@@ -529,16 +557,31 @@ Simulation ScenePipeline::Run() const {
   sim.truth = sim.stars.empty() ? extended : Image(extended + StarTruth(g.hr_frame, sim.stars));
   c.object_components = int(scene_.objects.size());
   timed("object", t);
+  if (!advance(1)) {
+    stop(&sim);
+    return sim;
+  }
 
   // PSFs (static aberrations, offsets and the loop are inside; their time is the PSF stage's).
   t = Clock::now();
   const int steps0 = c.loop_steps;
-  sim.psfs = ComputePsfs(&sim.distinct_psf, &sim.psf_window_fraction, &sim.strehl, &c);
+  bool go = true;
+  sim.psfs = ComputePsfs(&sim.distinct_psf, &sim.psf_window_fraction, &sim.strehl, &c,
+                         progress ? std::function<bool(int)>([&](int n) { return go = advance(n); })
+                                  : std::function<bool(int)>());
+  if (!go) {
+    stop(&sim);
+    return sim;
+  }
   timed(c.loop_steps > steps0 ? "ao-loop+psf" : "psf", t);
-  if (scene_.ao.mode == AoSpec::Mode::kClosedLoop) {
+  if (closed_loop) {
     t = Clock::now();
     sim.nominal_psfs = NominalPsfs(scene_);
     timed("nominal-psf", t);
+    if (!advance(1)) {
+      stop(&sim);
+      return sim;
+    }
   }
 
   // Convolution on the padded grid: the object's spectrum (extended part by FFT, stars exactly), times each
@@ -571,6 +614,10 @@ Simulation ScenePipeline::Run() const {
     convolved[d] = full.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols).cwiseMax(0.0);
   }
   timed(has_extended_ ? "convolution" : "point-sources", t);
+  if (!advance(1)) {
+    stop(&sim);
+    return sim;
+  }
 
   t = Clock::now();
   const OperatorPtr pixels = PixelResponse(g.hr_frame, g.r, scene_.detector.fill_factor);
@@ -578,12 +625,18 @@ Simulation ScenePipeline::Run() const {
   for (int d = 0; d < distinct_count_; ++d) lr[d] = ToImage(pixels->Apply(AsVector(convolved[d])), g.frame);
   for (int i = 0; i < scene_.frames; ++i) sim.expected_e.push_back(lr[sim.distinct_psf[i]]);
   timed("pixel-integration", t);
+  if (!advance(1)) {
+    stop(&sim);
+    return sim;
+  }
 
   t = Clock::now();
   const Detector detector(scene_.detector);
   sim.frames = detector.RecordSequence(sim.expected_e, scene_.noise_seed);
   for (const DetectorFrame& f : sim.frames) c.noise_draws += f.uniform_draws + f.normal_draws;
   timed("detector", t);
+  advance(1);  // the last step: nothing is left to cut short
+  reporter.RethrowIfThrown();
 
   c.fft_executions = FftExecutionCount() - fft0;
   c.phase_screens = PhaseScreensGenerated() - screens0;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 
 #include "aosr/core/error.hpp"
 #include "aosr/io/config.hpp"
@@ -120,9 +121,29 @@ AoSystemSpec TelescopePreset::ToAoSystemSpec(SensorKind sensor, std::uint64_t se
   return s;
 }
 
+namespace {
+
+std::mutex& DataDirectoryMutex() {
+  static std::mutex m;
+  return m;
+}
+std::string& DefaultDataDirectory() {
+  static std::string dir = AOSR_DEFAULT_DATA_DIR;
+  return dir;
+}
+
+}  // namespace
+
 std::string DataDirectory() {
   if (const char* env = std::getenv("AOSR_DATA_DIR"); env && *env) return env;
-  return AOSR_DEFAULT_DATA_DIR;
+  std::lock_guard<std::mutex> lock(DataDirectoryMutex());
+  return DefaultDataDirectory();
+}
+
+void SetDefaultDataDirectory(const std::string& dir) {
+  CheckArgument(!dir.empty(), "SetDefaultDataDirectory", "dir", "(empty)", "a folder path");
+  std::lock_guard<std::mutex> lock(DataDirectoryMutex());
+  DefaultDataDirectory() = dir;
 }
 
 TelescopePreset ParseTelescopePreset(const nlohmann::json& json, const std::string& source) {

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <vector>
 
 #include "aosr/calib/calibrate.hpp"
 #include "aosr/calib/calibration_file.hpp"
@@ -43,6 +45,45 @@ SyntheticCalibrationOptions Small() {
   o.shared_references = 1;
   o.references_per_mode = 0;
   return o;
+}
+
+// The files `aosr calibrate` and aosr.calibrate refuse to overwrite: the manifest and every frame.
+TEST(CalibrationSet, InputFilesAreTheManifestAndTheFrames) {
+  TempFolder dir;
+  EXPECT_TRUE(CalibrationSetInputFiles(SynthesizeCalibrationSet(Small())).empty());  // in memory
+  WriteCalibrationSet(dir.path().string(), SynthesizeCalibrationSet(Small()));
+  const CalibrationSet set = LoadCalibrationSet(dir.path().string());
+  const std::vector<std::string> files = CalibrationSetInputFiles(set);
+  ASSERT_EQ(files.size(), 1 + set.frames.size());
+  EXPECT_EQ(fs::path(files[0]).filename(), kCalibrationSetFileName);
+  for (const std::string& f : files) EXPECT_TRUE(fs::exists(f)) << f;
+}
+
+// Calibrate's progress (stage "calibrate", one step per mode) and cancellation: the modes not fitted say so.
+TEST(CalibrationSet, CalibrateReportsModesAndCancels) {
+  const CalibrationSet set = SynthesizeCalibrationSet(Small());
+  CalibrateOptions o;
+  o.threads = 1;
+  o.fit.static_max_noll = 0;
+  const CalibrationResult quiet = Calibrate(set, o);
+  std::vector<Progress> seen;
+  o.progress = [&seen](const Progress& q) {
+    seen.push_back(q);
+    return true;
+  };
+  const CalibrationResult watched = Calibrate(set, o);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.back().stage, "calibrate");
+  EXPECT_EQ(seen.back().iteration, 2);
+  EXPECT_EQ(seen.back().total, 2);
+  EXPECT_FALSE(watched.cancelled);
+  for (std::size_t m = 0; m < quiet.modes.size(); ++m)
+    EXPECT_EQ(watched.modes[m].final_fit.gain, quiet.modes[m].final_fit.gain);
+  o.progress = [](const Progress& q) { return q.iteration < 1; };  // stop after the first mode
+  const CalibrationResult cut = Calibrate(set, o);
+  EXPECT_TRUE(cut.cancelled);
+  EXPECT_EQ(cut.modes[0].final_fit.gain, quiet.modes[0].final_fit.gain);
+  EXPECT_EQ(cut.modes[1].final_fit.termination, Termination::kUserCancelled);
 }
 
 TEST(CalibrationSet, SynthesizedSetHasTheRequestedLayout) {

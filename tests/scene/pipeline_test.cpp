@@ -75,6 +75,31 @@ TEST(ScenePipeline, StaticPsfIsComputedOnceAndNothingDisabledRuns) {
   EXPECT_THAT(sim.distinct_psf, ::testing::ElementsAre(0, 0, 0, 0));
 }
 
+// Run's progress callback (core/progress.hpp): steps after the object, each distinct PSF and each later stage;
+// it changes nothing, and returning false stops the run with Simulation::cancelled.
+TEST(ScenePipeline, ProgressReportsEveryStepAndCancels) {
+  const ScenePipeline p(ParseScene(BaseScene(), "<test>"));
+  const Simulation quiet = p.Run();
+  std::vector<Progress> seen;
+  const Simulation watched = p.Run([&seen](const Progress& q) {
+    seen.push_back(q);
+    return true;
+  });
+  ASSERT_GE(seen.size(), 2u);
+  EXPECT_EQ(seen.front().stage, "simulate");
+  EXPECT_EQ(seen.back().iteration, seen.back().total);
+  EXPECT_EQ(seen.back().total, 4 + 1);  // object, 1 distinct PSF, convolution, pixels, detector
+  EXPECT_FALSE(watched.cancelled);
+  ASSERT_EQ(watched.frames.size(), quiet.frames.size());
+  for (std::size_t i = 0; i < quiet.frames.size(); ++i)
+    EXPECT_TRUE((watched.frames[i].adu == quiet.frames[i].adu).all());
+  int calls = 0;
+  const Simulation cut = p.Run([&calls](const Progress&) { return ++calls < 1; });
+  EXPECT_TRUE(cut.cancelled);
+  EXPECT_EQ(calls, 1);
+  EXPECT_TRUE(cut.frames.empty());  // stopped after the object
+}
+
 TEST(ScenePipeline, AnalyticAoNeedsNoPhaseScreen) {
   nlohmann::json j = BaseScene();
   j["ao"] = {{"mode", "analytic"}};

@@ -291,5 +291,54 @@ TEST(ReconstructTest, ProgressCancellationInEitherStage) {
     }
 }
 
+TEST(ReconstructTest, MethodListIsWhatParseAccepts) {
+  const std::vector<ReconstructionMethod>& all = ReconstructionMethods();
+  ASSERT_EQ(all.size(), 7u);
+  std::string listed;
+  for (ReconstructionMethod m : all) {
+    EXPECT_EQ(ParseReconstructionMethod(ToString(m)), m);
+    listed += (listed.empty() ? "" : " | ") + std::string(ToString(m));
+  }
+  EXPECT_THAT(test::ErrorOf<InvalidArgument>([] { ParseReconstructionMethod("nope"); }), HasSubstr(listed));
+}
+
+// Tikhonov's CG path reports each PCG iteration ("tikhonov-cg") and stops when asked; the Fourier path is one step.
+TEST(ReconstructTest, TikhonovProgressAndCancellation) {
+  const Dataset d = MakeDataset({32, 32}, 2, 2, 1.0, 0.0, 20.0);
+  const ReconstructionProblem p = ProblemFromDataset(d).problem;
+  ReconstructOptions o;
+  o.method = ReconstructionMethod::kTikhonov;
+  o.tikhonov.method = TikhonovMethod::kConjugateGradient;
+  o.tikhonov.precondition = false;
+  const Reconstruction quiet = Reconstruct(p, o);
+  ASSERT_GT(quiet.summary.iterations, 2);
+  std::vector<Progress> seen;
+  o.progress = [&seen](const Progress& q) {
+    seen.push_back(q);
+    return true;
+  };
+  const Reconstruction r = Reconstruct(p, o);
+  ASSERT_FALSE(seen.empty());
+  for (const Progress& q : seen) EXPECT_EQ(q.stage, "tikhonov-cg");
+  EXPECT_TRUE((quiet.image == r.image).all());
+  o.progress = [](const Progress&) { return false; };
+  const Reconstruction cut = Reconstruct(p, o);
+  EXPECT_EQ(cut.summary.termination, Termination::kUserCancelled);
+  EXPECT_LT(cut.summary.iterations, quiet.summary.iterations);
+  EXPECT_TRUE(AllFinite(cut.image));
+  // The direct Fourier solve: steps 0 and 1 of 1, nothing to cut short.
+  o.tikhonov.method = TikhonovMethod::kAuto;
+  seen.clear();
+  o.progress = [&seen](const Progress& q) {
+    seen.push_back(q);
+    return false;
+  };
+  const Reconstruction direct = Reconstruct(p, o);
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[0].stage, "tikhonov");
+  EXPECT_EQ(seen[1].iteration, 1);
+  EXPECT_NE(direct.summary.termination, Termination::kUserCancelled);
+}
+
 }  // namespace
 }  // namespace aosr

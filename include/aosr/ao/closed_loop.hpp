@@ -59,6 +59,7 @@
 // advanced by it (they are stateful); the mirror is shared. Not thread-safe.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -149,8 +150,11 @@ class ClosedLoop {
   // One continuous run over the DM offsets w_dm,i (each n x n [m], finite where the pupil transmits): for
   // each, set the sensor's reference offset, run settling_s unrecorded and exposure_s recorded. Returns one
   // result (and PSF) per offset. Throws InvalidArgument for an empty list, wrong shapes or bad times.
+  // `after_each`, when set, is called with the number of exposures done after each one; returning false stops
+  // the run there (the results then hold only the exposures done): how a caller cancels a long loop.
   std::vector<ClosedLoopResult> RunSubExposures(const std::vector<Image>& dm_offsets_m, double exposure_s,
-                                                double settling_s);
+                                                double settling_s,
+                                                const std::function<bool(int)>& after_each = {});
 
   // Advances one frame (steps 1-5 of the header); record = false skips the science stage. Run() manages the
   // recording; frames recorded by direct calls are discarded by the next Run().

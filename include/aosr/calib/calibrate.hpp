@@ -26,6 +26,7 @@
 #include "aosr/calib/calibration_set.hpp"
 #include "aosr/calib/linearity.hpp"
 #include "aosr/calib/modal_fit.hpp"
+#include "aosr/core/progress.hpp"
 
 namespace aosr {
 
@@ -36,6 +37,12 @@ struct CalibrateOptions {
   int threads = 2;
   // Run the per-level fits and the linearity analysis (steps 2-4). Default on.
   bool per_amplitude = true;
+  // Progress and cancellation (core/progress.hpp): stage "calibrate", iteration = modes done of `total` = the
+  // set's modes, value the last mode's gain ("gain"). Reported from the calling thread (which fits modes too)
+  // after each of its modes, so a report comes at least once per mode fit. Returning false stops handing out
+  // modes: the modes in flight finish, the rest are left unfitted (Termination::kUserCancelled), and the
+  // result says cancelled (no static aberration is combined). Empty (the default): no cost.
+  ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };
@@ -58,6 +65,7 @@ struct CalibrationResult {
   std::vector<double> static_m, static_sigma_m;  // combined over modes [m RMS OPD]
   double seconds = 0.0;
   int threads = 1;
+  bool cancelled = false;  // CalibrateOptions::progress asked to stop: some modes are not fitted
 
   // One line per mode: gain ± σ, linear range, verdict, χ²/dof, termination.
   std::string BriefReport() const;

@@ -77,6 +77,11 @@ void ValidateCalibrationSet(CalibrationSet* set);
 // unreadable files, InvalidArgument (file and field path) for bad content.
 CalibrationSet LoadCalibrationSet(const std::string& path);
 
+// The files a set read from disk came from: its manifest and every frame file (resolved against the manifest's
+// folder); empty for an in-memory set. Outputs must not be one of them (io/atomic_file.hpp, CheckNotSameFile):
+// `aosr calibrate` and Python's aosr.calibrate both refuse to overwrite an input.
+std::vector<std::string> CalibrationSetInputFiles(const CalibrationSet& set);
+
 // Writes the set into `dir` (created if needed): one FITS file per frame (frames/NNN.fits), the mask
 // (valid.fits when any pixel is masked) and calibration-set.json, each atomically. Frames are written as they
 // are (dark already subtracted: bias 0, no dark).

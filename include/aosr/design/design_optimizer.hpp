@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/core/progress.hpp"
 #include "aosr/design/design_parameterisation.hpp"
 #include "aosr/design/design_psf.hpp"
 #include "aosr/solvers/summary.hpp"
@@ -46,6 +47,11 @@ struct DesignOptimizerOptions {
   std::uint64_t seed = 1;
   // Called with one line per start and per iteration (e.g. to print progress on a terminal); may be empty.
   std::function<void(const std::string&)> progress;
+  // Progress and cancellation (core/progress.hpp): stage "design", one report per L-BFGS iteration
+  // (rate-limited; iteration counted over all starts, of total starts × max_iterations, value J). Returning
+  // false ends the current start at its current point and runs no further start; the best design so far is
+  // returned with Termination::kUserCancelled. Empty (the default): no cost.
+  ProgressCallback progress_callback;
 
   bool IsValid(std::string* why) const;
 };

@@ -42,6 +42,10 @@ struct DesignStudyOptions {
   double map_lambda = -1.0;       // B: MAP lambda; < 0: automatic (1/sigma for the TV prior, 1 for tikhonov)
   double epsilon = 1e-3;          // B: Charbonnier epsilon
   std::string map_prior = "charbonnier-tv";  // B: charbonnier-tv | tikhonov
+  // Progress and cancellation of the optimisation (DesignOptimizerOptions::progress_callback, stage "design").
+  // After a cancellation the best design so far is kept and the fresh-sample check is skipped (the summary's
+  // termination says "cancelled"). Not a CLI option (the CLI stops on Ctrl-C); Python's aosr.design uses it.
+  ProgressCallback progress;
 };
 
 struct DesignStudy {

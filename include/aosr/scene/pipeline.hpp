@@ -48,10 +48,12 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "aosr/core/image.hpp"
+#include "aosr/core/progress.hpp"
 #include "aosr/optics/deformable_mirror.hpp"
 #include "aosr/scene/detector.hpp"
 #include "aosr/scene/objects.hpp"
@@ -119,6 +121,9 @@ struct Simulation {
   std::vector<StageTiming> timings;
   SimulationCounters counters;
   double seconds = 0.0;
+  // Run's progress callback asked to stop: the simulation is incomplete (the stages after the report are
+  // missing, e.g. no frames) and must not be used as a dataset.
+  bool cancelled = false;
 };
 
 class ScenePipeline {
@@ -137,8 +142,11 @@ class ScenePipeline {
   // constructor refuses (ResourceError) a scene whose estimate exceeds the memory limit (core/memory.hpp).
   double estimated_peak_bytes() const { return estimated_peak_bytes_; }
 
-  // Runs every stage. Deterministic for a given scene (seeds in the scene).
-  Simulation Run() const;
+  // Runs every stage. Deterministic for a given scene (seeds in the scene). `progress` (core/progress.hpp),
+  // when set, is called with stage "simulate" after the object, after each distinct PSF (for the closed loop:
+  // each sub-exposure), and after each later stage (iteration k of `total` steps; no value); returning false
+  // stops the run there with Simulation::cancelled set. It never changes the result.
+  Simulation Run(const ProgressCallback& progress = {}) const;
 
   // The stages before the detector, for callers that need only part of the chain (real data needs the
   // PSFs; tests need the noiseless frames).
@@ -149,6 +157,11 @@ class ScenePipeline {
                          std::vector<double>* strehl, SimulationCounters* counters = nullptr) const;
 
  private:
+  // ComputePsfs, calling `step` after each distinct PSF (each sub-exposure of the closed loop); a `step`
+  // that returns false stops it early (the PSFs returned are then empty).
+  ImageStack ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
+                         std::vector<double>* strehl, SimulationCounters* counters,
+                         const std::function<bool(int)>& step) const;
   void Compile();
   // The extended components summed on the HR frame, and the stars (HR-frame coordinates), flux-scaled.
   Image RenderObject(std::vector<PointSource>* stars) const;

@@ -65,8 +65,12 @@ struct TelescopePreset {
   AoSystemSpec ToAoSystemSpec(SensorKind sensor, std::uint64_t seed) const;
 };
 
-// The data folder: $AOSR_DATA_DIR if set, else the source tree's data/ (compiled in).
+// The data folder: $AOSR_DATA_DIR if set, else the default: the source tree's data/ (compiled in) unless
+// SetDefaultDataDirectory changed it.
 std::string DataDirectory();
+// Replaces the default data folder (not $AOSR_DATA_DIR, which still wins): the installed Python package, which
+// ships its own copy of data/, points the library at it. Thread-safe.
+void SetDefaultDataDirectory(const std::string& dir);
 
 // Loads `name_or_path`: a path to a .json file, or a preset name looked up as
 // DataDirectory()/telescopes/<name>.json. Errors name the file and the field.

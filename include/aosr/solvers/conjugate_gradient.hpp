@@ -16,6 +16,7 @@
 #pragma once
 
 #include "aosr/core/linear_operator.hpp"
+#include "aosr/core/progress.hpp"
 #include "aosr/solvers/summary.hpp"
 
 namespace aosr {
@@ -26,11 +27,20 @@ struct ConjugateGradientOptions {
   bool IsValid(std::string* why) const;
 };
 
+// Progress and cancellation of one solve (core/progress.hpp): a report per iteration (rate-limited) as
+// `stage`, value the relative residual ("residual"). Returning false stops the solve with the current iterate
+// and Termination::kUserCancelled. An empty callback (the default) costs nothing.
+struct ConjugateGradientProgress {
+  ProgressCallback callback;
+  std::string stage = "cg";
+};
+
 // Solves normal * x = b starting from *x (its size must be normal.cols()). Returns the summary; never
 // returns NaN silently: a non-finite iterate ends the solve with Termination::kFailed and restores the
 // last finite iterate.
 SolverSummary ConjugateGradient(const LinearOperator& normal, const Vector& b, Vector* x,
-                                const ConjugateGradientOptions& options = {});
+                                const ConjugateGradientOptions& options = {},
+                                const ConjugateGradientProgress& progress = {});
 
 // Preconditioned CG: `preconditioner` applies M⁻¹ (square, same size as `normal`, symmetric positive
 // definite; only Apply is used). With the identity it takes the same iterations as ConjugateGradient.
@@ -38,6 +48,7 @@ SolverSummary ConjugateGradient(const LinearOperator& normal, const Vector& b, V
 // Termination::kFailed and says so.
 SolverSummary PreconditionedConjugateGradient(const LinearOperator& normal,
                                               const LinearOperator& preconditioner, const Vector& b, Vector* x,
-                                              const ConjugateGradientOptions& options = {});
+                                              const ConjugateGradientOptions& options = {},
+                                              const ConjugateGradientProgress& progress = {});
 
 }  // namespace aosr

@@ -28,6 +28,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "aosr/solvers/drizzle.hpp"
 #include "aosr/solvers/map.hpp"
@@ -49,6 +50,9 @@ enum class ReconstructionMethod {
   kMap
 };
 const char* ToString(ReconstructionMethod m);
+// Every method Reconstruct runs, in the order of the table above: the one list that ParseReconstructionMethod
+// accepts (and names in its error), and that Python's aosr.methods() returns.
+const std::vector<ReconstructionMethod>& ReconstructionMethods();
 // "shift-add" | "shift-add-median" | "drizzle" | "tikhonov" | "linear" | "tv" | "map"; InvalidArgument otherwise.
 ReconstructionMethod ParseReconstructionMethod(const std::string& name);
 
@@ -75,8 +79,9 @@ struct ReconstructOptions {
   // as iteration 0 of 1 when it starts and 1 of 1, value λ, when it ends), then "tv" or "map" (their solvers'
   // iterations). When set it replaces tv.progress and map.progress; when empty those are used as given.
   // Returning false cancels: during the pilot the run returns the pilot's Tikhonov estimate, later the
-  // solver's current iterate, both with Termination::kUserCancelled. The other methods are direct and do not
-  // call it. Empty (the default): no cost.
+  // solver's current iterate, both with Termination::kUserCancelled. For tikhonov it replaces tikhonov.progress
+  // (stages "tikhonov" and "tikhonov-cg", tikhonov.hpp). The other methods are direct and do not call it. Empty
+  // (the default): no cost.
   ProgressCallback progress;
 };
 

@@ -241,6 +241,12 @@ struct TikhonovOptions {
   // A singular value of A(u) below rank_tolerance × the largest singular value over all bins counts as
   // zero when reporting unconstrained frequencies and in the minimum-norm path. In (0, 1).
   double rank_tolerance = 1e-9;
+  // Progress and cancellation (core/progress.hpp). The Fourier path is direct: stage "tikhonov" is reported
+  // as iteration 0 of 1 when it starts and 1 of 1 (value λ) when it ends; a cancellation asked then has nothing
+  // left to cut short (a caller such as Python's Ctrl-C handling acts on it after the return). The CG path
+  // reports each PCG iteration of its solves and posterior draws as stage "tikhonov-cg"; returning false stops
+  // it with the current iterate (no std map) and Termination::kUserCancelled. Empty (the default): no cost.
+  ProgressCallback progress;
 
   bool IsValid(std::string* why) const;
 };

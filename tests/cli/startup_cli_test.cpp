@@ -1,0 +1,103 @@
+// The `aosr` launcher (src/cli/launcher/launcher.cpp) against the program it runs (libexec/aosr/aosr-engine):
+// --version, --help and every COMMAND --help answered by the launcher alone are the engine's own bytes and
+// exit status, and everything else reaches the engine unchanged (arguments, exit codes, stderr). Start-up
+// time is not asserted here (tests never assert wall time): README.md, "Start-up", has the measurement and
+// its command.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "support/testing.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using aosr::test::CliRun;
+using aosr::test::RunCli;
+using aosr::test::RunShell;
+using ::testing::HasSubstr;
+
+std::string Engine() {
+  return (fs::path(AOSR_CLI_PATH).parent_path() / "libexec" / "aosr" / "aosr-engine").string();
+}
+
+CliRun RunEngine(const std::string& args) { return RunShell(Engine() + " " + args); }
+
+// The commands the top-level help lists (CLI11: the indented names under "Subcommands:").
+std::vector<std::string> Commands(const std::string& help) {
+  std::vector<std::string> out;
+  std::istringstream in(help.substr(help.find("Subcommands:")));
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line) && line.rfind("  ", 0) == 0) {
+    std::istringstream words(line);
+    std::string name;
+    words >> name;
+    out.push_back(name);
+  }
+  return out;
+}
+
+TEST(StartupCliTest, VersionAndTopLevelHelpAreTheEnginesOwn) {
+  ASSERT_TRUE(fs::exists(Engine())) << Engine();
+  const CliRun v = RunCli("--version");
+  EXPECT_EQ(v.status, 0);
+  EXPECT_THAT(v.out, HasSubstr("aosr "));
+  const CliRun ev = RunEngine("--version");
+  EXPECT_EQ(v.out, ev.out);
+  for (const char* flag : {"--help", "-h"}) {
+    const CliRun h = RunCli(flag), eh = RunEngine(flag);
+    EXPECT_EQ(h.status, 0) << flag;
+    EXPECT_EQ(h.status, eh.status) << flag;
+    EXPECT_EQ(h.out, eh.out) << flag;
+    EXPECT_THAT(h.out, HasSubstr("Usage: aosr"));
+  }
+}
+
+TEST(StartupCliTest, EveryCommandHelpIsTheEnginesOwn) {
+  const std::vector<std::string> commands = Commands(RunEngine("--help").out);
+  // The eight commands of README.md at least (a new command is picked up by the generator on its own).
+  for (const char* c :
+       {"demo", "psf", "simulate", "evaluate", "design", "calibrate", "reconstruct", "tradeoff"})
+    EXPECT_NE(std::find(commands.begin(), commands.end(), c), commands.end()) << c;
+  for (const std::string& c : commands) {
+    for (const char* flag : {"--help", "-h"}) {
+      const CliRun h = RunCli(c + " " + flag), eh = RunEngine(c + " " + flag);
+      EXPECT_EQ(h.status, 0) << c << " " << flag << ": " << h.out;
+      EXPECT_EQ(h.out, eh.out) << c << " " << flag;
+      EXPECT_THAT(h.out, HasSubstr("Usage: aosr " + c)) << c;
+    }
+  }
+}
+
+TEST(StartupCliTest, EverythingElseReachesTheEngine) {
+  // Errors: the same message and exit status as the engine's.
+  for (const char* args :
+       {"", "no-such-command", "--version --help", "evaluate --truth /nonexistent.fits --estimate x.fits",
+        "reconstruct --method", "demo --help --json"}) {
+    const CliRun r = RunCli(args), e = RunEngine(args);
+    EXPECT_EQ(r.status, e.status) << "'" << args << "'";
+    EXPECT_EQ(r.out, e.out) << "'" << args << "'";
+  }
+  // A real command runs (psf is quick) and its output is the engine's.
+  const CliRun r = RunCli("psf paper-8m --mode diffraction --size 32 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("strehl"));
+}
+
+TEST(StartupCliTest, AMissingEngineIsACleanError) {
+  const CliRun r = RunShell("AOSR_ENGINE=/nonexistent/aosr-engine " + std::string(AOSR_CLI_PATH) + " demo");
+  EXPECT_EQ(r.status, 2);
+  EXPECT_THAT(r.out, HasSubstr("cannot run /nonexistent/aosr-engine"));
+  // The fast paths need no engine at all.
+  const CliRun v =
+      RunShell("AOSR_ENGINE=/nonexistent/aosr-engine " + std::string(AOSR_CLI_PATH) + " --version");
+  EXPECT_EQ(v.status, 0);
+}
+
+}  // namespace
