@@ -134,7 +134,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
       result.summary.message += "; the design did not beat the raster on fresh realisations: raster kept";
     }
   }
-  const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds);
+  const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds, result.offsets);
   const std::string name = scene.name + "-" + o.param;
   nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
   if (!validation.is_null()) file["design"]["validation"] = validation;

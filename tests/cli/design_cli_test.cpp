@@ -197,4 +197,28 @@ TEST_F(DesignCliTest, CalibrationWritesCompensatedCommands) {
   EXPECT_GT(compared, 0);
 }
 
+// Every scene shipped in data/scenes/ designs (issue 25: paper-bench.json failed at once, its 25 lenslets not
+// dividing its 128-pixel pupil grid). Brief: 4 Zernike modes, 1 iteration from the raster, the nominal model
+// (no AO realisations), so each scene costs about a second (paper-sim-r8, a 512-px HR grid, ~9 s).
+TEST_F(DesignCliTest, EveryShippedSceneDesigns) {
+  int scenes = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(AOSR_SOURCE_DIR) / "data" / "scenes")) {
+    if (e.path().extension() != ".json") continue;
+    ++scenes;
+    const std::string out = Path(e.path().stem().string() + "-design.json");
+    const CliRun r = RunCli("design " + e.path().string() +
+                            " --modes 4 --starts 1 --iterations 1 --realisations 0 --threads 1 --json -o " + out);
+    ASSERT_EQ(r.status, 0) << e.path() << "\n" << r.out;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_LE(j["objective_final"].get<double>(), j["objective_raster"].get<double>()) << e.path();
+    const nlohmann::json d = nlohmann::json::parse(std::ifstream(out));
+    EXPECT_EQ(d["frames"].size(), j["frames"].get<std::size_t>()) << e.path();
+    if (d["design"].contains("wfs")) {
+      const std::size_t lenslets = d["design"]["wfs"]["lenslets_across"].get<std::size_t>();
+      EXPECT_EQ(d["design"]["wfs"]["pupil_grid_px"].get<std::size_t>() % lenslets, 0u) << e.path();
+    }
+  }
+  EXPECT_GE(scenes, 7);
+}
+
 }  // namespace
