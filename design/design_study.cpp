@@ -196,13 +196,15 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
     vo.realisations = oo.realisations == 0 ? 0 : o.validation_realisations;
     vo.seed = fresh;
     const DesignObjective check(optics, scene.frames, vo);
+    // Without an AO residual (ao mode none) there is nothing to sample: the nominal model is the truth.
+    const int sampled = check.realisations();
     DesignParameterisationOptions ro = po;
     ro.kind = DesignParameterisationKind::kRaster;
     const DesignParameterisation exact_raster(DesignPupilFromScene(scene), scene.frames, scene.r, ro);
     auto per_realisation = [&](const std::vector<Image>& w) {
       std::vector<double> j;
       const MultiFrameModel nominal = check.NominalModel(w);
-      if (vo.realisations == 0) {
+      if (sampled == 0) {
         j.push_back(ExpectedTikhonovMse(nominal, {}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
       } else {
         for (const MultiFrameModel& m : check.RealisedModels(w))
@@ -212,14 +214,14 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
     };
     const std::vector<double> jr = per_realisation(exact_raster.RasterOpds());
     const std::vector<double> jd = per_realisation(result.opds);
-    gain.FromPairs(jr, jd, /*exact=*/vo.realisations == 0);
-    gain.basis = vo.realisations == 0
+    gain.FromPairs(jr, jd, /*exact=*/sampled == 0);
+    gain.basis = sampled == 0
                      ? "objective A, expected MSE of the nominal model (no AO realisations: exact)"
-                     : "objective A, expected MSE on " + std::to_string(vo.realisations) +
+                     : "objective A, expected MSE on " + std::to_string(sampled) +
                            " fresh AO realisations (seed " + std::to_string(fresh) + ")";
     checked = true;
-    if (vo.realisations > 0)
-      validation = {{"realisations", vo.realisations}, {"seed", fresh}, {"objective_raster", gain.objective_raster},
+    if (sampled > 0)
+      validation = {{"realisations", sampled}, {"seed", fresh}, {"objective_raster", gain.objective_raster},
                     {"objective_design", gain.objective_design}};
   } else if (o.objective == "B" && o.validation_realisations > 0) {
     EmpiricalDesignOptions ve = eo;

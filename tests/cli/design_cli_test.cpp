@@ -259,6 +259,13 @@ TEST_F(DesignCliTest, AdvisesTheDesignWhereItPaysAndTheRasterWhereItDoesNot) {
   for (const auto& f : j["design"]["frames"])
     EXPECT_NEAR(std::abs(f["shift_px"][0].get<double>()), 0.25, 1e-12) << "the raster is kept";
 
+  // Without an AO residual (the paper bench: a static scene) the gain is exact, on the nominal model.
+  r = RunCli("design " + scenes + "paper-bench.json --param tiptilt --starts 1 --iterations 3 --threads 1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["gain"]["realisations"], 1);
+  EXPECT_EQ(j["gain"]["stderr_db"].get<double>(), 0.0);
+
   // The text report says it plainly.
   r = RunCli("design " + scenes + "paper-sim-r2.json --param tiptilt --starts 1 --iterations 3 --realisations 0 "
              "--threads 1");
