@@ -1,5 +1,6 @@
 #include "aosr/design/design_file.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -8,15 +9,32 @@
 #include "aosr/design/design_empirical.hpp"
 #include "aosr/design/design_objective.hpp"
 #include "aosr/io/atomic_file.hpp"
+#include "aosr/optics/deformable_mirror.hpp"
+#include "aosr/scene/pipeline.hpp"
 
 namespace aosr {
 namespace {
 
 constexpr double kNm = 1e-9;
 
+// The pupil grid the design file's sensor samples: the telescope's own when its lenslets divide it (with at
+// least 2 pixels per lenslet), else the smallest multiple of the lenslet count above it. The reference slopes
+// are a property of the offset's wavefront and the lenslet geometry, not of the grid the design was computed
+// on: the paper bench's 25 lenslets do not divide its 128-pixel pupil grid (the grid its PSFs need), so its
+// slopes are computed on 150 pixels (6 per lenslet) from the offsets' grid-free description (shifts, Zernike
+// terms, actuator commands) rendered afresh there.
+Index SensorPupilGrid(const SceneSpec& scene) {
+  const Index n = scene.telescope.pupil_px;
+  const Index m = scene.telescope.ao->wfs.lenslets_across;
+  if (m >= 1 && n % m == 0 && n / m >= 2) return n;
+  return m * std::max<Index>(2, (n + m - 1) / m);
+}
+
 std::unique_ptr<ShackHartmann> GeometricSensor(const SceneSpec& scene) {
   if (!scene.telescope.ao) return nullptr;
-  AoSystemSpec spec = scene.telescope.ToAoSystemSpec(SensorKind::kGeometric, 0);
+  TelescopePreset t = scene.telescope;
+  t.pupil_px = SensorPupilGrid(scene);
+  AoSystemSpec spec = t.ToAoSystemSpec(SensorKind::kGeometric, 0);
   ShackHartmannOptions o = spec.wfs;
   o.mode = ShackHartmannMode::kGeometric;
   o.noise = ShackHartmannNoise();  // noise-free: offsets are references, not measurements
@@ -26,19 +44,42 @@ std::unique_ptr<ShackHartmann> GeometricSensor(const SceneSpec& scene) {
 }  // namespace
 
 std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const DesignParameterisation& p,
-                                              const std::vector<Image>& opds) {
+                                              const std::vector<Image>& opds, const std::vector<DmOffset>& offsets) {
   const char* fn = "DescribeDesign";
   CheckArgument(int(opds.size()) == p.frames(), fn, "opds count", opds.size(), std::to_string(p.frames()));
+  CheckArgument(offsets.size() == opds.size(), fn, "offsets count", offsets.size(),
+                std::to_string(opds.size()) + " (one per OPD)");
   std::unique_ptr<ShackHartmann> sh = GeometricSensor(scene);
+  // On a sensor grid other than the pupil grid the OPDs are rendered afresh from the offsets.
+  SceneSpec resampled;
+  std::unique_ptr<DeformableMirror> dm;
+  const bool regrid = sh && SensorPupilGrid(scene) != scene.telescope.pupil_px;
+  if (regrid) {
+    resampled = scene;
+    resampled.telescope.pupil_px = SensorPupilGrid(scene);
+    dm = std::make_unique<DeformableMirror>(resampled.telescope.pupil_px, resampled.telescope.aperture.pupil,
+                                            resampled.telescope.ao->dm);
+  }
   std::vector<DesignFrameReport> out;
-  for (const Image& w : opds) {
+  for (std::size_t i = 0; i < opds.size(); ++i) {
+    const Image& w = opds[i];
     CheckArgument(ShapeOf(w) == Shape{p.pupil_n(), p.pupil_n()}, fn, "opd shape", ToString(ShapeOf(w)),
                   "the pupil grid " + std::to_string(p.pupil_n()));
     DesignFrameReport r;
     r.rms_m = p.OpdRms(w);
     r.strehl = p.StrehlOf(w);
     r.strehl_cost = 1.0 - r.strehl;
-    if (sh) r.reference_slopes_rad = sh->ReferenceOffsetForOpd(w);
+    if (sh) {
+      if (regrid) {
+        if (!offsets[i].actuators_m.empty())
+          CheckArgument(Index(offsets[i].actuators_m.size()) == dm->n_active(), fn,
+                        "offsets[" + std::to_string(i) + "].actuators_m count", offsets[i].actuators_m.size(),
+                        std::to_string(dm->n_active()) + " (the DM's active actuators)");
+        r.reference_slopes_rad = sh->ReferenceOffsetForOpd(ExposureOpd(resampled, offsets[i], Image(), dm.get()));
+      } else {
+        r.reference_slopes_rad = sh->ReferenceOffsetForOpd(w);
+      }
+    }
     out.push_back(std::move(r));
   }
   return out;
@@ -114,6 +155,7 @@ nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, c
     d["wfs"] = {{"model", "shack-hartmann-geometric"},
                 {"lenslets_across", scene.telescope.ao->wfs.lenslets_across},
                 {"valid_subapertures", frames.front().reference_slopes_rad.size() / 2},
+                {"pupil_grid_px", SensorPupilGrid(scene)},
                 {"slope_order", "the sensor's measurement order: x slopes of the valid lenslets, then y slopes"},
                 {"units", "rad of wavefront tilt"}};
   j["design"] = d;

@@ -1,5 +1,8 @@
 #include "aosr/design/design_study.hpp"
 
+#include <cmath>
+#include <cstdio>
+#include <limits>
 #include <memory>
 #include <utility>
 
@@ -11,12 +14,89 @@
 
 namespace aosr {
 
+void DesignGain::FromPairs(const std::vector<double>& raster, const std::vector<double>& design, bool exact) {
+  CheckArgument(!raster.empty() && raster.size() == design.size(), "DesignGain::FromPairs", "sample sizes",
+                std::to_string(raster.size()) + " and " + std::to_string(design.size()), "equal, >= 1");
+  double sr = 0, sd = 0;
+  per_realisation_db.clear();
+  for (std::size_t k = 0; k < raster.size(); ++k) {
+    CheckArgument(raster[k] > 0 && design[k] > 0 && std::isfinite(raster[k]) && std::isfinite(design[k]),
+                  "DesignGain::FromPairs", "objective values", ToString(raster[k]) + ", " + ToString(design[k]),
+                  "finite and > 0");
+    sr += raster[k];
+    sd += design[k];
+    per_realisation_db.push_back(10.0 * std::log10(raster[k] / design[k]));
+  }
+  objective_raster = sr / double(raster.size());
+  objective_design = sd / double(design.size());
+  db = 10.0 * std::log10(objective_raster / objective_design);
+  realisations = int(raster.size());
+  if (exact) {
+    stderr_db = 0.0;
+  } else if (raster.size() >= 2) {
+    double mean = 0, ss = 0;
+    for (double g : per_realisation_db) mean += g;
+    mean /= double(per_realisation_db.size());
+    for (double g : per_realisation_db) ss += (g - mean) * (g - mean);
+    const double n = double(per_realisation_db.size());
+    stderr_db = std::sqrt(ss / (n - 1) / n);
+  } else {
+    stderr_db = std::numeric_limits<double>::quiet_NaN();
+  }
+}
+
+void DesignGain::Decide() {
+  char buf[256];
+  if (db < threshold_db) {
+    advice = "raster";
+    std::snprintf(buf, sizeof buf, "the expected gain, %+.2f dB, is below the threshold of %.2f dB", db, threshold_db);
+  } else if (std::isfinite(stderr_db) && db <= 2.0 * stderr_db) {
+    advice = "raster";
+    std::snprintf(buf, sizeof buf, "the expected gain, %+.2f +- %.2f dB, is not significantly above 0 (2 standard errors)",
+                  db, stderr_db);
+  } else {
+    advice = "design";
+    if (std::isfinite(stderr_db))
+      std::snprintf(buf, sizeof buf, "the expected gain, %+.2f +- %.2f dB, is at least %.2f dB and more than 2 standard "
+                    "errors above 0", db, stderr_db, threshold_db);
+    else
+      std::snprintf(buf, sizeof buf, "the expected gain, %+.2f dB, is at least %.2f dB (its uncertainty is unknown: "
+                    "one sample)", db, threshold_db);
+  }
+  reason = buf;
+}
+
+std::string DesignGain::BriefReport() const {
+  char buf[160];
+  if (std::isfinite(stderr_db))
+    std::snprintf(buf, sizeof buf, "%+.2f +- %.2f dB", db, stderr_db);
+  else
+    std::snprintf(buf, sizeof buf, "%+.2f dB (uncertainty unknown)", db);
+  return std::string(buf) + " (" + basis + "): " + (advice == "design" ? "use the design" : "keep the raster");
+}
+
+nlohmann::json DesignGain::ToJson() const {
+  nlohmann::json j = {{"db", db},
+                      {"stderr_db", std::isfinite(stderr_db) ? nlohmann::json(stderr_db) : nlohmann::json()},
+                      {"per_realisation_db", per_realisation_db},
+                      {"realisations", realisations},
+                      {"objective_raster", objective_raster},
+                      {"objective_design", objective_design},
+                      {"basis", basis},
+                      {"threshold_db", threshold_db},
+                      {"advice", advice},
+                      {"reason", reason}};
+  return j;
+}
+
 DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
                            const std::function<void(const std::string&)>& progress) {
   const std::function<void(const std::string&)> step = [&progress](const std::string& m) {
     if (progress) progress(m);
   };
   CheckArgument(o.objective == "A" || o.objective == "B", "RunDesignStudy", "objective", o.objective, "A | B");
+  CheckArgument(std::isfinite(o.min_gain_db) && o.min_gain_db >= 0, "RunDesignStudy", "min_gain_db", o.min_gain_db,
+                ">= 0 and finite [dB]");
   DesignParameterisationOptions po;
   po.kind = ParseDesignParameterisation(o.param);
   po.zernike_modes = o.modes;
@@ -95,52 +175,97 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   DesignResult result = OptimizeDesign(objective, parameterisation, opt);
   // The optimiser only sees the sample it was built with (R realisations; for objective B also K scenes and
   // one noise draw each): a design can fit that sample's particulars. The design and the raster are re-judged
-  // on a fresh sample (objective A: fresh realisations; B: also fresh noise and three fresh dead-leaves scenes)
-  // and the raster is kept unless the design wins there too.
+  // on a fresh sample (objective A: fresh realisations; B: also fresh noise and three fresh dead-leaves scenes).
+  // The expected gain over the raster comes from that sample (DesignGain, design_study.hpp), and the raster
+  // is kept unless the advice is to use the design.
   nlohmann::json validation;
-  const bool validate = o.validation_realisations > 0 && result.summary.improved &&
-                        result.summary.termination != Termination::kUserCancelled &&
-                        (o.objective == "B" || oo.realisations > 0);
-  if (validate) {
-    const std::uint64_t fresh = o.seed + 1000003;
-    std::unique_ptr<DesignCriterion> check;
-    if (o.objective == "A") {
-      DesignObjectiveOptions vo = oo;
-      vo.realisations = o.validation_realisations;
-      vo.seed = fresh;
-      check = std::make_unique<DesignObjective>(optics, scene.frames, vo);
-    } else {
-      EmpiricalDesignOptions ve = eo;
-      ve.training_scenes = DefaultTrainingScenes({optics.grid, optics.grid}, 3, fresh);
-      ve.noise_seed = fresh;
-      ve.seed = fresh;
-      if (ve.realisations > 0) ve.realisations = o.validation_realisations;
-      check = std::make_unique<EmpiricalDesignObjective>(optics, scene.frames, ve);
-    }
-    const Vector raster_theta = parameterisation.RasterParameters();
-    const double j_raster = check->Evaluate(parameterisation.Opds(raster_theta));
-    const double j_design = check->Evaluate(result.opds);
-    const bool keep = j_design < j_raster;
-    validation = {{"realisations", check->realisations()}, {"seed", fresh}, {"objective_raster", j_raster},
-                  {"objective_design", j_design}, {"kept", keep ? "design" : "raster"}};
-    if (o.objective == "B") validation["scenes"] = "3 dead-leaves scenes (fresh seed), fresh noise";
-    step("validation on a fresh sample: J raster " + ToString(j_raster) + ", design " +
-                  ToString(j_design) + (keep ? ": design kept" : ": raster kept"));
-    if (!keep) {
-      result.parameters = raster_theta;
-      result.coefficients = parameterisation.Coefficients(raster_theta);
-      result.offsets = parameterisation.Offsets(raster_theta);
-      result.opds = parameterisation.Opds(raster_theta);
-      result.summary.final_objective = result.summary.final_cost = result.summary.initial_objective;
-      result.summary.improved = false;
-      result.summary.message += "; the design did not beat the raster on fresh realisations: raster kept";
-    }
+  DesignGain gain;
+  gain.threshold_db = o.min_gain_db;
+  const std::uint64_t fresh = o.seed + 1000003;
+  const Vector raster_theta = parameterisation.RasterParameters();
+  if (result.summary.termination == Termination::kUserCancelled) {
+    // Cancelled: the best design so far is returned as it is, without the fresh-sample check.
+    gain.FromPairs({result.summary.raster_objective}, {result.summary.final_objective}, /*exact=*/false);
+    gain.basis = "cancelled by the caller: the optimiser's own sample, not validated";
+  } else if (!result.summary.improved) {
+    gain.basis = "the optimiser returned its start, the raster";
+    gain.stderr_db = 0.0;
+    gain.objective_raster = result.summary.raster_objective;
+    gain.objective_design = result.summary.final_objective;
+  } else if (o.objective == "A" && (oo.realisations == 0 || o.validation_realisations > 0)) {
+    // Objective A per realisation: J_k = ExpectedTikhonovMse(nominal, {realisation k}); their mean is J. With
+    // R = 0 the frames follow the nominal model and J is exact (no sampling error).
+    DesignObjectiveOptions vo = oo;
+    vo.realisations = oo.realisations == 0 ? 0 : o.validation_realisations;
+    vo.seed = fresh;
+    const DesignObjective check(optics, scene.frames, vo);
+    // Without an AO residual (ao mode none) there is nothing to sample: the nominal model is the truth.
+    const int sampled = check.realisations();
+    DesignParameterisationOptions ro = po;
+    ro.kind = DesignParameterisationKind::kRaster;
+    const DesignParameterisation exact_raster(DesignPupilFromScene(scene), scene.frames, scene.r, ro);
+    auto per_realisation = [&](const std::vector<Image>& w) {
+      std::vector<double> j;
+      const MultiFrameModel nominal = check.NominalModel(w);
+      if (sampled == 0) {
+        j.push_back(ExpectedTikhonovMse(nominal, {}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
+      } else {
+        for (const MultiFrameModel& m : check.RealisedModels(w))
+          j.push_back(ExpectedTikhonovMse(nominal, {m}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
+      }
+      return j;
+    };
+    const std::vector<double> jr = per_realisation(exact_raster.RasterOpds());
+    const std::vector<double> jd = per_realisation(result.opds);
+    gain.FromPairs(jr, jd, /*exact=*/sampled == 0);
+    gain.basis = sampled == 0
+                     ? "objective A, expected MSE of the nominal model (no AO realisations: exact)"
+                     : "objective A, expected MSE on " + std::to_string(sampled) +
+                           " fresh AO realisations (seed " + std::to_string(fresh) + ")";
+    if (sampled > 0)
+      validation = {{"realisations", sampled}, {"seed", fresh}, {"objective_raster", gain.objective_raster},
+                    {"objective_design", gain.objective_design}};
+  } else if (o.objective == "B" && o.validation_realisations > 0) {
+    EmpiricalDesignOptions ve = eo;
+    ve.training_scenes = DefaultTrainingScenes({optics.grid, optics.grid}, 3, fresh);
+    ve.noise_seed = fresh;
+    ve.seed = fresh;
+    if (ve.realisations > 0) ve.realisations = o.validation_realisations;
+    const EmpiricalDesignObjective check(optics, scene.frames, ve);
+    const double j_raster = check.Evaluate(parameterisation.Opds(raster_theta));
+    const double j_design = check.Evaluate(result.opds);
+    gain.FromPairs({j_raster}, {j_design}, /*exact=*/false);
+    gain.basis = "objective B, mean MAP loss on 3 fresh dead-leaves scenes with fresh noise" +
+                 std::string(ve.realisations > 0 ? " and " + std::to_string(ve.realisations) + " fresh AO realisations"
+                                                 : "") +
+                 " (one pooled sample: no standard error)";
+    validation = {{"realisations", check.realisations()}, {"seed", fresh}, {"objective_raster", j_raster},
+                  {"objective_design", j_design}, {"scenes", "3 dead-leaves scenes (fresh seed), fresh noise"}};
+  } else {
+    // No check asked for (validation_realisations = 0): the optimiser's own sample, which flatters the design.
+    gain.FromPairs({result.summary.raster_objective}, {result.summary.final_objective}, /*exact=*/false);
+    gain.basis = "the optimiser's own sample (not validated: --validation-realisations 0)";
   }
-  const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds);
+  gain.Decide();
+  if (!validation.is_null()) validation["kept"] = gain.advice;
+  step("expected gain over the raster: " + gain.BriefReport());
+  if (result.summary.improved && gain.advice == "raster" &&
+      result.summary.termination != Termination::kUserCancelled) {
+    result.parameters = raster_theta;
+    result.coefficients = parameterisation.Coefficients(raster_theta);
+    result.offsets = parameterisation.Offsets(raster_theta);
+    result.opds = parameterisation.Opds(raster_theta);
+    result.summary.final_objective = result.summary.final_cost = result.summary.initial_objective;
+    result.summary.improved = false;
+    result.summary.message += "; the design did not beat the raster by at least " + ToString(o.min_gain_db) +
+                              " dB, significantly (" + gain.basis + "): raster kept";
+  }
+  const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds, result.offsets);
   const std::string name = scene.name + "-" + o.param;
   nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
   if (!validation.is_null()) file["design"]["validation"] = validation;
   if (!spectrum_record.is_null()) file["design"]["object_spectrum"] = spectrum_record;
+  file["design"]["gain"] = gain.ToJson();
 
   DesignStudy out;
   out.method = objective.method();
@@ -165,6 +290,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   j["objective_final"] = s.final_objective;
   j["improved"] = s.improved;
   j["validation"] = validation;
+  j["gain"] = gain.ToJson();
   j["object_spectrum"] = spectrum_record;
   j["starts"] = s.start_objectives;
   j["iterations"] = s.iterations;
@@ -172,6 +298,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   j["termination"] = ToString(s.termination);
   j["message"] = s.message;
   j["optimise_seconds"] = s.seconds;
+  out.gain = gain;
   out.result = std::move(result);
   out.reports = reports;
   out.file = std::move(file);

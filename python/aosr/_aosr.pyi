@@ -174,7 +174,7 @@ def design(scene: Union[Scene, PathLike], *, output: Optional[PathLike] = None, 
            iterations: int = 100, threads: int = 2, seed: int = 1, objective: str = "A", loss: str = "l1",
            training_scenes: int = 3, training: Sequence[str] = ..., training_zoom: float = 1.0,
            noise_sigma: float = 0.04, validation_realisations: int = 4, map_lambda: float = -1.0,
-           epsilon: float = 1e-3, map_prior: str = "charbonnier-tv",
+           epsilon: float = 1e-3, map_prior: str = "charbonnier-tv", min_gain: float = 0.2,
            progress: Optional[Callable[[ProgressDict], Optional[bool]]] = None) -> Dict[str, Any]: ...
 
 # calib

@@ -26,3 +26,19 @@ def test_design_matches_cli(cli, tmp_path):
 def test_design_errors(kwargs, needle):
     with pytest.raises(aosr.InvalidArgument, match=needle):
         aosr.design(aosr.data_path("scenes", "paper-sim-r2.json"), **kwargs)
+
+
+def test_design_reports_the_gain_and_advice():
+    # Issue 25: J band on the 8 m at r = 2 gains over the raster; the K-band paper scene keeps the raster.
+    common = dict(starts=1, realisations=1, screens=2, validation_realisations=3, threads=1)
+    j = aosr.design(aosr.data_path("scenes", "paper-sim-j-r2.json"), param="tiptilt", iterations=15, **common)
+    assert j["gain"]["advice"] == "design"
+    assert j["gain"]["db"] > 1.0 and j["gain"]["stderr_db"] < 0.2
+    assert j["design"]["design"]["gain"] == j["gain"]
+    k = aosr.design(aosr.data_path("scenes", "paper-sim-r2.json"), param="tiptilt", iterations=5, **common)
+    assert k["gain"]["advice"] == "raster"
+    high = aosr.design(aosr.data_path("scenes", "paper-sim-j-r2.json"), param="tiptilt", iterations=15,
+                       min_gain=10.0, **common)
+    assert high["gain"]["advice"] == "raster" and not high["improved"]
+    with pytest.raises(aosr.InvalidArgument, match="min_gain"):
+        aosr.design(aosr.data_path("scenes", "paper-sim-r2.json"), min_gain=-1.0)

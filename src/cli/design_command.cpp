@@ -48,6 +48,7 @@ struct DesignArgs {
   double map_lambda = -1.0;  // < 0: automatic (below)
   double epsilon = 1e-3;
   std::string map_prior = "charbonnier-tv";
+  double min_gain_db = 0.2;
   // Options given on the command line that belong to one objective only (checked in RunDesign).
   std::vector<std::pair<CLI::Option*, char>> objective_only;
   ExecutionArgs exec;
@@ -96,6 +97,7 @@ void RunDesign(const DesignArgs& a) {
   so.map_lambda = a.map_lambda;
   so.epsilon = a.epsilon;
   so.map_prior = a.map_prior;
+  so.min_gain_db = a.min_gain_db;
   // The study itself is the library's (design/design_study.hpp), shared with the Python aosr.design().
   DesignStudy study = RunDesignStudy(scene, so, [&progress](const std::string& m) { progress.Step(m); });
   const DesignResult& result = study.result;
@@ -133,6 +135,10 @@ void RunDesign(const DesignArgs& a) {
     std::printf("%-6zu %10.4f %10.4f %9.1f %9.4f %10zu\n", i, o.shift_y_px, o.shift_x_px, reports[i].rms_m * 1e9,
                 reports[i].strehl, terms);
   }
+  const DesignGain& g = study.gain;
+  std::printf("expected gain over the raster: %s\nbasis: %s\nadvice: %s: %s\n",
+              g.BriefReport().substr(0, g.BriefReport().find(" (")).c_str(), g.basis.c_str(),
+              g.advice == "design" ? "use the design" : "keep the raster", g.reason.c_str());
   std::printf("total %.2f s%s\n", clock.Seconds(), a.output.empty() ? "" : ("; design written to " + a.output).c_str());
 }
 
@@ -230,6 +236,11 @@ void RegisterDesign(CLI::App& app) {
            ->check(CLI::PositiveNumber)
            ->capture_default_str(),
        'B'});
+  cmd->add_option("--min-gain", a->min_gain_db,
+                  "smallest expected gain over the raster [dB] for which the design is advised and kept (it must also "
+                  "exceed 2 standard errors over the validation realisations); else the raster is kept")
+      ->check(NonNegativeFinite())
+      ->capture_default_str();
   // Objective A only.
   for (CLI::Option* o : {cmd->get_option("--lambda"), cmd->get_option("--prior")}) a->objective_only.push_back({o, 'A'});
   AddExecutionOptions(cmd, &a->exec, /*with_threads=*/false);

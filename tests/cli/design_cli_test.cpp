@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -143,8 +144,10 @@ TEST_F(DesignCliTest, ObjectiveAWithTrainingFitsTheSpectrumAndValidates) {
   if (j["improved"].get<bool>() || !j["validation"].is_null()) {
     ASSERT_FALSE(j["validation"].is_null());
     const bool kept_design = j["validation"]["kept"] == "design";
-    EXPECT_EQ(kept_design, j["validation"]["objective_design"].get<double>() <
-                               j["validation"]["objective_raster"].get<double>());
+    // The design is kept only when it wins on the fresh sample by at least --min-gain (0.2 dB).
+    if (kept_design)
+      EXPECT_LT(j["validation"]["objective_design"].get<double>(), j["validation"]["objective_raster"].get<double>());
+    EXPECT_EQ(kept_design, j["gain"]["advice"] == "design");
     EXPECT_EQ(kept_design, j["improved"].get<bool>());
   }
   r = RunCli("design " + Path("scene.json") + " --param raster --noise-sigma 0.05");
@@ -164,8 +167,10 @@ TEST_F(DesignCliTest, ObjectiveBDesignIsValidatedOnFreshScenes) {
   if (!j["validation"].is_null()) {
     EXPECT_EQ(j["validation"]["scenes"], "3 dead-leaves scenes (fresh seed), fresh noise");
     const bool kept_design = j["validation"]["kept"] == "design";
-    EXPECT_EQ(kept_design, j["validation"]["objective_design"].get<double>() <
-                               j["validation"]["objective_raster"].get<double>());
+    // The design is kept only when it wins on the fresh sample by at least --min-gain (0.2 dB).
+    if (kept_design)
+      EXPECT_LT(j["validation"]["objective_design"].get<double>(), j["validation"]["objective_raster"].get<double>());
+    EXPECT_EQ(kept_design, j["gain"]["advice"] == "design");
     EXPECT_EQ(kept_design, j["improved"].get<bool>());
     EXPECT_EQ(j["design"]["design"]["validation"], j["validation"]);
   }
@@ -195,6 +200,78 @@ TEST_F(DesignCliTest, CalibrationWritesCompensatedCommands) {
     EXPECT_NEAR(d["frames"][i]["shift_px"][1].get<double>(), applied[i]["shift_px"][1].get<double>() / 0.5, 1e-12);
   }
   EXPECT_GT(compared, 0);
+}
+
+// Every scene shipped in data/scenes/ designs (issue 25: paper-bench.json failed at once, its 25 lenslets not
+// dividing its 128-pixel pupil grid). Brief: 4 Zernike modes, 1 iteration from the raster, the nominal model
+// (no AO realisations), so each scene costs about a second (paper-sim-r8, a 512-px HR grid, ~9 s).
+TEST_F(DesignCliTest, EveryShippedSceneDesigns) {
+  int scenes = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(AOSR_SOURCE_DIR) / "data" / "scenes")) {
+    if (e.path().extension() != ".json") continue;
+    ++scenes;
+    const std::string out = Path(e.path().stem().string() + "-design.json");
+    const CliRun r = RunCli("design " + e.path().string() +
+                            " --modes 4 --starts 1 --iterations 1 --realisations 0 --threads 1 --json -o " + out);
+    ASSERT_EQ(r.status, 0) << e.path() << "\n" << r.out;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    // The design, or the raster in its parameterisation when the advice keeps it (equal to rounding).
+    EXPECT_LE(j["objective_final"].get<double>(), j["objective_raster"].get<double>() * (1 + 1e-9)) << e.path();
+    EXPECT_TRUE(j["gain"]["advice"] == "design" || j["gain"]["advice"] == "raster") << e.path();
+    const nlohmann::json d = nlohmann::json::parse(std::ifstream(out));
+    EXPECT_EQ(d["frames"].size(), j["frames"].get<std::size_t>()) << e.path();
+    if (d["design"].contains("wfs")) {
+      const std::size_t lenslets = d["design"]["wfs"]["lenslets_across"].get<std::size_t>();
+      EXPECT_EQ(d["design"]["wfs"]["pupil_grid_px"].get<std::size_t>() % lenslets, 0u) << e.path();
+    }
+  }
+  EXPECT_GE(scenes, 7);
+}
+
+// The advice (issue 25): in J band on the 8 m (camera pixel 1.76 lambda/D, r = 2: the HR grid coarser than
+// Nyquist) a design gains ~1.9 dB of expected MSE over the raster, well beyond its standard error over the
+// validation realisations, and `aosr design` advises it; on the shipped K-band scene (camera pixel lambda/D,
+// r = 2: the HR grid at Nyquist) it advises keeping the raster, and the file then holds the raster.
+TEST_F(DesignCliTest, AdvisesTheDesignWhereItPaysAndTheRasterWhereItDoesNot) {
+  const std::string scenes = std::string(AOSR_SOURCE_DIR) + "/data/scenes/";
+  CliRun r = RunCli("design " + scenes + "paper-sim-j-r2.json --param tiptilt --starts 1 --iterations 15 "
+                    "--realisations 1 --screens 2 --validation-realisations 3 --threads 1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["gain"]["advice"], "design") << j["gain"].dump(2);
+  EXPECT_GT(j["gain"]["db"].get<double>(), 1.0);
+  EXPECT_LT(j["gain"]["stderr_db"].get<double>(), 0.2);
+  EXPECT_EQ(j["gain"]["realisations"], 3);
+  EXPECT_EQ(j["gain"]["per_realisation_db"].size(), 3u);
+  EXPECT_EQ(j["design"]["design"]["gain"], j["gain"]);
+  EXPECT_NEAR(j["gain"]["db"].get<double>(),
+              10 * std::log10(j["gain"]["objective_raster"].get<double>() / j["gain"]["objective_design"].get<double>()),
+              1e-12);
+  EXPECT_TRUE(j["improved"].get<bool>());
+
+  r = RunCli("design " + scenes + "paper-sim-r2.json --param zernike --modes 6 --starts 1 --iterations 10 "
+             "--realisations 1 --screens 2 --validation-realisations 3 --threads 1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["gain"]["advice"], "raster") << j["gain"].dump(2);
+  EXPECT_LT(j["gain"]["db"].get<double>(), 0.2);
+  EXPECT_FALSE(j["improved"].get<bool>());
+  for (const auto& f : j["design"]["frames"])
+    EXPECT_NEAR(std::abs(f["shift_px"][0].get<double>()), 0.25, 1e-12) << "the raster is kept";
+
+  // Without an AO residual (the paper bench: a static scene) the gain is exact, on the nominal model.
+  r = RunCli("design " + scenes + "paper-bench.json --param tiptilt --starts 1 --iterations 3 --threads 1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["gain"]["realisations"], 1);
+  EXPECT_EQ(j["gain"]["stderr_db"].get<double>(), 0.0);
+
+  // The text report says it plainly.
+  r = RunCli("design " + scenes + "paper-sim-r2.json --param tiptilt --starts 1 --iterations 3 --realisations 0 "
+             "--threads 1");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("expected gain over the raster: "));
+  EXPECT_THAT(r.out, HasSubstr("advice: keep the raster"));
 }
 
 }  // namespace

@@ -9,7 +9,7 @@
 //       "parameterisation": "zernike", "scene": "...", "reconstructor": {...},
 //       "objective": {"raster": J_r, "start": J_0, "final": J, "units": "..."}, "summary": "...",
 //       "wfs": {"model": "shack-hartmann-geometric", "lenslets_across": M, "valid_subapertures": V,
-//               "slope_order": "...", "units": "rad"},
+//               "pupil_grid_px": n_s, "slope_order": "...", "units": "rad"},
 //       "frames": [ {"rms_nm": ..., "strehl": ..., "strehl_cost": ..., "reference_slopes_rad": [...]}, ... ]
 //     }
 //   }
@@ -39,10 +39,13 @@ struct DesignFrameReport {
   Vector reference_slopes_rad;  // SH reference-slope offsets [rad]; empty without a Shack-Hartmann
 };
 
-// Per exposure reports for the OPDs of a design (n x n [m] each). The slopes use the scene's telescope's
-// Shack-Hartmann geometry (geometric model, noise-free) when it has an AO section; otherwise they are empty.
+// Per exposure reports for the OPDs of a design (n x n [m] each) and the same exposures' offsets (the design
+// result's `offsets`). The slopes use the scene's telescope's Shack-Hartmann geometry (geometric model,
+// noise-free) when it has an AO section; otherwise they are empty. The sensor samples the pupil on the
+// telescope's grid when its lenslets divide it, else on the smallest multiple of the lenslet count above it
+// (the file's "wfs.pupil_grid_px"), with each offset rendered afresh there (scene/pipeline.hpp ExposureOpd).
 std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const DesignParameterisation& parameterisation,
-                                              const std::vector<Image>& opds);
+                                              const std::vector<Image>& opds, const std::vector<DmOffset>& offsets);
 
 // The whole design file as JSON (format above). `scene` names the scene file; `frames` the per-exposure reports.
 nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, const DesignResult& result,

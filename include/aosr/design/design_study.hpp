@@ -1,7 +1,8 @@
 // One phase-design study as `aosr design` runs it: the scene's design model, objective A (expected Tikhonov/Wiener
 // MSE, design_objective.hpp, optionally with an object spectrum fitted to training images) or B (mean MAP loss over
 // training scenes, design_empirical.hpp), OptimizeDesign from the raster and perturbed starts, the check on a fresh
-// sample that keeps the raster unless the design wins there too, and the design file (design_file.hpp).
+// sample, the expected gain over the raster with its uncertainty and the advice (DesignGain: the raster is kept
+// unless the design gains at least min_gain_db, significantly), and the design file (design_file.hpp).
 // The CLI (src/cli/design_command.cpp) and the Python aosr.design() both call RunDesignStudy, so a design made
 // from either is the same file, bit for bit.
 #pragma once
@@ -46,10 +47,43 @@ struct DesignStudyOptions {
   // After a cancellation the best design so far is kept and the fresh-sample check is skipped (the summary's
   // termination says "cancelled"). Not a CLI option (the CLI stops on Ctrl-C); Python's aosr.design uses it.
   ProgressCallback progress;
+  double min_gain_db = 0.2;       // the smallest expected gain [dB] for which the design is advised (and kept)
+};
+
+// The expected gain of a design over the classic raster and the advice that follows.
+//
+// gain = 10 log10(J_raster / J_design) [dB], J the objective's mean over the check sample. For objective A J
+// is the expected MSE per HR pixel of the Tikhonov/Wiener reconstruction, so the gain is the expected PSNR
+// gain of that reconstructor. Its uncertainty is the standard error of the per-realisation gains
+// g_k = 10 log10(J_raster,k / J_design,k) over the V fresh AO realisations (sd(g_k) / sqrt(V), paired: the
+// raster and the design see the same residual screens); 0 when the frames follow the nominal model
+// (realisations = 0: J is exact), unknown (NaN, JSON null) for one pooled sample (objective B, V = 1, or no
+// check). The advice is "design" when gain >= threshold_db and gain > 2 standard errors (when known), else
+// "raster": keep the classic raster; the study then returns the raster.
+struct DesignGain {
+  double db = 0.0;
+  double stderr_db = 0.0;
+  std::vector<double> per_realisation_db;
+  int realisations = 0;            // V (1: the nominal model or a pooled sample)
+  double objective_raster = 0.0;   // mean J of the exact classic raster over the check sample
+  double objective_design = 0.0;   // mean J of the optimised design
+  std::string basis;               // what J and the sample were, in words
+  double threshold_db = 0.2;
+  std::string advice = "raster";   // "design" | "raster"
+  std::string reason;              // one sentence: why
+
+  // Sets db, stderr_db, per_realisation_db, realisations and the means from paired samples (> 0, finite).
+  void FromPairs(const std::vector<double>& raster, const std::vector<double>& design, bool exact);
+  // Sets advice and reason from db, stderr_db and threshold_db.
+  void Decide();
+  // "+1.23 +- 0.04 dB (basis): use the design".
+  std::string BriefReport() const;
+  nlohmann::json ToJson() const;
 };
 
 struct DesignStudy {
-  DesignResult result;                     // the design kept (the raster if it lost the fresh-sample check)
+  DesignResult result;                     // the design kept (the raster unless the advice is "design")
+  DesignGain gain;                         // its expected gain over the raster and the advice
   std::vector<DesignFrameReport> reports;  // per exposure: RMS, Strehl
   nlohmann::json file;                     // the design file (WriteDesignFile writes it)
   nlohmann::json summary;                  // what `aosr design --json` prints, without total_seconds/output
