@@ -37,6 +37,7 @@ struct ReconstructArgs {
   std::string offsets = "auto";
   double registration_range = 0.5;           // --registration-range [camera px]
   std::string registration_anchor = "mean";  // --registration-anchor
+  int registration_rounds = 4;               // --registration-rounds
   std::string model_psfs;
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
@@ -104,6 +105,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   dpo.offsets = ParseDatasetOffsets(a.offsets);
   dpo.registration.search_range_camera_px = a.registration_range;
   dpo.registration.anchor = ParseRegistrationAnchor(a.registration_anchor);
+  dpo.registration.outer_iterations = a.registration_rounds;
   // Options, checked before anything is read or computed.
   o.tikhonov.prior = ParseTikhonovPrior(a.prior);
   if (a.lambda >= 0) {
@@ -366,6 +368,10 @@ void RegisterReconstruct(CLI::App& app) {
                   "--offsets estimate: largest correction to a commanded offset [camera px]; a frame beyond is an error")
       ->capture_default_str()
       ->check(CLI::Range(1e-3, 4.0));
+  cmd->add_option("--registration-rounds", a->registration_rounds,
+                  "--offsets estimate: reconstruct-register rounds at most (stops earlier when converged)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 50));
   cmd->add_option("--registration-anchor", a->registration_anchor,
                   "--offsets estimate: mean (the estimated set keeps the commanded mean) | frame0 (frame 0 keeps its "
                   "commanded offset)")
