@@ -119,7 +119,7 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
           throw InvalidArgument(kFn, FrameName(i) + " offset from the commanded one (cross-correlation)",
                                 ToString(dy / r) + ", " + ToString(dx / r) + " camera px",
                                 "within the search range ±" + ToString(options.search_range_camera_px) +
-                                    " camera px (RegistrationOptions::search_range_camera_px)");
+                                    " camera px (RegistrationOptions::search_range_camera_px, `aosr reconstruct --registration-range`)");
       }
       // Refined: Gauss-Newton on ‖√w (y − D S_δ z)‖².
       const Image gy = (FourierShiftImage(z, kEps, 0) - FourierShiftImage(z, -kEps, 0)) / (2 * kEps);
@@ -144,7 +144,7 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
           throw InvalidArgument(kFn, FrameName(i) + " offset from the commanded one (refinement)",
                                 ToString(dy / r) + ", " + ToString(dx / r) + " camera px",
                                 "within the search range ±" + ToString(options.search_range_camera_px) +
-                                    " camera px (RegistrationOptions::search_range_camera_px)");
+                                    " camera px (RegistrationOptions::search_range_camera_px, `aosr reconstruct --registration-range`)");
         if (std::max(std::abs(step(0)), std::abs(step(1))) < 0.1 * tol_hr) break;
       }
       const double s2 = rss / double(std::max<Index>(used - 2, 1));
