@@ -153,7 +153,8 @@ DatasetOffsets ParseDatasetOffsets(const std::string& name) {
   if (name == "auto") return DatasetOffsets::kAuto;
   if (name == "dm") return DatasetOffsets::kDmShifts;
   if (name == "centroids") return DatasetOffsets::kPsfCentroids;
-  throw InvalidArgument("ParseDatasetOffsets", "offsets", name, "auto | dm | centroids");
+  if (name == "estimate") return DatasetOffsets::kEstimate;
+  throw InvalidArgument("ParseDatasetOffsets", "offsets", name, "auto | dm | centroids | estimate");
 }
 
 FrameOffset KernelCentroid(const Image& k) {
@@ -278,7 +279,8 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   // ---- Offsets. ---------------------------------------------------------------------------------------------
   bool any_shift = false;
   for (const DmOffset& o : d.offsets) any_shift = any_shift || o.shift_y_px != 0 || o.shift_x_px != 0;
-  const bool dm = options.offsets == DatasetOffsets::kDmShifts || (options.offsets == DatasetOffsets::kAuto && any_shift);
+  const bool automatic = options.offsets == DatasetOffsets::kAuto || options.offsets == DatasetOffsets::kEstimate;
+  const bool dm = options.offsets == DatasetOffsets::kDmShifts || (automatic && any_shift);
   for (std::size_t i = 0; i < n; ++i) {
     if (dm) {
       const DmOffset o = i < d.offsets.size() ? d.offsets[i] : DmOffset{};
@@ -289,6 +291,13 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   }
   out.offsets_source = dm ? "dm shifts" : "psf centroids";
   out.problem.Validate(kFn);
+  if (options.offsets == DatasetOffsets::kEstimate) {
+    RegistrationResult reg = RegisterFrames(out.problem, options.registration);
+    out.problem = reg.problem;
+    reg.problem = {};  // the problem is out.problem; do not keep the frames twice
+    out.offsets_source = "estimated from the frames (commanded: " + out.offsets_source + ")";
+    out.registration = std::move(reg);
+  }
   return out;
 }
 

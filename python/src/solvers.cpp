@@ -295,6 +295,8 @@ struct PyReconstruction {
   std::string method, weights_source, offsets_source;
   bool model_psfs_replaced = false;
   Index masked_pixels = 0;
+  std::optional<RegistrationResult> registration;
+  int r = 1;
 };
 
 }  // namespace
@@ -378,6 +380,29 @@ void BindSolvers(py::module_& m) {
       .def_property_readonly("offsets_source", [](const PyReconstruction& r) { return r.offsets_source; })
       .def_property_readonly("model_psfs_replaced", [](const PyReconstruction& r) { return r.model_psfs_replaced; })
       .def_property_readonly("masked_pixels", [](const PyReconstruction& r) { return r.masked_pixels; })
+      .def_property_readonly(
+          "registration",
+          [](const PyReconstruction& r) -> py::object {
+            // offsets='estimate': per frame commanded and estimated offsets and the standard error, camera px.
+            if (!r.registration) return py::none();
+            const RegistrationResult& g = *r.registration;
+            py::list frames;
+            for (std::size_t i = 0; i < g.estimated.size(); ++i) {
+              py::dict f;
+              f["commanded_camera_px"] = py::make_tuple(g.commanded[i].dy / r.r, g.commanded[i].dx / r.r);
+              f["estimated_camera_px"] = py::make_tuple(g.estimated[i].dy / r.r, g.estimated[i].dx / r.r);
+              f["sigma_camera_px"] = g.sigma_hr_px[i] / r.r;
+              frames.append(f);
+            }
+            py::dict d;
+            d["frames"] = frames;
+            d["rounds"] = g.rounds;
+            d["converged"] = g.converged;
+            d["seconds"] = g.seconds;
+            return d;
+          },
+          "offsets='estimate': {'frames': [{'commanded_camera_px': (dy, dx), 'estimated_camera_px': (dy, dx), "
+          "'sigma_camera_px': s}, ...], 'rounds', 'converged', 'seconds'}; else None")
       .def("__repr__", [](const PyReconstruction& r) {
         return "<aosr.Reconstruction " + r.method + " " + ToString(ShapeOf(r.rec.image)) + ": " +
                ToString(r.rec.summary.termination) + ", " + std::to_string(r.rec.summary.iterations) + " iterations, " +
@@ -387,7 +412,8 @@ void BindSolvers(py::module_& m) {
   m.def(
       "reconstruct",
       [](py::object dataset, const std::string& method, const std::string& weights, const std::string& offsets,
-         py::object model_psfs, py::object progress, py::kwargs kwargs) {
+         py::object model_psfs, py::object progress, double registration_range, const std::string& registration_anchor,
+         py::kwargs kwargs) {
         // Everything is parsed and checked before any work (as the CLI does).
         ReconstructOptions o = CliDefaults();
         o.method = ParseReconstructionMethod(method);
@@ -395,6 +421,11 @@ void BindSolvers(py::module_& m) {
         DatasetProblemOptions dpo;
         dpo.weights = ParseDatasetWeights(weights);
         dpo.offsets = ParseDatasetOffsets(offsets);
+        dpo.registration.search_range_camera_px = registration_range;
+        dpo.registration.anchor = ParseRegistrationAnchor(registration_anchor);
+        std::string why;
+        if (!dpo.registration.IsValid(&why))
+          throw InvalidArgument("aosr.reconstruct", "registration_range", why, "(0, 4] camera px");
         if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "nominal")
           dpo.nominal_psfs = true;
         else if (!model_psfs.is_none())
@@ -418,6 +449,8 @@ void BindSolvers(py::module_& m) {
           out->offsets_source = dp.offsets_source;
           out->model_psfs_replaced = dp.model_psfs_replaced;
           out->masked_pixels = dp.masked_pixels;
+          out->registration = dp.registration;
+          out->r = d->r;
         });
         poll.RaiseIfPending();  // Ctrl-C (KeyboardInterrupt) or the progress callable's exception
         if (!warning.empty() && PyErr_WarnEx(PyExc_UserWarning, ("aosr.reconstruct: " + warning).c_str(), 1) != 0)
@@ -426,6 +459,7 @@ void BindSolvers(py::module_& m) {
       },
       py::arg("dataset"), py::arg("method") = "tikhonov", py::kw_only(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("model_psfs") = py::none(), py::arg("progress") = py::none(),
+      py::arg("registration_range") = 0.5, py::arg("registration_anchor") = "mean",
       R"doc(Super-resolves a dataset with one method: the library's Reconstruct (include/aosr/solvers/reconstruct.hpp),
 the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and the same bits.
 
@@ -437,7 +471,13 @@ weights     'auto' ('background' for the linear methods shift-add, drizzle, tikh
             frame, source-independent: from the detector model or estimated from the frames) | 'dataset' = 'poisson'
             (the dataset's inverse variances, source photon noise included; a UserWarning with a photometric
             method: they bias bright sources low) | 'mask'
-offsets     registration offsets for shift-add/drizzle: 'auto' | 'dm' | 'centroids'
+weights     'auto' (inverse variances when the dataset has them) | 'dataset' | 'mask'
+offsets     'auto' | 'dm' | 'centroids': registration offsets for shift-add/drizzle; 'estimate': each frame's
+            offset measured from the frames against a reconstruction (solvers/registration.hpp), the model PSFs
+            shifted by it, for every method; Reconstruction.registration then lists commanded and estimated
+            offsets per frame (camera px)
+registration_range   offsets='estimate': largest correction to a commanded offset [camera px]; beyond is an error
+registration_anchor  offsets='estimate': 'mean' (keep the commanded mean) | 'frame0' (frame 0 keeps its own)
 model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) array, or 'nominal'
 progress    optional callable(dict) called during tikhonov, tv and map (stage, iteration, total, value,
             value_name, elapsed_seconds); returning False cancels (termination 'cancelled')

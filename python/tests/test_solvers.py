@@ -1,5 +1,6 @@
 """aosr.reconstruct against the same library call in C++ (bit for bit), its options table, progress, Ctrl-C,
 zero copy and the GIL."""
+import json
 import os
 import signal
 import subprocess
@@ -224,3 +225,24 @@ def test_diffraction_target_psf(demo_dir, cli, tmp_path):
                        tmp_path / "d.fits", "--json").stdout)
     assert j["linear"]["target_fwhm_hr_px"] == rec.linear["target_fwhm_hr_px"]
     assert aosr.reconstruct_options()["linear_target_psf"]["default"] == "auto"
+
+
+def test_reconstruct_offsets_estimate_matches_the_cli(demo_dir, cli, tmp_path):
+    """offsets='estimate': the registration of `aosr reconstruct --offsets estimate`, per frame commanded and
+    estimated offsets in camera px, the same numbers as the CLI's JSON."""
+    rec = aosr.reconstruct(demo_dir, "tikhonov", offsets="estimate")
+    reg = rec.registration
+    assert reg is not None and len(reg["frames"]) == 4 and reg["rounds"] >= 1
+    assert "estimated from the frames" in rec.offsets_source
+    out = json.loads(cli("reconstruct", demo_dir, "-m", "tikhonov", "--offsets", "estimate", "--json",
+                         "-o", tmp_path / "t.fits").stdout)
+    for f, g in zip(reg["frames"], out["registration"]["frames"]):
+        assert f["commanded_camera_px"] == pytest.approx(tuple(g["commanded_camera_px"]), abs=1e-12)
+        assert f["estimated_camera_px"] == pytest.approx(tuple(g["estimated_camera_px"]), abs=1e-12)
+        # the demo's DM applies what it is commanded: the estimate stays near it
+        assert f["estimated_camera_px"] == pytest.approx(f["commanded_camera_px"], abs=0.02)
+    assert aosr.reconstruct(demo_dir, "tikhonov").registration is None
+    with pytest.raises(aosr.InvalidArgument, match="mean . frame0"):
+        aosr.reconstruct(demo_dir, "tikhonov", offsets="estimate", registration_anchor="x")
+    with pytest.raises(aosr.InvalidArgument, match="search_range_camera_px"):
+        aosr.reconstruct(demo_dir, "tikhonov", offsets="estimate", registration_range=0)

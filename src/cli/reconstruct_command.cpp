@@ -37,6 +37,9 @@ struct ReconstructArgs {
   bool progress = false;  // --progress: progress on stderr even under --json or without a terminal
   std::string weights = "auto";
   std::string offsets = "auto";
+  double registration_range = 0.5;           // --registration-range [camera px]
+  std::string registration_anchor = "mean";  // --registration-anchor
+  int registration_rounds = 4;               // --registration-rounds
   std::string model_psfs;
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
@@ -106,6 +109,9 @@ void RunReconstruct(const ReconstructArgs& a) {
   DatasetProblemOptions dpo;
   dpo.weights = ParseDatasetWeights(a.weights);
   dpo.offsets = ParseDatasetOffsets(a.offsets);
+  dpo.registration.search_range_camera_px = a.registration_range;
+  dpo.registration.anchor = ParseRegistrationAnchor(a.registration_anchor);
+  dpo.registration.outer_iterations = a.registration_rounds;
   // Options, checked before anything is read or computed.
   o.tikhonov.prior = ParseTikhonovPrior(a.prior);
   if (a.lambda >= 0) {
@@ -164,6 +170,7 @@ void RunReconstruct(const ReconstructArgs& a) {
     else o.linear.kind = TargetPsfKind::kAuto;  // only the linear method reads it
   }
   dpo.method = o.method;
+  if (dpo.offsets == DatasetOffsets::kEstimate) progress.Step("estimating the frames' offsets (registration)");
   const DatasetProblem dp = ProblemFromDataset(d, dpo);
   // The caution about the weights: on stderr, or under --json in the JSON's "warning" (stdout stays JSON).
   if (!dp.warning.empty() && !a.json) std::fprintf(stderr, "aosr reconstruct: warning: %s\n", dp.warning.c_str());
@@ -252,6 +259,21 @@ void RunReconstruct(const ReconstructArgs& a) {
                         {"seconds", rec.summary.seconds},
                         {"frame_residual_rms", rec.summary.frame_residual_rms}}},
                       {"seconds_total", rec.seconds_total}};
+  if (dp.registration) {
+    // Per frame, in camera px (HR px / r): the commanded offset, the estimated one and its standard error.
+    const RegistrationResult& reg = *dp.registration;
+    nlohmann::json frames = nlohmann::json::array();
+    for (std::size_t i = 0; i < reg.estimated.size(); ++i)
+      frames.push_back({{"commanded_camera_px", {reg.commanded[i].dy / d.r, reg.commanded[i].dx / d.r}},
+                        {"estimated_camera_px", {reg.estimated[i].dy / d.r, reg.estimated[i].dx / d.r}},
+                        {"sigma_camera_px", reg.sigma_hr_px[i] / d.r}});
+    j["registration"] = {{"frames", frames},
+                         {"anchor", ToString(dpo.registration.anchor)},
+                         {"search_range_camera_px", dpo.registration.search_range_camera_px},
+                         {"rounds", reg.rounds},
+                         {"converged", reg.converged},
+                         {"seconds", reg.seconds}};
+  }
   if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
   if (!dp.background_sigma_e.empty()) j["background_sigma_e"] = dp.background_sigma_e;
   if (!dp.warning.empty()) j["warning"] = dp.warning;
@@ -335,6 +357,15 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (j.contains("sky_subtracted_e"))
     std::printf("  sky subtracted before scoring: %.4g e- per HR pixel (output's median level minus the truth's)\n",
                 j["sky_subtracted_e"].get<double>());
+  if (dp.registration) {
+    const RegistrationResult& reg = *dp.registration;
+    std::printf("  registration (%d rounds%s, anchor %s, %.2f s), camera px (dy, dx):\n", reg.rounds,
+                reg.converged ? ", converged" : ", NOT converged", ToString(dpo.registration.anchor), reg.seconds);
+    for (std::size_t i = 0; i < reg.estimated.size(); ++i)
+      std::printf("    frame %zu: commanded (%+.4f, %+.4f)  estimated (%+.4f, %+.4f) +- %.4f\n", i,
+                  reg.commanded[i].dy / d.r, reg.commanded[i].dx / d.r, reg.estimated[i].dy / d.r,
+                  reg.estimated[i].dx / d.r, reg.sigma_hr_px[i] / d.r);
+  }
   if (j.contains("against_truth"))
     std::printf("  against the truth (crop %d HR px): PSNR %.2f dB, SSIM %.4f\n", j["against_truth"]["crop_px"].get<int>(),
                 j["against_truth"]["psnr_db"].get<double>(), j["against_truth"]["ssim"].get<double>());
@@ -368,7 +399,22 @@ void RegisterReconstruct(CLI::App& app) {
                   "inverse variances, source-independent: detector model or estimated per frame) | dataset = poisson (the "
                   "dataset's inverse variances, source photon noise included) | mask (uniform on valid pixels)")
       ->capture_default_str();
-  cmd->add_option("--offsets", a->offsets, "registration offsets for shift-add/drizzle: auto | dm | centroids")
+  cmd->add_option("--offsets", a->offsets,
+                  "frame offsets: auto | dm | centroids (for shift-add/drizzle; model-based methods use the PSFs) | "
+                  "estimate (every method: each frame's offset measured from the frames against a reconstruction, "
+                  "the model PSFs shifted by it; reported per frame beside the commanded one)")
+      ->capture_default_str();
+  cmd->add_option("--registration-range", a->registration_range,
+                  "--offsets estimate: largest correction to a commanded offset [camera px]; a frame beyond is an error")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-3, 4.0));
+  cmd->add_option("--registration-rounds", a->registration_rounds,
+                  "--offsets estimate: reconstruct-register rounds at most (stops earlier when converged)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 50));
+  cmd->add_option("--registration-anchor", a->registration_anchor,
+                  "--offsets estimate: mean (the estimated set keeps the commanded mean) | frame0 (frame 0 keeps its "
+                  "commanded offset)")
       ->capture_default_str();
   cmd->add_option("--model-psfs", a->model_psfs,
                   "PSFs the reconstructor uses instead of the dataset's: a FITS cube (HR sampling, centred), or `nominal` for "

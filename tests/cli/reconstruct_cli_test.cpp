@@ -229,3 +229,27 @@ TEST_F(ReconstructCliTest, ProgressGoesToStderrOnlyWhenAskedOrOnATerminal) {
 }
 
 }  // namespace
+
+// --offsets estimate: every method runs on the shifted model, and the summary lists per frame the commanded
+// and estimated offsets in camera px (here the DM applies exactly the commanded raster: estimated ≈ commanded).
+TEST_F(ReconstructCliTest, OffsetsEstimateReportsCommandedAndEstimatedPerFrame) {
+  for (const char* m : {"tikhonov", "shift-add"}) {
+    const nlohmann::json j = Run(m, "--offsets estimate");
+    ASSERT_TRUE(j.contains("registration")) << j.dump(2);
+    const nlohmann::json& f = j["registration"]["frames"];
+    ASSERT_EQ(f.size(), 4u);
+    for (const nlohmann::json& e : f) {
+      for (int a = 0; a < 2; ++a)
+        EXPECT_NEAR(e["estimated_camera_px"][a].get<double>(), e["commanded_camera_px"][a].get<double>(), 0.02) << e.dump();
+      EXPECT_NEAR(std::abs(e["commanded_camera_px"][0].get<double>()), 0.25, 1e-12);
+      EXPECT_GT(e["sigma_camera_px"].get<double>(), 0.0);
+    }
+    EXPECT_THAT(j["offsets"].get<std::string>(), HasSubstr("estimated from the frames"));
+  }
+  const CliRun text = RunCli("reconstruct " + Data() + " -m tikhonov --offsets estimate -o " + Out("reg"));
+  ASSERT_EQ(text.status, 0) << text.out;
+  EXPECT_THAT(text.out, AllOf(HasSubstr("registration ("), HasSubstr("frame 3: commanded (+0.2500, +0.2500)  estimated (")));
+  const CliRun bad = RunCli("reconstruct " + Data() + " -m tikhonov --offsets estimate --registration-anchor x -o " + Out("reg"));
+  EXPECT_NE(bad.status, 0);
+  EXPECT_THAT(bad.out, HasSubstr("mean | frame0"));
+}

@@ -131,7 +131,7 @@ TEST(DatasetProblemTest, BadRequestsNameTheOption) {
   o.nominal_psfs = true;  // the dataset has none
   EXPECT_THAT(test::ErrorOf([&] { ProblemFromDataset(d, o); }), HasSubstr("nominal_psfs"));
   EXPECT_THAT(test::ErrorOf([] { ParseReconstructionMethod("wiener"); }), HasSubstr("shift-add | "));
-  EXPECT_THAT(test::ErrorOf([] { ParseDatasetOffsets("x"); }), HasSubstr("auto | dm | centroids"));
+  EXPECT_THAT(test::ErrorOf([] { ParseDatasetOffsets("x"); }), HasSubstr("auto | dm | centroids | estimate"));
   EXPECT_THAT(test::ErrorOf([] { ParseDatasetWeights("x"); }), HasSubstr("auto | background | dataset | poisson | mask"));
   EXPECT_THAT(test::ErrorOf([] { KernelCentroid(Image::Zero(4, 4)); }), HasSubstr("kernel sum"));
   // Options are validated by Reconstruct, naming the method's options.

@@ -43,9 +43,15 @@
 //                   modes with a tilt component, or no offsets at all: zero shifts up to the PSF's asymmetry).
 //   kDmShifts       the commanded shifts only.
 //   kPsfCentroids   the first moment of each model PSF about its centre (image.hpp: pixel (K/2, K/2)).
-// Model-based methods ignore offsets: the PSFs carry them.
+//   kEstimate       measured from the frames (solvers/registration.hpp): starting from kAuto's offsets (the
+//                   commanded pointing, which the model PSFs carry), each frame's correction is estimated
+//                   against a reconstruction and the model PSFs are shifted by it; `registration` holds the
+//                   per-frame commanded and estimated offsets. Every method then uses them: the model-based
+//                   ones through the shifted PSFs, shift-and-add and Drizzle through the offsets.
+// Otherwise model-based methods ignore offsets: the PSFs carry them.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,14 +60,15 @@
 #include "aosr/scene/dataset.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/registration.hpp"
 
 namespace aosr {
 
 enum class DatasetWeights { kAuto, kDataset, kMask, kBackground };
-enum class DatasetOffsets { kAuto, kDmShifts, kPsfCentroids };
+enum class DatasetOffsets { kAuto, kDmShifts, kPsfCentroids, kEstimate };
 // "auto" | "dataset" | "poisson" (= dataset) | "mask" | "background"
 DatasetWeights ParseDatasetWeights(const std::string& name);
-DatasetOffsets ParseDatasetOffsets(const std::string& name);  // "auto" | "dm" | "centroids"
+DatasetOffsets ParseDatasetOffsets(const std::string& name);  // "auto" | "dm" | "centroids" | "estimate"
 
 // What kAuto means for `method` (top of the file): kBackground for the linear methods (IsLinearMethod),
 // kAuto's dataset-or-mask rule (returned as kAuto) for tv and map.
@@ -81,6 +88,8 @@ struct DatasetProblemOptions {
   ImageStack model_psfs;
   // Use the dataset's nominal_psfs as the model (an error if it has none; not with model_psfs).
   bool nominal_psfs = false;
+  // kEstimate: how (search range, rounds, anchor, the reconstruction registered against).
+  RegistrationOptions registration;
 };
 
 struct DatasetProblem {
@@ -90,7 +99,8 @@ struct DatasetProblem {
   std::string weights_source;
   std::vector<double> background_sigma_e;  // kBackground: σ_i per frame (e⁻) behind the weights; else empty
   std::string warning;         // non-empty: a caution about the choice (source-dependent weights, photometry)
-  std::string offsets_source;  // "dm shifts" | "psf centroids"
+  std::string offsets_source;  // "dm shifts" | "psf centroids" | "estimated from the frames (from dm shifts)" ...
+  std::optional<RegistrationResult> registration;  // kEstimate: commanded and estimated offsets per frame
   bool model_psfs_replaced = false;
   Index masked_pixels = 0;     // pixels of weight 0 over all frames
   Index psf_folded = 0;        // number of PSFs folded onto the HR grid (larger than it)
