@@ -471,7 +471,6 @@ weights     'auto' ('background' for the linear methods shift-add, drizzle, tikh
             frame, source-independent: from the detector model or estimated from the frames) | 'dataset' = 'poisson'
             (the dataset's inverse variances, source photon noise included; a UserWarning with a photometric
             method: they bias bright sources low) | 'mask'
-weights     'auto' (inverse variances when the dataset has them) | 'dataset' | 'mask'
 offsets     'auto' | 'dm' | 'centroids': registration offsets for shift-add/drizzle; 'estimate': each frame's
             offset measured from the frames against a reconstruction (solvers/registration.hpp), the model PSFs
             shifted by it, for every method; Reconstruction.registration then lists commanded and estimated
