@@ -284,7 +284,7 @@ std::string DrawMethod(Rng& g, int r, aosr::ReconstructOptions* o) {
 void DrawBreakage(Rng& g, RunConfig* c) {
   using M = aosr::ReconstructionMethod;
   const double nan = std::nan("");
-  switch (g.Int(0, 14)) {
+  switch (g.Int(0, 16)) {
     case 0:
       c->break_stage = "scene";
       c->scene["r"] = g.Pick({0, -1, 17});
@@ -370,6 +370,16 @@ void DrawBreakage(Rng& g, RunConfig* c) {
       c->break_stage = "evaluation";
       c->evaluation.crop_px = g.Pick({-1, 1000});
       c->breakage = {"evaluation crop_px out of range", "crop"};
+      break;
+    case 15:
+      c->break_stage = "evaluation";
+      c->evaluation.peak = g.Pick({-1.0, nan});
+      c->breakage = {"evaluation peak negative or NaN", "peak"};
+      break;
+    case 16:
+      c->break_stage = "evaluation";
+      c->evaluation.stars = g.Pick({0, -2});
+      c->breakage = {"evaluation stars < 1", "stars"};
       break;
     default:
       c->break_stage = "evaluation";
