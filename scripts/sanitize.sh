@@ -36,7 +36,7 @@ COVERED_LABELS=(unit errors stability)
 fuzz_seconds=${FUZZ_SECONDS:-20}
 # Runs of the end-to-end campaign (fuzz/campaign.cpp; 300 in the Release suite). Each run simulates, reconstructs
 # (twice: the rerun's bytes are compared) and evaluates a small scene; under ASan + UBSan 100 runs take
-# about 2 minutes of one core (measured in README.md).
+# about 3 minutes of one core (measured in README.md).
 campaign_runs=${CAMPAIGN_RUNS:-100}
 
 # -O1: ASan's recommended level (2-3x slowdown instead of ~10x at -O0). -g1: line tables only, so reports
