@@ -6,14 +6,15 @@
 # them with ctest. Any sanitizer report fails its test, and so this script.
 #
 # What it covers (COVERED below): the `unit`, `errors` and `stability` test executables of every layer
-# but cli, less solvers_unit_tests, plus every `fuzz_*` target when fuzz/ defines some (label `fuzz`). Left
+# but cli, less solvers_unit_tests, plus every `fuzz_*` target when fuzz/ defines some (label `fuzz`) and the
+# randomised end-to-end campaign `aosr_campaign` (label `campaign`, CAMPAIGN_RUNS runs). Left
 # out to fit CI's budget (the sanitizer build costs ~3x the Release build's CPU): the `physics` and `slow`
 # suites (long statistical oracles), the cli suites (they run the aosr executable on whole scenes) and
 # solvers_unit_tests (below). The measured time is in README.md.
 #
 # Usage: scripts/sanitize.sh [extra ctest arguments, e.g. -R Fft]
 # Environment: SANITIZE_FULL=1 (also solvers_unit_tests), JOBS (default nproc), BUILD_DIR (default
-# build-sanitize), FUZZ_SECONDS (default 20), SANITIZE_CXX_FLAGS (default "-O1 -g1").
+# build-sanitize), FUZZ_SECONDS (default 20), CAMPAIGN_RUNS (default 100), SANITIZE_CXX_FLAGS (default "-O1 -g1").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -33,6 +34,10 @@ COVERED_LABELS=(unit errors stability)
 # Wall-time cap of each fuzz target's mutation phase here (fuzz/CMakeLists.txt AOSR_FUZZ_MAX_SECONDS; the
 # corpus and regressions are always replayed in full): 8 targets x 20 s on 2 cores is under 2 minutes.
 fuzz_seconds=${FUZZ_SECONDS:-20}
+# Runs of the end-to-end campaign (fuzz/campaign.cpp; 300 in the Release suite). Each run simulates, reconstructs
+# (twice: the rerun's bytes are compared) and evaluates a small scene; under ASan + UBSan 100 runs take
+# about 3 minutes of one core (measured in README.md).
+campaign_runs=${CAMPAIGN_RUNS:-100}
 
 # -O1: ASan's recommended level (2-3x slowdown instead of ~10x at -O0). -g1: line tables only, so reports
 # still give file:line for every frame, at ~25 % less compile time than -g (measured on src/ao and
@@ -42,11 +47,12 @@ fuzz_seconds=${FUZZ_SECONDS:-20}
 cxx_flags=${SANITIZE_CXX_FLAGS:-"-O1 -g1"}
 cmake -S . -B "$build_dir" -DAOSR_SANITIZE=ON -DAOSR_BUILD_BENCH=OFF -DAOSR_BUILD_TESTS=ON \
   -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="$cxx_flags" \
-  -DAOSR_FUZZ_MAX_SECONDS="$fuzz_seconds" > "$build_dir.configure.log" 2>&1 ||
+  -DAOSR_FUZZ_MAX_SECONDS="$fuzz_seconds" -DAOSR_CAMPAIGN_RUNS="$campaign_runs" > "$build_dir.configure.log" 2>&1 ||
   { cat "$build_dir.configure.log"; exit 1; }
 rm -f "$build_dir.configure.log"
 
-# Targets: the covered executables that exist, plus the fuzz targets when fuzz/ is present and enabled.
+# Targets: the covered executables that exist, plus the fuzz targets and the campaign when fuzz/ is present
+# and enabled.
 all_targets=$(cmake --build "$build_dir" --target help | sed -n 's/^\.\.\. \([^ ]*\).*/\1/p')
 targets=()
 for t in "${COVERED[@]}"; do
@@ -56,6 +62,10 @@ labels=$(IFS='|'; echo "${COVERED_LABELS[*]}")
 if fuzz_targets=$(grep -x 'fuzz_.*' <<< "$all_targets"); then
   mapfile -t -O "${#targets[@]}" targets <<< "$fuzz_targets"
   labels="$labels|fuzz"
+fi
+if grep -qx aosr_campaign <<< "$all_targets"; then
+  targets+=(aosr_campaign)
+  labels="$labels|campaign"
 fi
 echo "sanitize: building ${targets[*]}"
 cmake --build "$build_dir" -j"$jobs" --target "${targets[@]}"
