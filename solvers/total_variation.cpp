@@ -130,7 +130,8 @@ ZPassSums ZUpdate(Shape hr, const Vector& x, double alpha, double t, Vector* z, 
   std::vector<ZPassSums> partial(blocks);
   ParallelFor(blocks, [&](Index b) {
     double primal2 = 0, kx2 = 0, zeta2 = 0;
-    // One pixel p with its forward neighbours at p + dy (next row) and p + dx (next column).
+    // One pixel p with its forward neighbours at `below` (next row) and `right` (next column); returns its
+    // terms of the three sums (a value, so that the SIMD loop's per-lane sums stay private).
     auto pixel = [&](Index p, Index below, Index right) {
       const double gy = xs[below] - xs[p], gx = xs[right] - xs[p];
       const double hy = alpha * gy + (1 - alpha) * zy[p], hx = alpha * gx + (1 - alpha) * zx[p];
@@ -144,33 +145,22 @@ ZPassSums ZUpdate(Shape hr, const Vector& x, double alpha, double t, Vector* z, 
       dzx[p] = nx - zx[p];
       zy[p] = ny;
       zx[p] = nx;
-      primal2 += (gy - ny) * (gy - ny) + (gx - nx) * (gx - nx);
-      kx2 += gy * gy + gx * gx;
-      zeta2 += ny * ny + nx * nx;
+      return ZPassSums{(gy - ny) * (gy - ny) + (gx - nx) * (gx - nx), gy * gy + gx * gx, ny * ny + nx * nx};
     };
     for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y) {
       const Index row = y * C, down = (y + 1 < R ? y + 1 : 0) * C - row;
 #pragma omp simd reduction(+ : primal2, kx2, zeta2)
-      for (Index c = 0; c < C - 1; ++c) {
-        const Index p = row + c;
-        const double gy = xs[p + down] - xs[p], gx = xs[p + 1] - xs[p];
-        const double hy = alpha * gy + (1 - alpha) * zy[p], hx = alpha * gx + (1 - alpha) * zx[p];
-        const double ty = hy + uy[p], tx = hx + ux[p];
-        const double norm = std::sqrt(ty * ty + tx * tx);
-        const double f = norm > t ? 1.0 - t / norm : 0.0;
-        const double ny = f * ty, nx = f * tx;
-        uy[p] += hy - ny;
-        ux[p] += hx - nx;
-        dzy[p] = ny - zy[p];
-        dzx[p] = nx - zx[p];
-        zy[p] = ny;
-        zx[p] = nx;
-        primal2 += (gy - ny) * (gy - ny) + (gx - nx) * (gx - nx);
-        kx2 += gy * gy + gx * gx;
-        zeta2 += ny * ny + nx * nx;
+      for (Index p = row; p < row + C - 1; ++p) {
+        const ZPassSums q = pixel(p, p + down, p + 1);
+        primal2 += q.primal2;
+        kx2 += q.kx2;
+        zeta2 += q.zeta2;
       }
       const Index last = row + C - 1;
-      pixel(last, last + down, row);
+      const ZPassSums q = pixel(last, last + down, row);
+      primal2 += q.primal2;
+      kx2 += q.kx2;
+      zeta2 += q.zeta2;
     }
     partial[b] = {primal2, kx2, zeta2};
   });
