@@ -10,11 +10,13 @@
 #include <cmath>
 #include <tuple>
 #include <utility>
+#include <vector>
 #include <limits>
 #include <memory>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/operators.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/solvers/ceres_termination.hpp"
 
 namespace aosr {
@@ -126,6 +128,23 @@ inline double Logistic(double t) {
 // softplus⁻¹(u) = log(e^u − 1) = u + log(1 − e^{-u}) for u > 0.
 inline double InverseSoftplus(double u) { return u + std::log(-std::expm1(-u)); }
 
+// The objective's pixel passes run over a fixed partition of [0, n) into blocks of kPassBlock pixels (a
+// function of n only), in parallel; block sums are added in block order afterwards, so the value and the
+// gradient do not depend on the thread count. They are most of an evaluation besides the model's FFTs
+// (softplus and the prior's square roots per pixel), and Ceres' own L-BFGS vector work is serial.
+constexpr Index kPassBlock = 16384;
+
+// fn(begin, end) -> that block's sum; returns the sum over blocks in order.
+template <typename Fn>
+double BlockedSum(Index n, const Fn& fn) {
+  const Index blocks = (n + kPassBlock - 1) / kPassBlock;
+  std::vector<double> partial(std::size_t(std::max<Index>(blocks, 0)), 0.0);
+  ParallelFor(blocks, [&](Index b) { partial[std::size_t(b)] = fn(b * kPassBlock, std::min(n, (b + 1) * kPassBlock)); });
+  double sum = 0;
+  for (double v : partial) sum += v;
+  return sum;
+}
+
 }  // namespace
 
 MapObjective::MapObjective(const ReconstructionProblem& problem, const MapOptions& options)
@@ -179,11 +198,14 @@ MapObjective::Value MapObjective::Evaluate(const Eigen::Ref<const Vector>& z, Ve
   Vector x(n), dxdz;
   if (softplus) {
     dxdz.resize(n);
-    for (Index p = 0; p < n; ++p) {
-      const double t = z[p] / scale_;
-      x[p] = scale_ * Softplus(t);
-      dxdz[p] = Logistic(t);
-    }
+    BlockedSum(n, [&](Index p0, Index p1) {
+      for (Index p = p0; p < p1; ++p) {
+        const double t = z[p] / scale_;
+        x[p] = scale_ * Softplus(t);
+        dxdz[p] = Logistic(t);
+      }
+      return 0.0;
+    });
   } else {
     x = z;
   }
@@ -193,35 +215,41 @@ MapObjective::Value MapObjective::Evaluate(const Eigen::Ref<const Vector>& z, Ve
   Vector dl(ax.size());
   const double b = options_.background;
   if (options_.likelihood == MapLikelihood::kGaussian) {
-    double data = 0;
-    for (Index p = 0; p < ax.size(); ++p) {
-      const double e = w_[p] > 0 ? y_[p] - ax[p] - b : 0.0;  // masked pixels are never read
-      data += w_[p] * e * e;
-      dl[p] = -w_[p] * e;
-    }
+    const double data = BlockedSum(ax.size(), [&](Index p0, Index p1) {
+      double sum = 0;
+      for (Index p = p0; p < p1; ++p) {
+        const double e = w_[p] > 0 ? y_[p] - ax[p] - b : 0.0;  // masked pixels are never read
+        sum += w_[p] * e * e;
+        dl[p] = -w_[p] * e;
+      }
+      return sum;
+    });
     v.data = 0.5 * data;
   } else {
     const double floor = b + options_.read_noise * options_.read_noise;
-    double data = 0;
-    for (Index p = 0; p < ax.size(); ++p) {
-      if (w_[p] == 0) {
-        dl[p] = 0;
-        continue;
-      }
-      const double mu = ax[p] + floor, c = c_[p];
-      if (!(mu > 0)) {
-        if (std::isnan(mu)) {
-          v.finite = false;
-          v.data = v.total = std::numeric_limits<double>::quiet_NaN();
-        } else {
-          v.in_domain = false;
-          v.data = v.total = std::numeric_limits<double>::infinity();
+    // A block that meets μ <= 0 (out of the domain) or NaN stops there and returns +inf or NaN; the sum
+    // carries it (NaN wins over inf, as a NaN anywhere means a non-finite evaluation).
+    const double data = BlockedSum(ax.size(), [&](Index p0, Index p1) {
+      double sum = 0;
+      for (Index p = p0; p < p1; ++p) {
+        if (w_[p] == 0) {
+          dl[p] = 0;
+          continue;
         }
-        return v;
+        const double mu = ax[p] + floor, c = c_[p];
+        if (!(mu > 0)) return std::isnan(mu) ? std::numeric_limits<double>::quiet_NaN()
+                                             : std::numeric_limits<double>::infinity();
+        // μ − c − c log(μ/c) = (μ − c) − c log1p((μ − c)/c): accurate near the minimum μ = c.
+        sum += c > 0 ? (mu - c) - c * std::log1p((mu - c) / c) : mu;
+        dl[p] = 1.0 - c / mu;
       }
-      // μ − c − c log(μ/c) = (μ − c) − c log1p((μ − c)/c): accurate near the minimum μ = c.
-      data += c > 0 ? (mu - c) - c * std::log1p((mu - c) / c) : mu;
-      dl[p] = 1.0 - c / mu;
+      return sum;
+    });
+    if (!std::isfinite(data)) {
+      if (std::isnan(data)) v.finite = false;
+      else v.in_domain = false;
+      v.data = v.total = data;
+      return v;
     }
     v.data = data;
   }
@@ -246,27 +274,31 @@ MapObjective::Value MapObjective::Evaluate(const Eigen::Ref<const Vector>& z, Ve
     Vector g = gamma_->Apply(x);
     const bool charbonnier = options_.prior == MapPrior::kCharbonnierTv;
     const double eps = options_.epsilon, delta = options_.delta;
-    for (Index p = 0; p < n; ++p) {
-      const double gy = g[p], gxp = g[n + p];
-      const double t2 = gy * gy + gxp * gxp;
-      double k;
-      if (charbonnier) {
-        const double rho = std::sqrt(t2 + eps * eps);
-        r += t2 / (rho + eps);  // = rho − ε without cancellation
-        k = 1.0 / rho;
-      } else {
-        const double t = std::sqrt(t2);
-        if (t <= delta) {
-          r += t2 / (2 * delta);
-          k = 1.0 / delta;
+    r = BlockedSum(n, [&](Index p0, Index p1) {
+      double sum = 0;
+      for (Index p = p0; p < p1; ++p) {
+        const double gy = g[p], gxp = g[n + p];
+        const double t2 = gy * gy + gxp * gxp;
+        double k;
+        if (charbonnier) {
+          const double rho = std::sqrt(t2 + eps * eps);
+          sum += t2 / (rho + eps);  // = rho − ε without cancellation
+          k = 1.0 / rho;
         } else {
-          r += t - 0.5 * delta;
-          k = 1.0 / t;
+          const double t = std::sqrt(t2);
+          if (t <= delta) {
+            sum += t2 / (2 * delta);
+            k = 1.0 / delta;
+          } else {
+            sum += t - 0.5 * delta;
+            k = 1.0 / t;
+          }
         }
+        g[p] = k * gy;
+        g[n + p] = k * gxp;
       }
-      g[p] = k * gy;
-      g[n + p] = k * gxp;
-    }
+      return sum;
+    });
     if (gradient) gx.noalias() += lambda * gamma_->ApplyAdjoint(g);
   }
   v.prior = lambda * r;

@@ -321,6 +321,23 @@ void DrawPanel(cv::Mat& m, const LinePlot& p) {
   }
 }
 
+// OpenCV draws in BGR; RgbImage is row-major RGB.
+RgbImage ToRgb(const cv::Mat& fig) {
+  RgbImage out;
+  out.rows = fig.rows;
+  out.cols = fig.cols;
+  out.rgb.resize(std::size_t(3) * fig.rows * fig.cols);
+  for (int y = 0; y < fig.rows; ++y)
+    for (int x = 0; x < fig.cols; ++x) {
+      const cv::Vec3b& bgr = fig.at<cv::Vec3b>(y, x);
+      std::uint8_t* o = &out.rgb[std::size_t(3) * (std::size_t(y) * fig.cols + x)];
+      o[0] = bgr[2];
+      o[1] = bgr[1];
+      o[2] = bgr[0];
+    }
+  return out;
+}
+
 }  // namespace
 
 bool LinePlot::IsValid(std::string* why) const {
@@ -385,19 +402,7 @@ RgbImage RenderFigure(const std::vector<LinePlot>& panels, const FigureOptions& 
                                  options.panel_width, options.panel_height));
     DrawPanel(panel, panels[std::size_t(i)]);
   }
-  RgbImage out;
-  out.rows = fig.rows;
-  out.cols = fig.cols;
-  out.rgb.resize(std::size_t(3) * fig.rows * fig.cols);
-  for (int y = 0; y < fig.rows; ++y)
-    for (int x = 0; x < fig.cols; ++x) {
-      const cv::Vec3b& bgr = fig.at<cv::Vec3b>(y, x);
-      std::uint8_t* o = &out.rgb[std::size_t(3) * (std::size_t(y) * fig.cols + x)];
-      o[0] = bgr[2];
-      o[1] = bgr[1];
-      o[2] = bgr[0];
-    }
-  return out;
+  return ToRgb(fig);
 }
 
 void WriteFigure(const std::string& path, const std::vector<LinePlot>& panels, const FigureOptions& options) {
@@ -495,19 +500,7 @@ RgbImage RenderImagePanels(const std::vector<ImagePanel>& panels, const PanelFig
                                   int(b.height) * p.zoom),
                     kBox, std::max(1, p.zoom), cv::LINE_8);
   }
-  RgbImage out;
-  out.rows = fig.rows;
-  out.cols = fig.cols;
-  out.rgb.resize(std::size_t(3) * fig.rows * fig.cols);
-  for (int y = 0; y < fig.rows; ++y)
-    for (int x = 0; x < fig.cols; ++x) {
-      const cv::Vec3b& bgr = fig.at<cv::Vec3b>(y, x);
-      std::uint8_t* o = &out.rgb[std::size_t(3) * (std::size_t(y) * fig.cols + x)];
-      o[0] = bgr[2];
-      o[1] = bgr[1];
-      o[2] = bgr[0];
-    }
-  return out;
+  return ToRgb(fig);
 }
 
 }  // namespace aosr
