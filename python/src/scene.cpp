@@ -389,7 +389,7 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
   m.def(
       "evaluate",
       [](py::handle estimate, py::handle truth, py::handle dataset, std::optional<int> crop, double peak, int stars,
-         double aperture) {
+         double aperture, std::optional<bool> subtract_sky) {
         // As `aosr evaluate` (src/cli/evaluate_command.cpp): exactly one of truth and dataset.
         if (truth.is_none() == dataset.is_none())
           throw InvalidArgument("aosr.evaluate", "truth/dataset", truth.is_none() ? "(neither)" : "(both)",
@@ -420,6 +420,13 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         eo.stars = stars;
         eo.aperture_px = aperture;
         eo.hr_pixel_mas = hr_mas;
+        // None: as `aosr evaluate --subtract-sky auto`, from the file's METHOD keyword (an array has none).
+        if (subtract_sky) {
+          eo.subtract_sky = *subtract_sky;
+        } else if (py::isinstance<py::str>(estimate) || py::hasattr(estimate, "__fspath__")) {
+          const std::string path = PathString(estimate);
+          eo.subtract_sky = WithoutGil([&] { return OutputKeepsSky(path); });
+        }
         const Evaluation ev = WithoutGil([&] { return EvaluateReconstruction(t, e, catalogue, eo); });
         const ImageMetrics& im = ev.metrics;
         const StarMetrics& sm = ev.stars;
@@ -428,6 +435,7 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         j["psnr_db"] = im.psnr;
         j["ssim"] = im.ssim;
         j["rmse"] = im.rmse;
+        j["sky_subtracted"] = eo.subtract_sky ? py::object(py::float_(ev.sky)) : py::object(py::none());
         j["aligned"] = py::dict(py::arg("psnr_db") = ev.aligned.psnr, py::arg("ssim") = ev.aligned.ssim,
                                 py::arg("rmse") = ev.aligned.rmse);
         j["offset_hr_px"] = py::dict(py::arg("dy") = ev.offset.dy, py::arg("dx") = ev.offset.dx);
@@ -460,6 +468,7 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
       },
       py::arg("estimate"), py::kw_only(), py::arg("truth") = py::none(), py::arg("dataset") = py::none(),
       py::arg("crop") = py::none(), py::arg("peak") = 0.0, py::arg("stars") = 20, py::arg("aperture") = 3.0,
+      py::arg("subtract_sky") = py::none(),
       R"doc(Compares a reconstruction with the truth, as `aosr evaluate`: PSNR [dB], SSIM, RMSE, raw and after removing
 the global sub-pixel offset of the estimate against the truth ('aligned'), the offset itself ('offset_hr_px' and,
 when the dataset or the truth file's PIXSCALE gives the pixel scale, 'offset_mas'; else None) and, for a dataset
@@ -469,6 +478,9 @@ estimate  2-D array or FITS path (the HR grid)
 truth     2-D array or FITS path; or dataset= (an aosr.Dataset or path) whose truth and stars are used
 crop      pixels ignored at each border; default the dataset's trustworthy border (r * border px), else 0
 peak      PSNR/SSIM dynamic range L (0: max - min of the truth)
+subtract_sky  remove the estimate's sky (its median level minus the truth's over the scored region) before scoring;
+          None: when the estimate is a FITS file whose METHOD is linear (an output that keeps the frames' sky), as
+          `aosr evaluate --subtract-sky auto`. 'sky_subtracted' says what was removed (None when not asked)
 Returns the dict `aosr evaluate --json` prints (without 'estimate').)doc");
 }
 

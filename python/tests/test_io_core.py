@@ -64,6 +64,23 @@ def test_evaluate_matches_cli(demo_dir, cli, tmp_path):
         aosr.evaluate(rec.image)
 
 
+def test_evaluate_subtracts_a_linear_outputs_sky(tmp_path):
+    # truth + c: a file whose METHOD is linear is scored without its sky by default (as `aosr evaluate`), an array
+    # only when asked; 'sky_subtracted' says what was removed.
+    y, x = np.mgrid[0:32, 0:40]
+    truth = 60 + 50 * np.sin(0.3 * y) * np.cos(0.2 * x)
+    aosr.write_fits(tmp_path / "t.fits", truth, dtype="float64")
+    aosr.write_fits(tmp_path / "e.fits", truth + 7.25, header={"METHOD": "linear"}, dtype="float64")
+    m = aosr.evaluate(tmp_path / "e.fits", truth=tmp_path / "t.fits")
+    assert abs(m["sky_subtracted"] - 7.25) < 1e-9 and m["rmse"] < 1e-9
+    m = aosr.evaluate(truth + 7.25, truth=truth)
+    assert m["sky_subtracted"] is None and abs(m["rmse"] - 7.25) < 1e-9
+    m = aosr.evaluate(truth + 7.25, truth=truth, subtract_sky=True)
+    assert abs(m["sky_subtracted"] - 7.25) < 1e-9
+    m = aosr.evaluate(tmp_path / "e.fits", truth=truth, subtract_sky=False)
+    assert m["sky_subtracted"] is None and abs(m["rmse"] - 7.25) < 1e-9
+
+
 def test_aligned_scores_recover_a_known_shift():
     # A band-limited periodic image moved by a known sub-pixel offset: recovered to 0.01 px, aligned PSNR high.
     rng = np.random.default_rng(4)

@@ -26,6 +26,7 @@ struct EvaluateArgs {
   double peak = 0;
   int stars = 20;
   double aperture = 3.0;
+  std::string subtract_sky = "auto";  // auto (when the estimate's METHOD is linear) | yes | no
   bool json = false;
   ExecutionArgs exec;
 };
@@ -66,11 +67,13 @@ void RunEvaluate(const EvaluateArgs& a) {
   eo.stars = a.stars;
   eo.aperture_px = a.aperture;
   eo.hr_pixel_mas = hr_mas;
+  eo.subtract_sky = a.subtract_sky == "yes" || (a.subtract_sky == "auto" && OutputKeepsSky(a.estimate));
   const Evaluation ev = EvaluateReconstruction(truth, estimate, stars, eo);
   const ImageMetrics& m = ev.metrics;
   const StarMetrics& sm = ev.stars;
   nlohmann::json j = {{"estimate", a.estimate}, {"crop_px", crop}, {"psnr_db", m.psnr}, {"ssim", m.ssim}, {"rmse", m.rmse}};
   AddAlignedScores(ev, &j);
+  if (eo.subtract_sky) j["sky_subtracted"] = ev.sky;
   if (ev.measured_stars) {
     nlohmann::json list = nlohmann::json::array();
     for (const StarMeasurement& s : sm.stars)
@@ -89,6 +92,8 @@ void RunEvaluate(const EvaluateArgs& a) {
   }
   std::printf("%s: PSNR %.2f dB  SSIM %.4f  RMSE %.4g  (crop %d px)\n", a.estimate.c_str(), m.psnr, m.ssim, m.rmse, crop);
   std::printf("  %s\n", AlignedScoresLine(ev).c_str());
+  if (eo.subtract_sky)
+    std::printf("  sky subtracted before scoring: %.4g per HR pixel (the estimate's median level minus the truth's)\n", ev.sky);
   if (!stars.empty())
     std::printf("  %zu brightest stars (%d skipped at the edge): median |flux error| %.2f%%, RMS position error %.3f HR px\n",
                 sm.stars.size(), sm.skipped, 100 * sm.median_abs_flux_error, sm.rms_position_error_px);
@@ -112,6 +117,11 @@ void RegisterEvaluate(CLI::App& app) {
   cmd->add_option("--peak", args->peak, "PSNR/SSIM dynamic range L (default max - min of the truth)")->check(NonNegativeFinite());
   cmd->add_option("--stars", args->stars, "number of brightest stars measured")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--aperture", args->aperture, "star aperture radius [HR px]")->capture_default_str()->check(CLI::Range(0.5, 1000.0));
+  cmd->add_option("--subtract-sky", args->subtract_sky,
+                  "subtract the estimate's sky (its median level minus the truth's over the scored region) before "
+                  "scoring: auto (when the estimate's METHOD keyword is linear, an output that keeps the frames' sky) | yes | no")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "yes", "no"}));
   cmd->add_flag("--json", args->json, "print the results as JSON");
   AddExecutionOptions(cmd, &args->exec);
   cmd->callback([args] { RunEvaluate(*args); });

@@ -315,16 +315,7 @@ void RunReconstruct(const ReconstructArgs& a) {
       // A linear output keeps the sky the truth has not: estimate it as the difference of the two images'
       // background levels (medians over the scored region) and subtract it before scoring.
       const Image& ref = seen ? *seen : *d.truth;
-      const Index c = mo.crop_px, rows = d.hr_frame.rows - 2 * c, cols = d.hr_frame.cols - 2 * c;
-      auto median = [&](const Image& img) {
-        std::vector<double> v;
-        v.reserve(std::size_t(rows * cols));
-        for (Index y = 0; y < rows; ++y)
-          for (Index x = 0; x < cols; ++x) v.push_back(img(c + y, c + x));
-        std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-        return v[v.size() / 2];
-      };
-      const double sky = median(estimate) - median(ref);
+      const double sky = SkyLevelDifference(ref, estimate, mo.crop_px);
       estimate -= sky;
       j["sky_subtracted_e"] = sky;
     }

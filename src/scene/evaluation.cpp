@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "aosr/core/error.hpp"
 #include "aosr/io/fits.hpp"
@@ -24,6 +25,33 @@ double FitsPixelScaleMas(const std::string& path) {
   }
 }
 
+double SkyLevelDifference(const Image& reference, const Image& estimate, int crop_px) {
+  const char* f = "SkyLevelDifference";
+  CheckArgument(ShapeOf(estimate) == ShapeOf(reference), f, "estimate", ToString(ShapeOf(estimate)),
+                "an image of the reference's shape " + ToString(ShapeOf(reference)));
+  const Index c = crop_px, rows = reference.rows() - 2 * c, cols = reference.cols() - 2 * c;
+  CheckArgument(crop_px >= 0 && rows > 0 && cols > 0, f, "crop_px", crop_px, "0 .. less than half the smaller image side");
+  auto median = [&](const Image& img) {
+    std::vector<double> v;
+    v.reserve(std::size_t(rows * cols));
+    for (Index y = 0; y < rows; ++y)
+      for (Index x = 0; x < cols; ++x) v.push_back(img(c + y, c + x));
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  return median(estimate) - median(reference);
+}
+
+bool OutputKeepsSky(const std::string& fits_path) {
+  const FitsHeader h = ReadFits(fits_path).header;
+  if (h.Find("METHOD") == nullptr) return false;
+  try {
+    return h.GetString("METHOD") == "linear";
+  } catch (const InvalidArgument&) {  // not a string: not ours
+    return false;
+  }
+}
+
 Evaluation EvaluateReconstruction(const Image& truth, const Image& estimate, const std::vector<PointSource>& stars,
                                   const EvaluationOptions& o) {
   const char* f = "EvaluateReconstruction";
@@ -41,7 +69,13 @@ Evaluation EvaluateReconstruction(const Image& truth, const Image& estimate, con
   mo.crop_px = o.crop_px;
   mo.peak = o.peak;
   Evaluation e;
-  const AlignedImageMetrics am = CompareImagesAligned(truth, estimate, mo);
+  Image scored;
+  if (o.subtract_sky) {
+    e.sky = SkyLevelDifference(truth, estimate, o.crop_px);
+    scored = estimate.array() - e.sky;
+  }
+  const Image& est = o.subtract_sky ? scored : estimate;
+  const AlignedImageMetrics am = CompareImagesAligned(truth, est, mo);
   e.metrics = am.raw;
   e.aligned = am.aligned;
   e.offset = am.offset;
@@ -54,7 +88,7 @@ Evaluation EvaluateReconstruction(const Image& truth, const Image& estimate, con
     so.aperture_px = o.aperture_px;
     so.annulus_inner_px = o.aperture_px + 2;
     so.annulus_outer_px = o.aperture_px + 5;
-    e.stars = MeasureStars(truth, estimate, stars, so);
+    e.stars = MeasureStars(truth, est, stars, so);
     e.measured_stars = true;
   }
   return e;

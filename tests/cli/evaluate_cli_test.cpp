@@ -57,6 +57,40 @@ TEST_F(EvaluateCliTest, ConstantOffsetGivesTheExactRmseAndPsnr) {
   EXPECT_THAT(text.out, HasSubstr("crop 4 px"));
 }
 
+// A linear-method output keeps the frames' sky: with --subtract-sky auto (the default) an estimate whose METHOD is
+// linear is scored after removing its median level above the truth's (truth + c scores as the truth: RMSE ~ 0,
+// sky_subtracted = c); without the keyword, or with --subtract-sky no, the sky counts (RMSE = c); yes forces it.
+TEST_F(EvaluateCliTest, SubtractSkyRemovesTheLinearOutputsSkyLevel) {
+  Image truth(32, 40);
+  for (int y = 0; y < 32; ++y)
+    for (int x = 0; x < 40; ++x) truth(y, x) = std::sin(0.3 * y) * std::cos(0.2 * x) * 50 + 60;
+  const double c = 7.25;
+  aosr::FitsHeader linear;
+  linear.Set("METHOD", std::string("linear"), "reconstruction method");
+  aosr::WriteFits(Path("truth.fits"), truth);
+  aosr::WriteFits(Path("linear.fits"), Image(truth + c), linear);
+  aosr::WriteFits(Path("plain.fits"), Image(truth + c));
+  auto run = [&](const std::string& estimate, const std::string& extra) {
+    const CliRun r = RunCli("evaluate --truth " + Path("truth.fits") + " --estimate " + Path(estimate) + " --json " + extra);
+    EXPECT_EQ(r.status, 0) << r.out;
+    return nlohmann::json::parse(r.out);
+  };
+  const nlohmann::json a = run("linear.fits", "");
+  EXPECT_NEAR(a["sky_subtracted"].get<double>(), c, 1e-5);
+  EXPECT_LT(a["rmse"].get<double>(), 1e-5);
+  const nlohmann::json n = run("linear.fits", "--subtract-sky no");
+  EXPECT_FALSE(n.contains("sky_subtracted"));
+  EXPECT_NEAR(n["rmse"].get<double>(), c, 1e-5);
+  const nlohmann::json p = run("plain.fits", "");
+  EXPECT_FALSE(p.contains("sky_subtracted"));
+  EXPECT_NEAR(p["rmse"].get<double>(), c, 1e-5);
+  const nlohmann::json y = run("plain.fits", "--subtract-sky yes");
+  EXPECT_NEAR(y["sky_subtracted"].get<double>(), c, 1e-5);
+  const CliRun bad = RunCli("evaluate --truth " + Path("truth.fits") + " --estimate " + Path("plain.fits") + " --subtract-sky maybe");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_THAT(bad.out, HasSubstr("--subtract-sky"));
+}
+
 // An estimate moved by a known sub-pixel offset: --json reports the offset (HR px; mas from the truth's PIXSCALE)
 // and the aligned scores; an unmoved estimate has offset 0 and aligned = raw.
 TEST_F(EvaluateCliTest, ReportsTheOffsetAndTheAlignedScores) {

@@ -23,6 +23,9 @@ struct EvaluationOptions {
   int stars = 20;             // brightest stars measured, >= 1 (with a catalogue)
   double aperture_px = 3.0;   // star aperture radius [HR px], in [0.5, 1000]
   double hr_pixel_mas = 0.0;  // HR pixel pitch [mas], >= 0 and finite; 0: unknown (offset_mas stays 0)
+  // Score estimate − s with s = SkyLevelDifference(truth, estimate, crop_px): for outputs that keep the frames'
+  // sky (the linear method's target-PSF estimate), which a truth without sky would otherwise count as error.
+  bool subtract_sky = false;
 };
 
 struct Evaluation {
@@ -31,6 +34,7 @@ struct Evaluation {
   ImageOffset offset;            // of the estimate against the truth [HR px] (core/metrics.hpp)
   bool offset_mas_known = false;  // options.hr_pixel_mas > 0
   double offset_mas[2] = {0, 0};  // (dy, dx) in mas when offset_mas_known, else 0
+  double sky = 0.0;              // what subtract_sky removed (estimate's units); 0 without it
   bool measured_stars = false;  // a catalogue was given
   StarMetrics stars;
 };
@@ -40,6 +44,15 @@ struct Evaluation {
 // 0 when absent, not a number or not > 0; IoError for an unreadable file).
 double DatasetHrPixelMas(const Dataset& dataset);
 double FitsPixelScaleMas(const std::string& path);
+
+// The background level of `estimate` above `reference`: the difference of their medians over the image less
+// `crop_px` at each border (a median, so that sources cover less than half the region without biasing it).
+// InvalidArgument for a shape mismatch or a crop that leaves nothing.
+double SkyLevelDifference(const Image& reference, const Image& estimate, int crop_px);
+
+// Whether a reconstruction file's METHOD keyword names an output that keeps the sky (the linear method's),
+// for `aosr evaluate --subtract-sky auto` and aosr.evaluate(subtract_sky=None). False without the keyword.
+bool OutputKeepsSky(const std::string& fits_path);
 
 // The crop a dataset's own trustworthy border gives (camera px × r, in HR px).
 inline int DatasetCrop(Index trustworthy_border_px, int r) { return int(trustworthy_border_px * r); }
