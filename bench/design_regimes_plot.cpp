@@ -2,7 +2,8 @@
 // the HR pixel in lambda/D (camera pixel / r), from bench/design_regimes.py's build/regimes/results.json.
 // Left: objective A's expected gain (the better of tip/tilt and 20-mode Zernike) per (r, N). Right: held-out PSNR
 // gains (mean of USAF and the demo truth) of Tikhonov and TV with the best design per (r, N), and at r = 2 with
-// the raster moved by half an HR pixel (no optimisation). A gain appears only right of the HR grid's Nyquist limit, 0.5 lambda/D.
+// the raster moved by half an HR pixel (no optimisation), also with the sky rendered 4x finer than the HR grid
+// (sky_oversampling). A gain appears only right of the HR grid's Nyquist limit, 0.5 lambda/D.
 //
 // Usage: build/bench/design_regimes_plot build/regimes/results.json bench/results/design_regimes.png
 #include <algorithm>
@@ -63,6 +64,21 @@ int main(int argc, char** argv) {
         held[key].y.push_back(d);
       }
   }
+  // The fine-sky check (sky_oversampling 4): the raster moved by half an HR pixel, every cell it ran in.
+  if (j.contains("fine"))
+    for (const auto& row : j["fine"]) {
+      if (row["s"].get<int>() != 4) continue;
+      const Cell c = Parse(row["cell"].get<std::string>());
+      for (const std::string m : {"tikhonov", "tv"}) {
+        double d = 0;
+        for (const std::string o : {"usaf", "demo"})
+          d += 0.5 * (row["held"]["shifted/" + o][m].get<double>() - row["held"]["raster/" + o][m].get<double>());
+        const std::string key = (m == "tv" ? "TV, " : "Tikhonov, ") + std::string("raster + half HR px, sky 4x finer");
+        held[key].label = key;
+        held[key].x.push_back(c.hr);
+        held[key].y.push_back(d);
+      }
+    }
   aosr::LinePlot left, right;
   left.title = "objective A: expected gain over the raster";
   left.x.label = "HR pixel [lambda/D] (Nyquist 0.5)";
