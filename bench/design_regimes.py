@@ -12,7 +12,8 @@ camera's 56.7 mas pixel, or 3.74 lambda/D as on the paper's bench):
 
 Usage (from the repository root, after building build/aosr):
     bench/design_regimes.py [--quick] [--out bench/results/design_regimes.md]
---quick: K and J band at r = 2 only, with one fine-sky, one noise and one objective-B row (a smoke run, ~3 min).
+--quick: K and J band at r = 2 only, with one fine-sky, one noise and one objective-B row (a smoke run, ~1 min).
+--bands: print the error-band tables from an earlier full run's files (build/regimes) and stop.
 Two jobs at a time (the machine has 2 cores).
 """
 import argparse
@@ -114,6 +115,25 @@ def error_bands(d, method, crop):
     return mse, [mse * p[(rho >= edges[i]) & (rho < edges[i + 1])].sum() / p.sum() for i in range(4)]
 
 
+def band_tables():
+    """Where the errors sit (error_bands), from the run's files: Tikhonov in J r = 2 N = 4 (discrete and 4x finer
+    sky, noise 1 % and 0.1 %) and TV-400 in K 3.74 r = 4 N = 4; USAF. `--bands` prints them from build/regimes."""
+    out = ["", "Where the error sits (`error_bands` in the script: error power per band of max(|fx|, |fy|) / HR "
+           "Nyquist, in MSE units; USAF; `bench/design_regimes.py --bands` prints these from the run's files):", "",
+           "| cell, method | noise [%] | s | config | MSE | [0, 1/4) | [1/4, 1/2) | [1/2, 3/4) | [3/4, 1] |",
+           "|---|---:|---:|---|---:|---:|---:|---:|---:|"]
+    rows = [(("J", 1.76, 2, 4), "", 1, s, "tikhonov", 8) for s in (1, 4)]
+    rows += [(("J", 1.76, 2, 4), "-noise0.001", 0.1, s, "tikhonov", 8) for s in (1, 4)]
+    rows += [(("K", 3.74, 4, 4), "-tv400", 1, s, "tv", 16) for s in (1, 4)]
+    for c, tag, noise, s, m, crop in rows:
+        for label in ("raster", "shifted"):
+            d = os.path.join(SCRATCH, cell_key(c) + tag, label + "-usaf" + ("-s%d" % s if s > 1 else ""))
+            mse, bands = error_bands(d, m, crop)
+            out.append("| %s, %s | %g | %d | %s | %.0f | %s |" % (cell_key(c), "TV-400" if tag == "-tv400" else m, noise,
+                                                               s, label, mse, " | ".join("%.0f" % b for b in bands)))
+    return out
+
+
 def cell_key(c):
     return "%s-p%.2f-r%d-N%d" % c
 
@@ -178,7 +198,11 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--bands", action="store_true", help="print the error-band tables from build/regimes and stop")
     a = ap.parse_args()
+    if a.bands:
+        print("\n".join(band_tables()))
+        return 0
     t0 = time.time()
     if a.quick:
         cells = [("K", 1.0, 2, 4), ("J", 1.76, 2, 4)]
@@ -384,14 +408,7 @@ def main():
                 h(tv_cell, "raster", "usaf", "tv", s, "-tv400"), h(tv_cell, "raster", "demo", "tv", s, "-tv400")))
 
     if not a.quick:
-        lines += ["", "Where TV-400's error sits (`error_bands` in the script: error power per band of max(|fx|, |fy|) / "
-                  "HR Nyquist, in MSE units; USAF):", "",
-                  "| s | config | MSE | [0, 1/4) | [1/4, 1/2) | [1/2, 3/4) | [3/4, 1] |", "|---:|---|---:|---:|---:|---:|---:|"]
-        for s in (1, 4):
-            for label in ("raster", "shifted"):
-                d = os.path.join(SCRATCH, cell_key(tv_cell) + "-tv400", label + "-usaf" + ("-s%d" % s if s > 1 else ""))
-                mse, bands = error_bands(d, "tv", 16)
-                lines.append("| %d | %s | %.0f | %s |" % (s, label, mse, " | ".join("%.0f" % b for b in bands)))
+        lines += band_tables()
 
     lines += ["", "### Per-frequency transfer: |H_half(f)| / |H_0(f)|, a PSF half an HR pixel off the HR samples against one "
               "on them (`transfer_lines` in the script)", ""] + transfer_lines() + [""]

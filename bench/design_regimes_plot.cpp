@@ -5,6 +5,9 @@
 // the raster moved by half an HR pixel (no optimisation), also with the sky rendered 4x finer than the HR grid
 // (sky_oversampling). A gain appears only right of the HR grid's Nyquist limit, 0.5 lambda/D.
 //
+// Legend: Tik/TV = Tikhonov/TV; design = the best design, shift = the raster moved by half an HR pixel; sky 4x =
+// sky_oversampling 4.
+//
 // Usage: build/bench/design_regimes_plot build/regimes/results.json bench/results/design_regimes.png
 #include <algorithm>
 #include <cmath>
@@ -57,8 +60,8 @@ int main(int argc, char** argv) {
         for (const std::string o : {"usaf", "demo"})
           d += 0.5 * (row["held"][label + "/" + o][m].get<double>() - row["held"]["raster/" + o][m].get<double>());
         if (label == "shifted" && c.r != 2) continue;  // the registration shift is drawn at r = 2 only
-        const std::string key = (m == "tv" ? "TV, " : "Tikhonov, ") +
-                                std::string(label == "design" ? "design, " : "raster + half HR px, ") + rn;
+        const std::string key = (m == "tv" ? "TV " : "Tik ") + std::string(label == "design" ? "design " : "shift ") +
+                                "r" + std::to_string(c.r) + " N" + std::to_string(c.n);
         held[key].label = key;
         held[key].x.push_back(c.hr);
         held[key].y.push_back(d);
@@ -73,7 +76,7 @@ int main(int argc, char** argv) {
         double d = 0;
         for (const std::string o : {"usaf", "demo"})
           d += 0.5 * (row["held"]["shifted/" + o][m].get<double>() - row["held"]["raster/" + o][m].get<double>());
-        const std::string key = (m == "tv" ? "TV, " : "Tikhonov, ") + std::string("raster + half HR px, sky 4x finer");
+        const std::string key = (m == "tv" ? "TV " : "Tik ") + std::string("shift, sky 4x, N") + std::to_string(c.n);
         held[key].label = key;
         held[key].x.push_back(c.hr);
         held[key].y.push_back(d);
