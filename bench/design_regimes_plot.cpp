@@ -2,7 +2,11 @@
 // the HR pixel in lambda/D (camera pixel / r), from bench/design_regimes.py's build/regimes/results.json.
 // Left: objective A's expected gain (the better of tip/tilt and 20-mode Zernike) per (r, N). Right: held-out PSNR
 // gains (mean of USAF and the demo truth) of Tikhonov and TV with the best design per (r, N), and at r = 2 with
-// the raster moved by half an HR pixel (no optimisation). A gain appears only right of the HR grid's Nyquist limit, 0.5 lambda/D.
+// the raster moved by half an HR pixel (no optimisation), also with the sky rendered 4x finer than the HR grid
+// (sky_oversampling). A gain appears only right of the HR grid's Nyquist limit, 0.5 lambda/D.
+//
+// Legend: Tik/TV = Tikhonov/TV; design = the best design, shift = the raster moved by half an HR pixel; sky 4x =
+// sky_oversampling 4.
 //
 // Usage: build/bench/design_regimes_plot build/regimes/results.json bench/results/design_regimes.png
 #include <algorithm>
@@ -56,13 +60,28 @@ int main(int argc, char** argv) {
         for (const std::string o : {"usaf", "demo"})
           d += 0.5 * (row["held"][label + "/" + o][m].get<double>() - row["held"]["raster/" + o][m].get<double>());
         if (label == "shifted" && c.r != 2) continue;  // the registration shift is drawn at r = 2 only
-        const std::string key = (m == "tv" ? "TV, " : "Tikhonov, ") +
-                                std::string(label == "design" ? "design, " : "raster + half HR px, ") + rn;
+        const std::string key = (m == "tv" ? "TV " : "Tik ") + std::string(label == "design" ? "design " : "shift ") +
+                                "r" + std::to_string(c.r) + " N" + std::to_string(c.n);
         held[key].label = key;
         held[key].x.push_back(c.hr);
         held[key].y.push_back(d);
       }
   }
+  // The fine-sky check (sky_oversampling 4): the raster moved by half an HR pixel, every cell it ran in.
+  if (j.contains("fine"))
+    for (const auto& row : j["fine"]) {
+      if (row["s"].get<int>() != 4) continue;
+      const Cell c = Parse(row["cell"].get<std::string>());
+      for (const std::string m : {"tikhonov", "tv"}) {
+        double d = 0;
+        for (const std::string o : {"usaf", "demo"})
+          d += 0.5 * (row["held"]["shifted/" + o][m].get<double>() - row["held"]["raster/" + o][m].get<double>());
+        const std::string key = (m == "tv" ? "TV " : "Tik ") + std::string("shift, sky 4x, N") + std::to_string(c.n);
+        held[key].label = key;
+        held[key].x.push_back(c.hr);
+        held[key].y.push_back(d);
+      }
+    }
   aosr::LinePlot left, right;
   left.title = "objective A: expected gain over the raster";
   left.x.label = "HR pixel [lambda/D] (Nyquist 0.5)";

@@ -116,6 +116,8 @@ void BindScene(py::module_& m) {
         return py::make_tuple(h.rows, h.cols);
       })
       .def_property_readonly("seed", [](const PyScene& s) { return s.spec->seed; })
+      .def_property_readonly("sky_oversampling", [](const PyScene& s) { return s.spec->sky_oversampling; },
+                             "the sky's sampling against the HR grid (1: a grid of HR pixels; s > 1: s times finer)")
       .def("_spec_json", [](const PyScene& s) { return py::make_tuple(FromJson(s.json), s.source); },
            "(json, source): what the scene was parsed from (for functions that re-parse it)")
       .def_property_readonly("json", [](const PyScene& s) { return FromJson(s.json); },

@@ -65,6 +65,7 @@ nlohmann::json PlanJson(const ScenePipeline& p) {
   j["source"] = p.scene().source;
   j["frames"] = p.scene().frames;
   j["r"] = g.r;
+  j["sky_oversampling"] = p.scene().sky_oversampling;
   j["frame_shape"] = {g.frame.rows, g.frame.cols};
   j["hr_shape"] = {g.hr_frame.rows, g.hr_frame.cols};
   j["padded_shape"] = {g.padded.rows, g.padded.cols};

@@ -174,6 +174,31 @@ Image StarTruth(Shape hr, std::vector<PointSource> stars) {
   return img;
 }
 
+// The sum of each s x s block (the HR pixel of a sky s times finer); the sides are multiples of s.
+Image BlockSum(const Image& fine, int s) {
+  Image out = Image::Zero(fine.rows() / s, fine.cols() / s);
+  for (Index i = 0; i < fine.rows(); ++i)
+    for (Index j = 0; j < fine.cols(); ++j) out(i / s, j / s) += fine(i, j);
+  return out;
+}
+
+// A centred PSF sampled at pitch θ/s (size k·s) at the HR pitch θ (size k): sample k·s/2 + (j − k/2)·s = j·s
+// lies at the same angle as HR sample j (centre at size/2, image.hpp), renormalised to unit sum.
+Image SubsamplePsf(const Image& fine, int s) {
+  Image out(fine.rows() / s, fine.cols() / s);
+  for (Index i = 0; i < out.rows(); ++i)
+    for (Index j = 0; j < out.cols(); ++j) out(i, j) = fine(i * s, j * s);
+  return NormaliseToUnitSum(out);
+}
+
+// A star at fine-grid coordinate c (s fine pixels per HR pixel): fine pixel s·J .. s·J + s − 1 is HR pixel J,
+// whose centre is fine coordinate s·J + (s − 1)/2.
+PointSource StarToHr(PointSource p, int s) {
+  p.y = (p.y + 0.5) / s - 0.5;
+  p.x = (p.x + 0.5) / s - 0.5;
+  return p;
+}
+
 // The OPD with its tip and tilt removed: Strehl about the PSF's own centre, so a designed image shift does
 // not read as a loss of image quality.
 Image WithoutTilt(const Image& opd, const Image& amplitude) {
@@ -256,6 +281,18 @@ void ScenePipeline::Compile() {
   g.trustworthy_border_px = (g.psf_size / 2 + s.r - 1) / s.r;
   // Before anything is built (the DM below, later the PSFs): can this run fit in memory at all?
   estimated_peak_bytes_ = EstimatePeakBytes(s, g);
+  if (s.sky_oversampling > 1) {
+    // The frames come from the same scene on the fine grid (pipeline.hpp); its constructor checks its own
+    // memory and builds the plan this pipeline reports.
+    SceneSpec fine = s;
+    fine.r = s.r * s.sky_oversampling;
+    fine.psf_size_px = s.psf_size_px * s.sky_oversampling;
+    fine.sky_oversampling = 1;
+    auto p = std::make_shared<ScenePipeline>(std::move(fine));
+    p->flux_binning_ = s.sky_oversampling;
+    estimated_peak_bytes_ = std::max(estimated_peak_bytes_, p->estimated_peak_bytes_);
+    fine_ = std::move(p);
+  }
   CheckMemory(estimated_peak_bytes_, s.source + ": simulating " + std::to_string(s.frames) + " frames of " +
                                          ToString(g.frame) + " at r = " + std::to_string(s.r) + " (HR " +
                                          ToString(g.hr_frame) + ", convolution grid " + ToString(g.padded) +
@@ -387,12 +424,26 @@ void ScenePipeline::Compile() {
     add("detector", detail, s.frames,
         s.frames * double(g.frame.rows) * g.frame.cols * (noisy ? kDetectorNoiseSPerPixel : kDetectorPlainSPerPixel));
   }
+  if (fine_) {
+    // The fine grid does the work: its stages, marked as such.
+    stages_ = fine_->stages_;
+    const std::string note = " (sky_oversampling " + std::to_string(s.sky_oversampling) + ": " +
+                             std::to_string(s.sky_oversampling) + "x finer than the HR grid)";
+    for (PipelineStage& st : stages_)
+      if (st.name == "object" || st.name == "psf" || st.name == "convolution" || st.name == "point-sources" ||
+          st.name == "pixel-integration")
+        st.detail += note;
+  }
 }
 
 std::string ScenePipeline::PlanReport() const {
   std::string out = "scene " + scene_.name + ": N = " + std::to_string(scene_.frames) + ", r = " + std::to_string(scene_.r) +
                     ", frames " + ToString(geometry_.frame) + " -> HR " + ToString(geometry_.hr_frame) + ", PSF " +
-                    std::to_string(geometry_.psf_size) + "^2, border " + std::to_string(geometry_.trustworthy_border_px) + " px\n";
+                    std::to_string(geometry_.psf_size) + "^2, border " + std::to_string(geometry_.trustworthy_border_px) + " px" +
+                    (fine_ ? ", sky rendered on the " + ToString(fine_->geometry_.hr_frame) + " grid (sky_oversampling " +
+                                 std::to_string(scene_.sky_oversampling) + ")"
+                           : std::string()) +
+                    "\n";
   double total = 0;
   for (const PipelineStage& st : stages_) {
     char buf[96];
@@ -406,6 +457,15 @@ std::string ScenePipeline::PlanReport() const {
 }
 
 Image ScenePipeline::RenderTruth(std::vector<PointSource>* stars) const {
+  if (fine_) {
+    std::vector<PointSource> fine_stars;
+    const Image truth = BlockSum(fine_->RenderTruth(&fine_stars), scene_.sky_oversampling);
+    if (stars) {
+      stars->clear();
+      for (const PointSource& p : fine_stars) stars->push_back(StarToHr(p, scene_.sky_oversampling));
+    }
+    return truth;
+  }
   std::vector<PointSource> all;
   Image truth = RenderObject(&all);
   if (!all.empty()) truth += StarTruth(geometry_.hr_frame, all);
@@ -429,7 +489,8 @@ Image ScenePipeline::RenderObject(std::vector<PointSource>* stars) const {
     } else {
       Image c = RenderExtended(scene_, o, hr);
       if (!AllFinite(c)) throw NumericalError("ScenePipeline: objects[" + std::to_string(i) + "] rendered non-finite values");
-      c *= FluxScale(scene_, o, i, c.sum(), c.maxCoeff());
+      // On the fine grid of sky_oversampling, a peak is that of the sky over HR pixels (flux_binning_²).
+      c *= FluxScale(scene_, o, i, c.sum(), flux_binning_ > 1 ? BlockSum(c, flux_binning_).maxCoeff() : c.maxCoeff());
       extended += c;
     }
   }
@@ -526,6 +587,17 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
 }
 
 Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
+  if (fine_) {
+    // The fine grid renders everything; its outputs go back to the HR grid (pipeline.hpp).
+    const int so = scene_.sky_oversampling;
+    Simulation sim = fine_->Run(progress);
+    sim.geometry = geometry_;
+    if (sim.truth.size()) sim.truth = BlockSum(sim.truth, so);
+    for (PointSource& p : sim.stars) p = StarToHr(p, so);
+    for (Image& p : sim.psfs) p = SubsamplePsf(p, so);
+    for (Image& p : sim.nominal_psfs) p = SubsamplePsf(p, so);
+    return sim;
+  }
   using Clock = std::chrono::steady_clock;
   const auto t_run = Clock::now();
   // Steps: the object, each distinct PSF, the nominal PSFs (closed loop), convolution, pixels, detector.

@@ -456,6 +456,10 @@ SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
                   " lambda/D) must be at most lambda/D for the PSF to be sampled without losing light");
   if (s.HrFrame().rows > 16384 || s.HrFrame().cols > 16384)
     root.Fail("r", std::to_string(s.r), "r * frame_px <= 16384 (HR grid " + ToString(s.HrFrame()) + ")");
+  s.sky_oversampling = int(root.IntegerOr("sky_oversampling", 1, 1, 16));
+  if (s.HrFrame().rows * s.sky_oversampling > 16384 || s.HrFrame().cols * s.sky_oversampling > 16384)
+    root.Fail("sky_oversampling", std::to_string(s.sky_oversampling),
+              "sky_oversampling * r * frame_px <= 16384 (HR grid " + ToString(s.HrFrame()) + ")");
 
   double window_lod = kDefaultPsfWindowLod;
   if (root.Has("psf")) {

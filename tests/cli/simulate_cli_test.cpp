@@ -96,6 +96,22 @@ TEST_F(SimulateCliTest, JsonSummaryParses) {
   EXPECT_EQ(Entries(), 1u);
 }
 
+// The scene field sky_oversampling through --set: the plan and the summary say it, the outputs stay on the HR
+// grid, and a bad value is named.
+TEST_F(SimulateCliTest, SkyOversamplingIsASceneField) {
+  CliRun r = RunCli("simulate " + ScenePath() + " --json --set sky_oversampling=3");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["sky_oversampling"], 3);
+  EXPECT_EQ(j["hr_shape"], nlohmann::json({64, 64}));
+  r = RunCli("simulate " + ScenePath() + " --plan --set sky_oversampling=3");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_THAT(r.out, AllOf(HasSubstr("sky_oversampling 3"), HasSubstr("192x192")));
+  r = RunCli("simulate " + ScenePath() + " --plan --set sky_oversampling=0");
+  EXPECT_NE(r.status, 0);
+  EXPECT_THAT(r.out, HasSubstr("sky_oversampling"));
+}
+
 TEST_F(SimulateCliTest, BadSceneOrOutputExitsOneNamingTheProblem) {
   nlohmann::json bad = Scene();
   bad["r"] = 0;

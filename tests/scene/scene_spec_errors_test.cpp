@@ -49,6 +49,25 @@ TEST(SceneSpecErrorsTest, BaseSceneIsValid) {
   EXPECT_EQ(ParseError(BaseScene()), "no exception");
 }
 
+TEST(SceneSpecErrorsTest, SkyOversamplingIsAnIntegerInRangeWithinTheGridLimit) {
+  Json s = BaseScene();
+  s["sky_oversampling"] = 0;
+  EXPECT_THAT(ParseError(s), AllOf(HasSubstr("mem.json"), HasSubstr("sky_oversampling"), HasSubstr("0")));
+  s["sky_oversampling"] = 17;
+  EXPECT_THAT(ParseError(s), AllOf(HasSubstr("sky_oversampling"), HasSubstr("17")));
+  s["sky_oversampling"] = 2.5;
+  EXPECT_THAT(ParseError(s), HasSubstr("sky_oversampling"));
+  s["sky_oversampling"] = 16;
+  s["r"] = 16;
+  s["detector"]["frame_px"] = 128;  // 16 * 16 * 128 = 32768 fine pixels per side
+  EXPECT_THAT(ParseError(s), AllOf(HasSubstr("sky_oversampling"), HasSubstr("16384")));
+  s["sky_oversampling"] = 4;
+  s["r"] = 2;
+  EXPECT_EQ(ParseError(s), "no exception");
+  EXPECT_EQ(ParseScene(s, "mem.json").sky_oversampling, 4);
+  EXPECT_EQ(ParseScene(BaseScene(), "mem.json").sky_oversampling, 1);
+}
+
 TEST(SceneSpecErrorsTest, SkyPointingIsCheckedFieldByField) {
   Json j = BaseScene();
   j["sky"] = {{"ra_deg", 10.0}, {"dec_deg", 95.0}};

@@ -24,6 +24,20 @@
 //   detector           photon/read/peak-fraction noise, background, dark current, ADU conversion,
 //                      saturation, bad pixels, quantisation (Detector::Plan lists the enabled ones)
 //
+// ## A sky finer than the HR grid (SceneSpec::sky_oversampling = s > 1)
+//
+// The stages above then run on a grid s times finer than the HR grid (r·s per camera pixel): the object is
+// rendered there (flux normalisations apply to the sky integrated over HR pixels, so `peak_e` means the same
+// as at s = 1), the PSFs are sampled at θ_hr/s over the same angular window, and each camera pixel integrates
+// its (r·s)² fine pixels. Everything a caller sees is on the HR grid again: Simulation::truth is the fine sky
+// summed over each HR pixel (stars: deposited bilinearly on the fine grid, then summed), the stars are in HR
+// coordinates, and psfs (nominal_psfs) are the fine PSFs' samples at the HR pixel centres (every s-th sample,
+// the centred-kernel convention of image.hpp puts them there), renormalised to unit sum: the same numbers
+// ComputePsfs gives, to rounding. The frames then differ from an s = 1 simulation only by the sky's and the
+// image's structure between HR samples, which is what this option is for: the HR model y = D_r(h ⊛ x) is
+// exact for a sky that is a grid of HR pixels, not for a continuous one. With a PSF band-limited at the HR
+// grid (HR pixel <= λ/2D) and a sky smooth at the HR pitch the two agree (tests/scene/pipeline_physics_test.cpp).
+//
 // ## Boundaries
 //
 // The object lives on the HR frame and is dark outside it. Convolution runs on that frame padded by at least
@@ -49,6 +63,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -168,6 +183,12 @@ class ScenePipeline {
 
   SceneSpec scene_;
   SceneGeometry geometry_;
+  // sky_oversampling > 1: the same scene at r·s (PSF window s times the samples), which renders the frames;
+  // Run maps its outputs back to the HR grid.
+  std::shared_ptr<const ScenePipeline> fine_;
+  // Set on fine_ only: component flux normalisations use the sky summed over flux_binning_² pixels (the HR
+  // pixels), so a peak normalisation means the same as on the HR grid.
+  int flux_binning_ = 1;
   std::vector<PipelineStage> stages_;
   std::vector<int> distinct_;  // exposure -> distinct OPD group (all 0..N-1 for the closed loop)
   int distinct_count_ = 0;

@@ -164,6 +164,15 @@ struct SceneSpec {
 
   Index psf_size_px = 0;  // PSF kernel side at HR sampling (even)
 
+  // The sky's sampling against the HR grid, s in [1, 16] (JSON `sky_oversampling`, default 1). 1: the sky is
+  // a grid of HR pixels and the PSFs are sampled at the HR pitch (the reconstructors' model, exactly). s > 1:
+  // the frames are rendered from a sky s times finer than the HR grid (objects at r·s per camera pixel, PSFs
+  // sampled at HR pitch / s, each camera pixel integrating its (r·s)² fine pixels): a stand-in for a
+  // continuous sky, for measuring what the HR grid's discretisation itself does. The outputs stay on the HR
+  // grid: the truth is the fine sky integrated over each HR pixel, the PSFs are the same PSFs sampled at the
+  // HR pitch (what a reconstructor uses). Cost: the object, PSF and convolution stages at s² times the pixels.
+  int sky_oversampling = 1;
+
   // Derived geometry.
   Shape HrFrame() const { return {frame.rows * r, frame.cols * r}; }
   double CameraPixelRad() const { return telescope.camera_pixel_rad; }
