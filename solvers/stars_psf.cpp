@@ -365,7 +365,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
 
   // ---- Frames: valid pixels, background, noise. ---------------------------------------------------------------
   ImageStack valid(n), mask(n);
-  std::vector<double> sigma(n), bg(n), var_floor(n);
+  std::vector<double> sigma(n), bg(n), var_floor(n), sigma_floor(n);
   for (Index i = 0; i < n; ++i) {
     valid[i] = ((valid_in[i] != 0) && y[i].isFinite()).cast<double>();
     if (!weights_in.empty()) valid[i] *= (weights_in[i] > 0).cast<double>();
@@ -380,7 +380,8 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
     double peak = 0;
     for (double a : v) peak = std::max(peak, a - bg[i]);
     // Noise-free data have σ = 0: a floor keeps thresholds and weights finite without mattering for real data.
-    sigma[i] = std::max(sigma[i], 1e-4 * peak + 1e-300);
+    sigma_floor[i] = 1e-4 * peak + 1e-300;
+    sigma[i] = std::max(sigma[i], sigma_floor[i]);
     var_floor[i] = sigma[i] * sigma[i];
     mask[i] = Image::Ones(lr.rows, lr.cols);
   }
@@ -553,6 +554,12 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
     for (Index i = 0; i < n; ++i) {
       model[i] = ToImage(frame_operator(i)->Apply(h), lr);
       resid[i] = (valid[i] > 0).select(Image(y[i] - bg[i] - model[i]), 0.0);
+      // The background noise again from the residual: with the stars subtracted, their gradients no longer
+      // inflate the neighbour differences the first estimate was made from (crowded or small frames).
+      if (weights_in.empty()) {
+        const double s = EstimateBackgroundSigma(resid[i], Image(valid[i] * mask[i]));
+        if (s > 0) var_floor[i] = std::max(s, sigma_floor[i]) * std::max(s, sigma_floor[i]);
+      }
     }
   };
 
