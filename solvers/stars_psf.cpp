@@ -306,8 +306,10 @@ bool StarsPsfOptions::IsValid(std::string* why) const {
 
 std::string StarsPsfResult::BriefReport() const {
   char buf[256];
-  std::snprintf(buf, sizeof buf, "stars PSF: %d stars (%d saturated, %d dropped), K = %lld HR px, chi2/dof %.3f, %d rounds",
-                used, saturated, dropped, static_cast<long long>(psf.rows()), chi2_per_dof, rounds);
+  std::snprintf(buf, sizeof buf,
+                "stars PSF: %d stars (%d saturated, %d dropped), K = %lld HR px, chi2/dof %.3f (%.3f per pixel near the "
+                "stars), %d rounds",
+                used, saturated, dropped, static_cast<long long>(psf.rows()), chi2_per_dof, chi2_near_stars, rounds);
   return buf;
 }
 
@@ -672,8 +674,8 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
 
   // ---- Result. ----------------------------------------------------------------------------------------------
   res.psf = ToImage(h, kk);
-  double chi2 = 0;
-  Index npix = 0;
+  double chi2 = 0, chi2_near = 0;
+  Index npix = 0, nnear = 0;
   for (Index i = 0; i < n; ++i) {
     Image near = Image::Zero(lr.rows, lr.cols);
     for (const Star& s : stars) {
@@ -684,13 +686,19 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
           near(yy, xx) = 1;
     }
     for (Index p = 0; p < near.size(); ++p)
-      if (near(p) > 0 && w[i](p) > 0) {
-        chi2 += w[i](p) * resid[i](p) * resid[i](p);
+      if (w[i](p) > 0) {
+        const double c = w[i](p) * resid[i](p) * resid[i](p);
+        chi2 += c;
         ++npix;
+        if (near(p) > 0) {
+          chi2_near += c;
+          ++nnear;
+        }
       }
   }
   res.dof = npix - k * k - 3 * Index(stars.size()) - n;
   res.chi2_per_dof = res.dof > 0 ? chi2 / double(res.dof) : 0.0;
+  res.chi2_near_stars = nnear > 0 ? chi2_near / double(nnear) : 0.0;
   // Per-frame PSFs: h shifted by o_i on a window padded so the shift does not wrap the wings.
   double omax = 0;
   for (const FrameOffset& o : offsets) omax = std::max({omax, std::abs(o.dy), std::abs(o.dx)});

@@ -315,6 +315,7 @@ void RunReconstruct(const ReconstructArgs& a) {
                       {"min_required", st.min_required},
                       {"psf_size_hr_px", st.psf.rows()},
                       {"chi2_per_dof", st.chi2_per_dof},
+                      {"chi2_near_stars", st.chi2_near_stars},
                       {"dof", st.dof},
                       {"rounds", st.rounds},
                       {"background_e", st.background_e},

@@ -100,12 +100,16 @@ struct StarsPsfResult {
   int saturated = 0;                  // detections touching invalid pixels, masked out
   int dropped = 0;                    // detections dropped (flux below 3 σ, or moved > 1.5 camera px)
   int min_required = 0;               // max(min_stars, ⌈r²/N⌉)
-  double chi2_per_dof = 0.0;          // Σ w·res² / (n − K² − 3·stars − N) over the pixels within fit_radius_px of a star
+  // The fit's quality: Σ w·res² / dof over every pixel of non-zero weight, dof = n − K² − 3·stars − N (0 when
+  // dof <= 0), and Σ w·res² / n over the pixels within fit_radius_px of a fitted star (no dof correction): ~1 when
+  // the weights are the noise's inverse variances and the model fits; above where the PSF or the stars do not.
+  double chi2_per_dof = 0.0;
+  double chi2_near_stars = 0.0;
   Index dof = 0;
   int rounds = 0;
   int cg_iterations_last = 0;         // iterations of the final h solve
   double seconds = 0.0;
-  std::string BriefReport() const;    // "stars PSF: 123 stars (2 saturated, 5 dropped), K = 64, chi2/dof 1.02"
+  std::string BriefReport() const;    // "stars PSF: 123 stars (2 saturated, 5 dropped), K = 64 HR px, chi2/dof ..."
 };
 
 // From frames in e⁻ (N, camera px), their validity masks (1 usable / 0 not; same shapes), optional
