@@ -15,29 +15,38 @@
 //       designs); frames whose offsets change the PSF's shape (Zernike or actuator offsets) are refused: a
 //       shared shape would be wrong for them. The pixel box D_r is applied by the model, not baked into h.
 //
-// Given the stars, the frames are LINEAR in h: D_r(h ⊛ S_i) with S_i = Σ_j f_j δ(· − p_j − o_i). So h is the
-// solution of a weighted, lightly ridge-regularised least-squares problem over all frames and all stars'
-// pixels at once (conjugate gradients on AᵀWA + λI; the convolution with the star field runs by FFT on the HR
-// frame padded by K so nothing wraps, as the simulator renders). Every star's pixels, neighbours included,
-// enter jointly: crowding is modelled, not avoided. With N frames at distinct sub-pixel offsets each star
+// Given the stars, the frames are LINEAR in h: D_r(h ⊛ S_i) with S_i = Σ_j f_j δ(· − p_j − o_i). So h and the
+// N backgrounds b_i are the solution of one weighted, lightly ridge-regularised least-squares problem over all
+// frames and all stars' pixels at once (preconditioned conjugate gradients on AᵀWA + Λ; the convolution with the
+// star field, S_i's spectrum summed from the positions with signed frequencies, runs by FFT on the HR frame
+// padded by K so nothing wraps, as the simulator renders). The backgrounds are solved with h because in a
+// crowded field the stars' K × K footprints tile the frame: a pedestal in h would otherwise stand in for a
+// background error. Λ is a ridge λ(ρ) = regularisation · d · (1 + (ρ / 2r)²), d the centre pixel's diagonal of
+// AᵀWA and ρ the HR px from the centre: the core is shrunk by about `regularisation`, the far wings (few
+// photons, unmodelled faint stars) more, toward 0. Every star's pixels, neighbours included, enter jointly:
+// crowding is modelled, not avoided. With N frames at distinct sub-pixel offsets each star
 // samples N of the r² HR phases; the K × K support (K much smaller than the frame) lets many stars at random
 // phases fill the rest (Anderson & King's single-image oversampling).
 //
 // Then, given h, each star's position and flux are refined by Gauss-Newton on its own pixels (a box of
 // ±fit_radius_px camera px, all frames jointly) with every other star subtracted (Gauss-Seidel over the stars,
-// brightest first), h is solved again, and so on for `rounds` rounds. Stars are found (round 0 on frame 0,
-// later rounds also in frame 0's residual, which finds stars hidden next to bright ones) as local maxima of
-// 3 × 3 valid pixels above b + detection_sigma · σ (σ: the robust neighbour-difference estimate of
-// EstimateBackgroundSigma). A detection touching an invalid pixel (saturated or bad) is not fitted: it is
+// brightest first), h is solved again, and so on for `rounds` rounds. Stars are found in frame 0: in round 0
+// as valid pixels above b + detection_sigma · σ (σ: the robust neighbour-difference estimate of
+// EstimateBackgroundSigma, b the median) that are the largest valid pixel within ±fit_radius_px (isolated, so
+// that an Airy ring or speckle of a bright star is not taken for a star), in later rounds as 3 × 3 local maxima
+// of the residual above both detection_sigma · √(σ² + model) and 10 % of the model there (a faint star next to a
+// bright one, not the imperfect subtraction of the bright one), at least 2 camera px from a known star. σ is
+// re-estimated from the residual each round (the stars' gradients no longer inflate it). A detection touching an invalid pixel (saturated or bad) is not fitted: it is
 // counted as saturated and the pixels within 2·fit_radius_px + 2 camera px of it get weight 0 in every frame,
 // so its unmodelled light cannot enter h. Stars on the frame's outermost pixel ring are not detected. A star
 // whose fitted flux falls below 3 σ_flux (e.g. a speckle or Airy-ring maximum of a bright star taken for a
 // star in round 0) or that moves off its detection by more than 1.5 camera px is dropped.
 //
 // Centring (image.hpp): the fitted h is renormalised to unit sum (the fluxes take the inverse factor) and
-// shifted so that its FIRST MOMENT over the K × K window is at the centre pixel (K/2, K/2), the quantity
-// KernelCentroid measures and DatasetOffsets::kPsfCentroids reads; the stars' positions take the opposite
-// shift. Data cannot tell a shift of h from a shift of all the stars, so this is a convention: the offsets
+// shifted (Fourier) so that the FIRST MOMENT OF ITS CORE, the pixels within 3 camera px (3 r HR px) of the
+// centre, is at the centre pixel (K/2, K/2); the stars' positions take the opposite shift. The core, not the
+// whole window: the wings' noise times their lever arm would move a full-window moment by a tenth of a pixel.
+// For a symmetric PSF the two agree (KernelCentroid, DatasetOffsets::kPsfCentroids, reads the full one). Data cannot tell a shift of h from a shift of all the stars, so this is a convention: the offsets
 // o_i carry the frames' pointing, h carries none. Any common pointing error (a tip/tilt bias) then appears as
 // a shift of the reconstruction (an astrometric offset), not as a PSF error.
 //
