@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
@@ -55,11 +56,14 @@ class KernelRenderer {
       sy.resize(k_, half_cols);
       sx.resize(k_, half_cols);
     }
+    // The phase exp(−2πi (f_y φ_y + f_x φ_x)/K) factors into a row and a column term.
+    std::vector<Complex> ey(static_cast<std::size_t>(k_)), ex(static_cast<std::size_t>(half_cols));
+    for (Index v = 0; v < k_; ++v) ey[std::size_t(v)] = std::polar(1.0, -2.0 * kPi * double(SignedFrequency(v, k_)) * fy / double(k_));
+    for (Index u = 0; u < half_cols; ++u) ex[std::size_t(u)] = std::polar(1.0, -2.0 * kPi * double(u) * fx / double(k_));
     for (Index v = 0; v < k_; ++v) {
       const Index sv = SignedFrequency(v, k_);
       for (Index u = 0; u < half_cols; ++u) {
-        const double arg = -2.0 * kPi * (double(sv) * fy + double(u) * fx) / double(k_);
-        const Complex c = spectrum_(v, u) * Complex(std::cos(arg), std::sin(arg));
+        const Complex c = spectrum_(v, u) * (ey[std::size_t(v)] * ex[std::size_t(u)]);
         s(v, u) = c;
         if (derivatives) {
           // d/dpy of exp(-2πi f·p/K) = -2πi f/K; 0 at the Nyquist bins (a real kernel cannot carry it).
@@ -218,28 +222,104 @@ ComplexImage StarTransfer(const std::vector<Star>& stars, const FrameOffset& o, 
   return acc.array();
 }
 
-// Frame i of the joint unknown u = [h (K²); b (N)]: A_i h + b_i (one background per frame, solved with h: in a
-// crowded field the stars' K × K footprints tile the frame, and a pedestal in h would otherwise stand in for a
-// background error).
-class FrameWithBackground final : public LinearOperator {
+// The frames as a function of u = [h (K²); b (N)] for fixed stars: y_i = D_r Crop(S_i ⊛ ZeroPad h) + b_i, with
+// S_i the star field of frame i on the padded grid (kernel centre at (P/2, P/2)). One object for all frames, its
+// FFT buffers reused across calls (the composed LinearOperators allocate per call, and the page faults of
+// those allocations cost more than the FFTs): a normal-operator application is 2 N + 2 FFTs. Not thread-safe.
+class StarFieldModel {
  public:
-  FrameWithBackground(OperatorPtr a, Index frame, Index frames)
-      : LinearOperator(a->rows(), a->cols() + frames, "FrameWithBackground(" + a->name() + ")"),
-        a_(std::move(a)),
-        frame_(frame) {}
+  StarFieldModel(const std::vector<Star>& stars, const std::vector<FrameOffset>& offsets, Shape pad, Shape hr, int r,
+                 Index k)
+      : pad_(pad), hr_(hr), r_(r), k_(k), top_(pad.rows / 2 - k / 2), left_(pad.cols / 2 - k / 2) {
+    for (const FrameOffset& o : offsets) spectra_.push_back(HermitianProjection(StarTransfer(stars, o, pad), pad.cols));
+  }
+  Index frames() const { return Index(spectra_.size()); }
+  Shape lr() const { return {hr_.rows / r_, hr_.cols / r_}; }
+
+  // Frame i without background, camera px.
+  Image Render(const Vector& h, Index i) {
+    Forward(h);
+    Image out;
+    FrameFromSpectrum(i, &out);
+    return out;
+  }
+  // Σ_i Aᵢᵀ c_i (camera images c_i): the h part into z.head(K²), Σ c_i into the b part.
+  void Backward(const ImageStack& c, Eigen::Ref<Vector> z) {
+    acc_.setZero(pad_.rows, pad_.cols / 2 + 1);
+    for (Index i = 0; i < frames(); ++i) {
+      BackProject(c[std::size_t(i)], i);
+      z(k_ * k_ + i) = c[std::size_t(i)].sum();
+    }
+    FftC2RInto(acc_, pad_.cols, &real_);
+    for (Index v = 0; v < k_; ++v)
+      for (Index u = 0; u < k_; ++u) z(v * k_ + u) = real_(top_ + v, left_ + u);
+  }
+  // (AᵀWA) u for the weights w_i.
+  void Normal(const Eigen::Ref<const Vector>& u, const ImageStack& w, Eigen::Ref<Vector> z) {
+    Forward(u.head(k_ * k_));
+    if (cam_.size() != std::size_t(frames())) cam_.resize(std::size_t(frames()));
+    for (Index i = 0; i < frames(); ++i) {
+      FrameFromSpectrum(i, &cam_[std::size_t(i)]);
+      cam_[std::size_t(i)] = (cam_[std::size_t(i)] + u(k_ * k_ + i)) * w[std::size_t(i)];
+    }
+    Backward(cam_, z);
+  }
+
+ private:
+  void Forward(const Eigen::Ref<const Vector>& h) {
+    real_.setZero(pad_.rows, pad_.cols);
+    for (Index v = 0; v < k_; ++v)
+      for (Index u = 0; u < k_; ++u) real_(top_ + v, left_ + u) = h(v * k_ + u);
+    FftR2CInto(real_, &h_spec_);
+  }
+  void FrameFromSpectrum(Index i, Image* out) {
+    prod_ = h_spec_ * spectra_[std::size_t(i)];
+    FftC2RInto(prod_, pad_.cols, &frame_);
+    const Shape m = lr();
+    out->setZero(m.rows, m.cols);
+    for (Index yy = 0; yy < m.rows; ++yy)
+      for (int a = 0; a < r_; ++a) {
+        const double* row = &frame_(yy * r_ + a, 0);
+        double* o = &(*out)(yy, 0);
+        for (Index xx = 0; xx < m.cols; ++xx)
+          for (int b = 0; b < r_; ++b) o[xx] += row[xx * r_ + b];
+      }
+  }
+  void BackProject(const Image& c, Index i) {
+    frame_.setZero(pad_.rows, pad_.cols);
+    for (Index y = 0; y < hr_.rows; ++y) {
+      const double* src = &c(y / r_, 0);
+      double* dst = &frame_(y, 0);
+      for (Index x = 0; x < hr_.cols; ++x) dst[x] = src[x / r_];
+    }
+    FftR2CInto(frame_, &prod_);
+    acc_ += prod_ * spectra_[std::size_t(i)].conjugate();
+  }
+
+  Shape pad_, hr_;
+  int r_;
+  Index k_, top_, left_;
+  std::vector<ComplexImage> spectra_;
+  Image real_, frame_;
+  ComplexImage h_spec_, prod_, acc_;
+  ImageStack cam_;
+};
+
+// AᵀWA + Λ (Λ diagonal) as the LinearOperator conjugate gradients takes.
+class StarFieldNormal final : public LinearOperator {
+ public:
+  StarFieldNormal(StarFieldModel* model, const ImageStack* w, Vector ridge)
+      : LinearOperator(ridge.size(), ridge.size(), "StarFieldNormal"), model_(model), w_(w), ridge_(std::move(ridge)) {}
 
  private:
   void ApplyImpl(ConstRef x, Ref y) const override {
-    a_->Apply(x.head(a_->cols()), y);
-    y.array() += x(a_->cols() + frame_);
+    model_->Normal(x, *w_, y);
+    y += ridge_.cwiseProduct(x);
   }
-  void ApplyAdjointImpl(ConstRef y, Ref x) const override {
-    x.setZero();
-    a_->ApplyAdjoint(y, x.head(a_->cols()));
-    x(a_->cols() + frame_) = y.sum();
-  }
-  OperatorPtr a_;
-  Index frame_;
+  void ApplyAdjointImpl(ConstRef y, Ref x) const override { ApplyImpl(y, x); }  // symmetric
+  StarFieldModel* model_;
+  const ImageStack* w_;
+  Vector ridge_;
 };
 
 // The preconditioner of the h solve: for many stars at random sub-pixel phases AᵀWA acts on h nearly as a
@@ -469,11 +549,6 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
   // ---- The global model of h: frames = D_r Crop (S_i ⊛ ZeroPad h). ----------------------------------------------
   const Shape kk{k, k};
   const Shape pad{NextFastFftSize(hr.rows + k), NextFastFftSize(hr.cols + k)};
-  const OperatorPtr embed = ZeroPad(kk, pad, pad.rows / 2 - k / 2, pad.cols / 2 - k / 2);
-  const OperatorPtr to_camera = Compose(Decimate(hr, r), Crop(pad, hr, 0, 0));
-  auto frame_operator = [&](Index i) {
-    return Compose(to_camera, Compose(PeriodicConvolution(pad, StarTransfer(stars, offsets[i], pad)), embed));
-  };
   ImageStack w(n);
   auto update_weights = [&](const ImageStack* model) {
     for (Index i = 0; i < n; ++i) {
@@ -500,22 +575,18 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
       ridge_shape(0, v * k + q) = 1.0 + rho2;
     }
   for (Index i = 0; i < n; ++i) ridge_shape(0, k * k + i) = 0.0;
+  std::unique_ptr<StarFieldModel> field;  // the stars of the current round
   auto solve_h = [&]() {
-    std::vector<OperatorPtr> parts;
-    Vector rhs = Vector::Zero(k * k + n);
-    for (Index i = 0; i < n; ++i) {
-      const OperatorPtr a = std::make_shared<FrameWithBackground>(frame_operator(i), i, n);
-      const Image sw = w[i].sqrt();
-      const OperatorPtr wa = Compose(Mask(sw), a);
-      const Image data = (valid[i] > 0).select(y[i], 0.0) * sw;
-      rhs += wa->ApplyAdjoint(AsVector(data));
-      parts.push_back(Normal(wa));
-    }
-    const OperatorPtr data_normal = Sum(parts);
-    Vector delta = Vector::Zero(k * k + n);
+    field = std::make_unique<StarFieldModel>(stars, offsets, pad, hr, int(r), k);
+    Vector rhs(k * k + n);
+    ImageStack wy(n);
+    for (Index i = 0; i < n; ++i) wy[i] = (valid[i] > 0).select(y[i], 0.0) * w[i];
+    field->Backward(wy, rhs);
+    Vector delta = Vector::Zero(k * k + n), column(k * k + n);
     delta((k / 2) * k + k / 2) = 1.0;
-    const double diag = data_normal->Apply(delta)((k / 2) * k + k / 2);
-    parts.push_back(Mask(options.regularisation * diag * ridge_shape));
+    field->Normal(delta, w, column);
+    const double diag = column((k / 2) * k + k / 2);
+    const StarFieldNormal normal(field.get(), &w, options.regularisation * diag * AsVector(ridge_shape));
     if (u.size() != k * k + n) {
       u = Vector::Zero(k * k + n);
       for (Index i = 0; i < n; ++i) u(k * k + i) = bg[i];
@@ -527,7 +598,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
     std::vector<double> bdiag(n);
     for (Index i = 0; i < n; ++i) bdiag[i] = std::max(w[i].sum(), 1e-300);
     const PsfPreconditioner pre(k, r, diag, options.regularisation * diag, bdiag);
-    const SolverSummary sum = PreconditionedConjugateGradient(*Sum(parts), pre, rhs, &u, cg);
+    const SolverSummary sum = PreconditionedConjugateGradient(normal, pre, rhs, &u, cg);
     res.cg_iterations_last = sum.iterations;
     h = u.head(k * k);
     for (Index i = 0; i < n; ++i) bg[i] = u(k * k + i);
@@ -553,8 +624,10 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
     h = AsVector(img);
   };
   auto render_model = [&]() {
+    // The stars as normalise_and_centre left them (scaled fluxes, shifted positions).
+    field = std::make_unique<StarFieldModel>(stars, offsets, pad, hr, int(r), k);
     for (Index i = 0; i < n; ++i) {
-      model[i] = ToImage(frame_operator(i)->Apply(h), lr);
+      model[i] = field->Render(h, i);
       resid[i] = (valid[i] > 0).select(Image(y[i] - bg[i] - model[i]), 0.0);
       // The background noise again from the residual: with the stars subtracted, their gradients no longer
       // inflate the neighbour differences the first estimate was made from (crowded or small frames).
