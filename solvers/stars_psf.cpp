@@ -630,9 +630,11 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
       model[i] = field->Render(h, i);
       resid[i] = (valid[i] > 0).select(Image(y[i] - bg[i] - model[i]), 0.0);
       // The background noise again from the residual: with the stars subtracted, their gradients no longer
-      // inflate the neighbour differences the first estimate was made from (crowded or small frames).
+      // inflate the neighbour differences the first estimate was made from (crowded or small frames), and only
+      // pixels where the stars' photon noise is below the background's (model < σ²) enter, so it does not either.
       if (weights_in.empty()) {
-        const double s = EstimateBackgroundSigma(resid[i], Image(valid[i] * mask[i]));
+        const Image quiet = valid[i] * mask[i] * (model[i] < var_floor[i]).cast<double>();
+        const double s = EstimateBackgroundSigma(resid[i], quiet);
         if (s > 0) var_floor[i] = std::max(s, sigma_floor[i]) * std::max(s, sigma_floor[i]);
       }
     }
