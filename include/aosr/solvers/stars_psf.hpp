@@ -35,8 +35,9 @@
 // EstimateBackgroundSigma, b the median) that are the largest valid pixel within ±fit_radius_px (isolated, so
 // that an Airy ring or speckle of a bright star is not taken for a star), in later rounds as 3 × 3 local maxima
 // of the residual above both detection_sigma · √(σ² + model) and 10 % of the model there (a faint star next to a
-// bright one, not the imperfect subtraction of the bright one), at least 2 camera px from a known star. σ is
-// re-estimated from the residual each round (the stars' gradients no longer inflate it). A detection touching an invalid pixel (saturated or bad) is not fitted: it is
+// bright one, not the imperfect subtraction of the bright one), at least 2 camera px from a known star. Without
+// given weights σ is re-estimated each round from the residual's pixels where the model is below σ² (neither the
+// stars' gradients nor their photon noise inflate it). A detection touching an invalid pixel (saturated or bad) is not fitted: it is
 // counted as saturated and the pixels within 2·fit_radius_px + 2 camera px of it get weight 0 in every frame,
 // so its unmodelled light cannot enter h. Stars on the frame's outermost pixel ring are not detected. A star
 // whose fitted flux falls below 3 σ_flux (e.g. a speckle or Airy-ring maximum of a bright star taken for a
