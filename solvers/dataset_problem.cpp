@@ -184,6 +184,13 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     psfs = d.nominal_psfs;
     out.model_psfs_replaced = true;
   }
+  CheckArgument(!(options.stars_psfs && (options.nominal_psfs || !options.model_psfs.empty())), kFn, "stars_psfs",
+                "true with nominal_psfs or model_psfs", "one source of model PSFs");
+  if (options.stars_psfs) {
+    out.stars_psf = EstimateStarsPsf(d, options.stars);
+    psfs = out.stars_psf->psfs;
+    out.model_psfs_replaced = true;
+  }
   if (!options.model_psfs.empty()) {
     const ImageStack& m = options.model_psfs;
     CheckArgument(m.size() == n || m.size() == 1, kFn, "model_psfs count", m.size(),

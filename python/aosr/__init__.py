@@ -52,6 +52,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     set_memory_limit,
     set_threads,
     simulate,
+    stars_psf,
     synthesize_calibration,
     threads,
     write_fits,
@@ -62,7 +63,7 @@ __all__ = [
     "ResourceError", "Scene", "calibrate", "compare_images", "compare_images_aligned", "data_path", "design",
     "evaluate", "fourier_shift", "load_scene",
     "methods", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
-    "scene_from_dict", "set_fft_planner", "set_memory_limit", "set_threads", "simulate",
+    "scene_from_dict", "set_fft_planner", "set_memory_limit", "set_threads", "simulate", "stars_psf",
     "synthesize_calibration", "threads", "write_fits",
 ]
 

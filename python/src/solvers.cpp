@@ -296,8 +296,61 @@ struct PyReconstruction {
   bool model_psfs_replaced = false;
   Index masked_pixels = 0;
   std::optional<RegistrationResult> registration;
+  std::optional<StarsPsfResult> stars_psf;
   int r = 1;
 };
+
+// StarsPsfOptions from keyword arguments (or a dict) under the fields' names; unknown names are errors.
+StarsPsfOptions StarsOptionsFrom(py::handle kwargs, const char* fn) {
+  StarsPsfOptions o;
+  if (kwargs.is_none()) return o;
+  for (auto item : kwargs.cast<py::dict>()) {
+    const std::string key = item.first.cast<std::string>();
+    py::handle v = item.second;
+    if (key == "psf_size_hr_px") o.psf_size_hr_px = v.cast<int>();
+    else if (key == "detection_sigma") o.detection_sigma = v.cast<double>();
+    else if (key == "min_stars") o.min_stars = v.cast<int>();
+    else if (key == "rounds") o.rounds = v.cast<int>();
+    else if (key == "regularisation") o.regularisation = v.cast<double>();
+    else if (key == "fit_radius_px") o.fit_radius_px = v.cast<int>();
+    else if (key == "cg_iterations") o.cg_iterations = v.cast<int>();
+    else if (key == "cg_tolerance") o.cg_tolerance = v.cast<double>();
+    else if (key == "max_stars") o.max_stars = v.cast<int>();
+    else
+      throw InvalidArgument(fn, "stars option", key,
+                            "psf_size_hr_px | detection_sigma | min_stars | rounds | regularisation | fit_radius_px | "
+                            "cg_iterations | cg_tolerance | max_stars");
+  }
+  std::string why;
+  if (!o.IsValid(&why)) throw InvalidArgument(fn, "stars options", why, "valid StarsPsfOptions");
+  return o;
+}
+
+// The stars PSF estimate as a dict (arrays copied).
+py::dict StarsPsfDict(const StarsPsfResult& s) {
+  py::dict d;
+  d["psf"] = MoveImage(Image(s.psf));
+  d["psfs"] = StackToArray(s.psfs);
+  py::list offsets;
+  for (const FrameOffset& o : s.offsets) offsets.append(py::make_tuple(o.dy, o.dx));
+  d["offsets_hr_px"] = offsets;
+  Image stars(Index(s.stars.size()), 3);
+  for (std::size_t j = 0; j < s.stars.size(); ++j) stars.row(Index(j)) << s.stars[j].y, s.stars[j].x, s.stars[j].flux;
+  d["stars"] = MoveImage(std::move(stars));
+  d["background_e"] = s.background_e;
+  d["stars_used"] = s.used;
+  d["detected"] = s.detected;
+  d["saturated"] = s.saturated;
+  d["dropped"] = s.dropped;
+  d["min_required"] = s.min_required;
+  d["chi2_per_dof"] = s.chi2_per_dof;
+  d["chi2_near_stars"] = s.chi2_near_stars;
+  d["dof"] = s.dof;
+  d["rounds"] = s.rounds;
+  d["seconds"] = s.seconds;
+  d["report"] = s.BriefReport();
+  return d;
+}
 
 }  // namespace
 
@@ -403,6 +456,14 @@ void BindSolvers(py::module_& m) {
           },
           "offsets='estimate': {'frames': [{'commanded_camera_px': (dy, dx), 'estimated_camera_px': (dy, dx), "
           "'sigma_camera_px': s}, ...], 'rounds', 'converged', 'seconds'}; else None")
+      .def_property_readonly(
+          "stars_psf",
+          [](const PyReconstruction& r) -> py::object {
+            if (!r.stars_psf) return py::none();
+            return StarsPsfDict(*r.stars_psf);
+          },
+          "model_psfs='stars': the estimate as aosr.stars_psf returns it (psf, psfs, stars, stars_used, chi2_per_dof, "
+          "...); else None")
       .def("__repr__", [](const PyReconstruction& r) {
         return "<aosr.Reconstruction " + r.method + " " + ToString(ShapeOf(r.rec.image)) + ": " +
                ToString(r.rec.summary.termination) + ", " + std::to_string(r.rec.summary.iterations) + " iterations, " +
@@ -413,7 +474,7 @@ void BindSolvers(py::module_& m) {
       "reconstruct",
       [](py::object dataset, const std::string& method, const std::string& weights, const std::string& offsets,
          py::object model_psfs, py::object progress, double registration_range, const std::string& registration_anchor,
-         py::kwargs kwargs) {
+         py::object stars, py::kwargs kwargs) {
         // Everything is parsed and checked before any work (as the CLI does).
         ReconstructOptions o = CliDefaults();
         o.method = ParseReconstructionMethod(method);
@@ -426,8 +487,14 @@ void BindSolvers(py::module_& m) {
         std::string why;
         if (!dpo.registration.IsValid(&why))
           throw InvalidArgument("aosr.reconstruct", "registration_range", why, "(0, 4] camera px");
+        dpo.stars = StarsOptionsFrom(stars, "aosr.reconstruct");
         if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "nominal")
           dpo.nominal_psfs = true;
+        else if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "stars")
+          dpo.stars_psfs = true;
+        else if (py::isinstance<py::str>(model_psfs))
+          throw InvalidArgument("aosr.reconstruct", "model_psfs", model_psfs.cast<std::string>(),
+                                "'nominal' | 'stars' | an (N, K, K) array");
         else if (!model_psfs.is_none())
           dpo.model_psfs = StackFromArray(model_psfs, "model_psfs");
         const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, "aosr.reconstruct");
@@ -450,6 +517,7 @@ void BindSolvers(py::module_& m) {
           out->model_psfs_replaced = dp.model_psfs_replaced;
           out->masked_pixels = dp.masked_pixels;
           out->registration = dp.registration;
+          out->stars_psf = dp.stars_psf;
           out->r = d->r;
         });
         poll.RaiseIfPending();  // Ctrl-C (KeyboardInterrupt) or the progress callable's exception
@@ -459,7 +527,7 @@ void BindSolvers(py::module_& m) {
       },
       py::arg("dataset"), py::arg("method") = "tikhonov", py::kw_only(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("model_psfs") = py::none(), py::arg("progress") = py::none(),
-      py::arg("registration_range") = 0.5, py::arg("registration_anchor") = "mean",
+      py::arg("registration_range") = 0.5, py::arg("registration_anchor") = "mean", py::arg("stars") = py::none(),
       R"doc(Super-resolves a dataset with one method: the library's Reconstruct (include/aosr/solvers/reconstruct.hpp),
 the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and the same bits.
 
@@ -477,7 +545,9 @@ offsets     'auto' | 'dm' | 'centroids': registration offsets for shift-add/driz
             offsets per frame (camera px)
 registration_range   offsets='estimate': largest correction to a commanded offset [camera px]; beyond is an error
 registration_anchor  offsets='estimate': 'mean' (keep the commanded mean) | 'frame0' (frame 0 keeps its own)
-model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) array, or 'nominal'
+model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) array, 'nominal', or 'stars'
+            (estimated from the point sources in the frames, aosr.stars_psf; Reconstruction.stars_psf reports it)
+stars       model_psfs='stars': a dict of aosr.stars_psf's options (psf_size_hr_px, detection_sigma, ...)
 progress    optional callable(dict) called during tikhonov, tv and map (stage, iteration, total, value,
             value_name, elapsed_seconds); returning False cancels (termination 'cancelled')
 **options   the CLI's options under their names (lambda_, lambda_rule, prior, boundary, std, noise_sigma, mu,
@@ -490,6 +560,31 @@ progress    optional callable(dict) called during tikhonov, tv and map (stage, i
 Returns an aosr.Reconstruction (image, aux, aux_name, summary dict, regularisation, seconds_total).
 The GIL is released during the solve; Ctrl-C stops tv/map (and tikhonov's CG path) after the current
 iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) naming the option, IoError for unreadable files.)doc");
+
+  m.def(
+      "stars_psf",
+      [](py::object dataset, py::kwargs kwargs) {
+        const StarsPsfOptions o = StarsOptionsFrom(kwargs, "aosr.stars_psf");
+        const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, "aosr.stars_psf");
+        StarsPsfResult r;
+        WithoutGil([&] { r = EstimateStarsPsf(*d, o); });
+        return StarsPsfDict(r);
+      },
+      py::arg("dataset"),
+      R"doc(Model PSFs from the point sources in a dataset's frames: the library's EstimateStarsPsf
+(include/aosr/solvers/stars_psf.hpp), what `aosr reconstruct --model-psfs stars` uses. One HR PSF (K x K, unit
+sum, core centroid at (K/2, K/2)) shifted by each frame's DM tip/tilt offset; stars detected, fitted with their
+neighbours subtracted, the PSF solved by weighted least squares over all their pixels.
+
+dataset   an aosr.Dataset or a dataset folder / manifest path
+options   psf_size_hr_px (0: 32 r), detection_sigma (5), min_stars (4), rounds (4), regularisation (1e-4),
+          fit_radius_px (3), cg_iterations (300), cg_tolerance (1e-5), max_stars (5000)
+
+Returns {'psf': (K, K), 'psfs': (N, K', K') per frame, 'offsets_hr_px', 'stars': (S, 3) y, x [HR px], flux [e-],
+'background_e', 'stars_used', 'detected', 'saturated', 'dropped', 'min_required', 'chi2_per_dof',
+'chi2_near_stars', 'dof',
+'rounds', 'seconds', 'report'}. InvalidArgument (ValueError) when the frames cannot support an estimate (no
+detection, too few or only saturated stars, offsets that change the PSF's shape), naming what is missing.)doc");
 
   m.def("reconstruct_options", &ReconstructOptionsHelp,
         "{option: {'type', 'default', 'doc'}} for every keyword option of aosr.reconstruct (defaults as the CLI's).");

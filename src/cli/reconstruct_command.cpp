@@ -41,6 +41,12 @@ struct ReconstructArgs {
   std::string registration_anchor = "mean";  // --registration-anchor
   int registration_rounds = 4;               // --registration-rounds
   std::string model_psfs;
+  // --model-psfs stars: the PSF estimated from the point sources in the frames (solvers/stars_psf.hpp)
+  std::string stars_psf_out;     // --stars-psf-out: the per-frame model PSFs as a FITS cube
+  int stars_psf_size = 0;        // --stars-psf-size [HR px], 0 auto
+  double stars_threshold = 5.0;  // --stars-threshold [background sigma]
+  int stars_min = 4;             // --stars-min
+  int stars_rounds = 4;          // --stars-rounds
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
   std::string lambda_rule = "gcv";
@@ -152,16 +158,31 @@ void RunReconstruct(const ReconstructArgs& a) {
   o.map.prior = ParseMapPrior(a.map_prior);
   o.map.read_noise = a.read_noise;
   CheckWritableFile(a.out);
+  if (!a.stars_psf_out.empty()) {
+    if (a.model_psfs != "stars")
+      throw InvalidArgument("aosr reconstruct", "--stars-psf-out", a.stars_psf_out, "only with --model-psfs stars");
+    CheckWritableFile(a.stars_psf_out);
+  }
+  dpo.stars.psf_size_hr_px = a.stars_psf_size;
+  dpo.stars.detection_sigma = a.stars_threshold;
+  dpo.stars.min_stars = a.stars_min;
+  dpo.stars.rounds = a.stars_rounds;
+  {
+    std::string why;
+    if (!dpo.stars.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--stars-*", why, "valid stars PSF settings");
+  }
 
   progress.Step("reading " + a.dataset);
   const Dataset d = LoadDataset(a.dataset);
   const fs::path out_canonical = fs::weakly_canonical(a.out);
   const std::set<fs::path> inputs = DatasetInputFiles(d);
-  for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std")})
-    if (inputs.count(fs::weakly_canonical(p)))
+  for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std"), a.stars_psf_out})
+    if (!p.empty() && inputs.count(fs::weakly_canonical(p)))
       throw InvalidArgument("aosr reconstruct", "-o", a.out, "a path that is not one of the dataset's input files (" + p + ")");
   if (a.model_psfs == "nominal") {
     dpo.nominal_psfs = true;
+  } else if (a.model_psfs == "stars") {
+    dpo.stars_psfs = true;
   } else if (!a.model_psfs.empty()) {
     dpo.model_psfs = ReadFits(a.model_psfs).planes;
   }
@@ -170,8 +191,18 @@ void RunReconstruct(const ReconstructArgs& a) {
     else o.linear.kind = TargetPsfKind::kAuto;  // only the linear method reads it
   }
   dpo.method = o.method;
+  if (dpo.stars_psfs) progress.Step("estimating the model PSF from the stars in the frames");
   if (dpo.offsets == DatasetOffsets::kEstimate) progress.Step("estimating the frames' offsets (registration)");
   const DatasetProblem dp = ProblemFromDataset(d, dpo);
+  if (dp.stars_psf && !a.stars_psf_out.empty()) {
+    FitsHeader ph;
+    ph.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
+    ph.Set("AOSRDATA", "stars model PSFs", "per frame, HR sampling, unit sum, centred at (K/2, K/2)");
+    ph.Set("SRFACTOR", static_cast<long long>(d.r), "super-resolution factor r");
+    ph.Set("NSTARS", static_cast<long long>(dp.stars_psf->used), "stars in the fit");
+    ph.Set("CHI2DOF", dp.stars_psf->chi2_per_dof, "chi2 per degree of freedom of the fit");
+    WriteFitsCube(a.stars_psf_out, dp.stars_psf->psfs, ph, FitsType::kFloat64);
+  }
   // The caution about the weights: on stderr, or under --json in the JSON's "warning" (stdout stays JSON).
   if (!dp.warning.empty() && !a.json) std::fprintf(stderr, "aosr reconstruct: warning: %s\n", dp.warning.c_str());
 
@@ -275,6 +306,22 @@ void RunReconstruct(const ReconstructArgs& a) {
                          {"seconds", reg.seconds}};
   }
   if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
+  if (dp.stars_psf) {
+    const StarsPsfResult& st = *dp.stars_psf;
+    j["stars_psf"] = {{"stars_used", st.used},
+                      {"detected", st.detected},
+                      {"saturated", st.saturated},
+                      {"dropped", st.dropped},
+                      {"min_required", st.min_required},
+                      {"psf_size_hr_px", st.psf.rows()},
+                      {"chi2_per_dof", st.chi2_per_dof},
+                      {"chi2_near_stars", st.chi2_near_stars},
+                      {"dof", st.dof},
+                      {"rounds", st.rounds},
+                      {"background_e", st.background_e},
+                      {"seconds", st.seconds}};
+    if (!a.stars_psf_out.empty()) j["stars_psf"]["path"] = a.stars_psf_out;
+  }
   if (!dp.background_sigma_e.empty()) j["background_sigma_e"] = dp.background_sigma_e;
   if (!dp.warning.empty()) j["warning"] = dp.warning;
   // Noise figures need absolute weights: a validity mask is relative (every pixel weight 1, σ = --noise-sigma).
@@ -348,6 +395,11 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (j.contains("sky_subtracted_e"))
     std::printf("  sky subtracted before scoring: %.4g e- per HR pixel (output's median level minus the truth's)\n",
                 j["sky_subtracted_e"].get<double>());
+  if (dp.stars_psf) {
+    const StarsPsfResult& st = *dp.stars_psf;
+    std::printf("  %s (%.2f s)%s%s\n", st.BriefReport().c_str(), st.seconds, a.stars_psf_out.empty() ? "" : "; wrote ",
+                a.stars_psf_out.c_str());
+  }
   if (dp.registration) {
     const RegistrationResult& reg = *dp.registration;
     std::printf("  registration (%d rounds%s, anchor %s, %.2f s), camera px (dy, dx):\n", reg.rounds,
@@ -408,8 +460,29 @@ void RegisterReconstruct(CLI::App& app) {
                   "commanded offset)")
       ->capture_default_str();
   cmd->add_option("--model-psfs", a->model_psfs,
-                  "PSFs the reconstructor uses instead of the dataset's: a FITS cube (HR sampling, centred), or `nominal` for "
-                  "the dataset's nominal_psfs (closed-loop simulations: the analytic-AO model)");
+                  "PSFs the reconstructor uses instead of the dataset's: a FITS cube (HR sampling, centred), `nominal` for "
+                  "the dataset's nominal_psfs (closed-loop simulations: the analytic-AO model), or `stars` for a PSF "
+                  "estimated from the point sources in the frames (one HR PSF shifted by each frame's DM offset; "
+                  "detection, position/flux fits with neighbours subtracted, joint least squares)");
+  cmd->add_option("--stars-psf-out", a->stars_psf_out,
+                  "--model-psfs stars: write the estimated per-frame model PSFs (HR sampling, centred) as a FITS cube");
+  cmd->add_option("--stars-psf-size", a->stars_psf_size,
+                  "--model-psfs stars: side of the estimated PSF [HR px, even]; 0: 32 r (16 camera px each side), "
+                  "at most the HR frame")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4096));
+  cmd->add_option("--stars-threshold", a->stars_threshold,
+                  "--model-psfs stars: detection threshold [background sigma per camera pixel]")
+      ->capture_default_str()
+      ->check(CLI::Range(0.5, 1e6));
+  cmd->add_option("--stars-min", a->stars_min,
+                  "--model-psfs stars: least number of usable stars (the floor is also ceil(r^2/N))")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--stars-rounds", a->stars_rounds,
+                  "--model-psfs stars: rounds of (PSF solve, star position/flux fits)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 50));
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
   cmd->add_option("--lambda-rule", a->lambda_rule,
                   "Tikhonov (and the TV/MAP pilot) lambda without --lambda: gcv | discrepancy (Morozov, residual = "

@@ -61,6 +61,7 @@
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "aosr/solvers/registration.hpp"
+#include "aosr/solvers/stars_psf.hpp"
 
 namespace aosr {
 
@@ -88,6 +89,11 @@ struct DatasetProblemOptions {
   ImageStack model_psfs;
   // Use the dataset's nominal_psfs as the model (an error if it has none; not with model_psfs).
   bool nominal_psfs = false;
+  // Build the model PSFs from the point sources in the frames (stars_psf.hpp: one shared HR PSF shifted by
+  // each frame's DM tip/tilt offset); not with nominal_psfs or model_psfs. Errors when the frames cannot
+  // support it (no detection, too few or only saturated stars, offsets that change the PSF's shape).
+  bool stars_psfs = false;
+  StarsPsfOptions stars;  // with stars_psfs: detection, size and fit settings
   // kEstimate: how (search range, rounds, anchor, the reconstruction registered against).
   RegistrationOptions registration;
 };
@@ -102,6 +108,7 @@ struct DatasetProblem {
   std::string offsets_source;  // "dm shifts" | "psf centroids" | "estimated from the frames (from dm shifts)" ...
   std::optional<RegistrationResult> registration;  // kEstimate: commanded and estimated offsets per frame
   bool model_psfs_replaced = false;
+  std::optional<StarsPsfResult> stars_psf;  // stars_psfs: the estimate (stars used, chi2/dof, the PSF itself)
   Index masked_pixels = 0;     // pixels of weight 0 over all frames
   Index psf_folded = 0;        // number of PSFs folded onto the HR grid (larger than it)
 };

@@ -1,0 +1,816 @@
+#include "aosr/solvers/stars_psf.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+#include "aosr/core/error.hpp"
+#include "aosr/core/fft.hpp"
+#include "aosr/core/operators.hpp"
+#include "aosr/solvers/conjugate_gradient.hpp"
+#include "aosr/solvers/dataset_problem.hpp"
+
+namespace aosr {
+namespace {
+
+constexpr const char* kFn = "EstimateStarsPsf";
+constexpr double kPi = 3.14159265358979323846;
+// A star whose fitted flux is below kDropSnr standard errors, or that moves more than kDropMove camera px
+// from where it was detected, is dropped (header).
+constexpr double kDropSnr = 3.0;
+constexpr double kDropMove = 1.5;
+// A peak in the residual is a new star only above this fraction of the model there (and the noise).
+constexpr double kResidualFraction = 0.1;
+
+Index FloorDiv(Index a, Index b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+
+struct Star {
+  double y = 0, x = 0, f = 0;  // HR-frame position (HR px) and flux (e⁻ per frame)
+  double y_det = 0, x_det = 0;  // where it was detected (HR px)
+  double sigma_f = 0;
+};
+
+// A shifted kernel binned onto camera pixels: rows/cols of camera pixels starting at (top, left), and its
+// derivatives with respect to the star's HR position.
+struct Patch {
+  Index top = 0, left = 0;
+  Image g, gy, gx;
+};
+
+// Renders h shifted to an HR position and integrated over camera pixels (D_r), by Fourier interpolation of the
+// K × K kernel (the same band-limited shift the global model applies).
+class KernelRenderer {
+ public:
+  KernelRenderer(const Image& h, int r) : k_(h.rows()), r_(r), spectrum_(FftR2C(h)) {}
+
+  // The star at HR position (py, px) of frame coordinates: patch of f=1.
+  void Render(double py, double px, bool derivatives, Patch* out) const {
+    const Index iy = Index(std::floor(py + 0.5)), ix = Index(std::floor(px + 0.5));
+    const double fy = py - double(iy), fx = px - double(ix);
+    const Index half_cols = spectrum_.cols();
+    ComplexImage s(k_, half_cols), sy, sx;
+    if (derivatives) {
+      sy.resize(k_, half_cols);
+      sx.resize(k_, half_cols);
+    }
+    // The phase exp(−2πi (f_y φ_y + f_x φ_x)/K) factors into a row and a column term.
+    std::vector<Complex> ey(static_cast<std::size_t>(k_)), ex(static_cast<std::size_t>(half_cols));
+    for (Index v = 0; v < k_; ++v) ey[std::size_t(v)] = std::polar(1.0, -2.0 * kPi * double(SignedFrequency(v, k_)) * fy / double(k_));
+    for (Index u = 0; u < half_cols; ++u) ex[std::size_t(u)] = std::polar(1.0, -2.0 * kPi * double(u) * fx / double(k_));
+    for (Index v = 0; v < k_; ++v) {
+      const Index sv = SignedFrequency(v, k_);
+      for (Index u = 0; u < half_cols; ++u) {
+        const Complex c = spectrum_(v, u) * (ey[std::size_t(v)] * ex[std::size_t(u)]);
+        s(v, u) = c;
+        if (derivatives) {
+          // d/dpy of exp(-2πi f·p/K) = -2πi f/K; 0 at the Nyquist bins (a real kernel cannot carry it).
+          const double wy = (2 * sv == k_ || 2 * sv == -k_) ? 0.0 : -2.0 * kPi * double(sv) / double(k_);
+          const double wx = (2 * u == k_) ? 0.0 : -2.0 * kPi * double(u) / double(k_);
+          sy(v, u) = c * Complex(0, wy);
+          sx(v, u) = c * Complex(0, wx);
+        }
+      }
+    }
+    const Index c0 = k_ / 2;
+    out->top = FloorDiv(iy - c0, r_);
+    out->left = FloorDiv(ix - c0, r_);
+    const Index rows = FloorDiv(iy + k_ - 1 - c0, r_) - out->top + 1;
+    const Index cols = FloorDiv(ix + k_ - 1 - c0, r_) - out->left + 1;
+    auto bin = [&](const ComplexImage& spec, Image* dst) {
+      const Image hr = FftC2R(spec, k_);
+      *dst = Image::Zero(rows, cols);
+      for (Index v = 0; v < k_; ++v) {
+        const Index yy = FloorDiv(iy + v - c0, r_) - out->top;
+        for (Index u = 0; u < k_; ++u) (*dst)(yy, FloorDiv(ix + u - c0, r_) - out->left) += hr(v, u);
+      }
+    };
+    bin(s, &out->g);
+    if (derivatives) {
+      bin(sy, &out->gy);
+      bin(sx, &out->gx);
+    }
+  }
+
+ private:
+  Index k_;
+  int r_;
+  ComplexImage spectrum_;
+};
+
+// Adds alpha · patch.g to a camera frame (non-periodic: outside the frame the light is lost).
+void AddPatch(const Patch& p, double alpha, Image* frame) {
+  for (Index y = 0; y < p.g.rows(); ++y) {
+    const Index fy = p.top + y;
+    if (fy < 0 || fy >= frame->rows()) continue;
+    for (Index x = 0; x < p.g.cols(); ++x) {
+      const Index fx = p.left + x;
+      if (fx >= 0 && fx < frame->cols()) (*frame)(fy, fx) += alpha * p.g(y, x);
+    }
+  }
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const std::size_t h = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + h, v.end());
+  return v[h];
+}
+
+struct Candidate {
+  double y = 0, x = 0;  // camera px (sub-pixel, 3 × 3 centroid)
+  double peak = 0;
+  bool touches_invalid = false;
+};
+
+// Local maxima of the valid pixels of `img` above `threshold` (a pixel's own threshold where `threshold_map`
+// is given), not on the outermost ring. `isolation` > 1: the pixel must also be the largest valid one within
+// ±isolation px (round 0, before the PSF is known: an Airy ring or speckle of a bright star is then never taken
+// for a star; a faint star next to a bright one is found later in the residual).
+std::vector<Candidate> Detect(const Image& img, const Image& valid, double threshold, Index isolation = 1,
+                              const Image* threshold_map = nullptr) {
+  std::vector<Candidate> out;
+  for (Index y = 1; y + 1 < img.rows(); ++y)
+    for (Index x = 1; x + 1 < img.cols(); ++x) {
+      if (valid(y, x) == 0) continue;
+      const double v = img(y, x);
+      if (!(v > (threshold_map ? (*threshold_map)(y, x) : threshold))) continue;
+      bool is_max = true, invalid = false;
+      for (Index dy = -isolation; dy <= isolation && is_max && isolation > 1; ++dy)
+        for (Index dx = -isolation; dx <= isolation; ++dx) {
+          const Index yy = y + dy, xx = x + dx;
+          if (yy < 0 || xx < 0 || yy >= img.rows() || xx >= img.cols() || valid(yy, xx) == 0) continue;
+          if (img(yy, xx) > v) {
+            is_max = false;
+            break;
+          }
+        }
+      for (Index dy = -1; dy <= 1 && is_max; ++dy)
+        for (Index dx = -1; dx <= 1; ++dx) {
+          if (dy == 0 && dx == 0) continue;
+          if (valid(y + dy, x + dx) == 0) {
+            invalid = true;
+            continue;
+          }
+          const double w = img(y + dy, x + dx);
+          // Ties go to the first pixel in raster order, so a flat top gives one detection.
+          if (w > v || (w == v && (dy < 0 || (dy == 0 && dx < 0)))) {
+            is_max = false;
+            break;
+          }
+        }
+      if (!is_max) continue;
+      Candidate c;
+      c.peak = v;
+      c.touches_invalid = invalid;
+      double s = 0, sy = 0, sx = 0;
+      for (Index dy = -1; dy <= 1; ++dy)
+        for (Index dx = -1; dx <= 1; ++dx) {
+          if (valid(y + dy, x + dx) == 0) continue;
+          const double w = std::max(0.0, img(y + dy, x + dx));
+          s += w;
+          sy += w * double(dy);
+          sx += w * double(dx);
+        }
+      c.y = double(y) + (s > 0 ? sy / s : 0.0);
+      c.x = double(x) + (s > 0 ? sx / s : 0.0);
+      out.push_back(c);
+    }
+  return out;
+}
+
+// The first moment of a centred kernel over the pixels within `radius` of its centre (K/2, K/2), about it.
+FrameOffset CoreCentroid(const Image& k, double radius) {
+  double s = 0, my = 0, mx = 0;
+  for (Index y = 0; y < k.rows(); ++y)
+    for (Index x = 0; x < k.cols(); ++x) {
+      const double dy = double(y - k.rows() / 2), dx = double(x - k.cols() / 2);
+      if (dy * dy + dx * dx > radius * radius) continue;
+      s += k(y, x);
+      my += k(y, x) * dy;
+      mx += k(y, x) * dx;
+    }
+  return s > 0 ? FrameOffset{my / s, mx / s} : FrameOffset{};
+}
+
+// Camera coordinate c <-> HR coordinate (c + ½) r − ½ (image.hpp).
+double CameraToHr(double c, int r) { return (c + 0.5) * r - 0.5; }
+double HrToCamera(double h, int r) { return (h + 0.5) / r - 0.5; }
+
+// The half-spectrum transfer of the star field of frame i on the padded grid, with the kernel's centre at
+// (P/2, P/2): S(f) = Σ_j f_j exp(−2πi f·(p_j + o_i − P/2)/P).
+ComplexImage StarTransfer(const std::vector<Star>& stars, const FrameOffset& o, Shape pad) {
+  const Index hc = pad.cols / 2 + 1;
+  Eigen::MatrixXcd acc = Eigen::MatrixXcd::Zero(pad.rows, hc);
+  Eigen::VectorXcd ey(pad.rows);
+  Eigen::RowVectorXcd ex(hc);
+  for (const Star& s : stars) {
+    const double ay = s.y + o.dy - double(pad.rows / 2), ax = s.x + o.dx - double(pad.cols / 2);
+    for (Index v = 0; v < pad.rows; ++v) {
+      // Signed frequencies: the field is real (Hermitian spectrum) only with them, for non-integer positions.
+      const double a = -2.0 * kPi * double(SignedFrequency(v, pad.rows)) * ay / double(pad.rows);
+      ey(v) = s.f * Complex(std::cos(a), std::sin(a));
+    }
+    for (Index u = 0; u < hc; ++u) {
+      const double a = -2.0 * kPi * double(u) * ax / double(pad.cols);
+      ex(u) = Complex(std::cos(a), std::sin(a));
+    }
+    acc.noalias() += ey * ex;
+  }
+  return acc.array();
+}
+
+// The frames as a function of u = [h (K²); b (N)] for fixed stars: y_i = D_r Crop(S_i ⊛ ZeroPad h) + b_i, with
+// S_i the star field of frame i on the padded grid (kernel centre at (P/2, P/2)). One object for all frames, its
+// FFT buffers reused across calls (the composed LinearOperators allocate per call, and the page faults of
+// those allocations cost more than the FFTs): a normal-operator application is 2 N + 2 FFTs. Not thread-safe.
+class StarFieldModel {
+ public:
+  StarFieldModel(const std::vector<Star>& stars, const std::vector<FrameOffset>& offsets, Shape pad, Shape hr, int r,
+                 Index k)
+      : pad_(pad), hr_(hr), r_(r), k_(k), top_(pad.rows / 2 - k / 2), left_(pad.cols / 2 - k / 2) {
+    for (const FrameOffset& o : offsets) spectra_.push_back(HermitianProjection(StarTransfer(stars, o, pad), pad.cols));
+  }
+  Index frames() const { return Index(spectra_.size()); }
+  Shape lr() const { return {hr_.rows / r_, hr_.cols / r_}; }
+
+  // Frame i without background, camera px.
+  Image Render(const Vector& h, Index i) {
+    Forward(h);
+    Image out;
+    FrameFromSpectrum(i, &out);
+    return out;
+  }
+  // Σ_i Aᵢᵀ c_i (camera images c_i): the h part into z.head(K²), Σ c_i into the b part.
+  void Backward(const ImageStack& c, Eigen::Ref<Vector> z) {
+    acc_.setZero(pad_.rows, pad_.cols / 2 + 1);
+    for (Index i = 0; i < frames(); ++i) {
+      BackProject(c[std::size_t(i)], i);
+      z(k_ * k_ + i) = c[std::size_t(i)].sum();
+    }
+    FftC2RInto(acc_, pad_.cols, &real_);
+    for (Index v = 0; v < k_; ++v)
+      for (Index u = 0; u < k_; ++u) z(v * k_ + u) = real_(top_ + v, left_ + u);
+  }
+  // (AᵀWA) u for the weights w_i.
+  void Normal(const Eigen::Ref<const Vector>& u, const ImageStack& w, Eigen::Ref<Vector> z) {
+    Forward(u.head(k_ * k_));
+    if (cam_.size() != std::size_t(frames())) cam_.resize(std::size_t(frames()));
+    for (Index i = 0; i < frames(); ++i) {
+      FrameFromSpectrum(i, &cam_[std::size_t(i)]);
+      cam_[std::size_t(i)] = (cam_[std::size_t(i)] + u(k_ * k_ + i)) * w[std::size_t(i)];
+    }
+    Backward(cam_, z);
+  }
+
+ private:
+  void Forward(const Eigen::Ref<const Vector>& h) {
+    real_.setZero(pad_.rows, pad_.cols);
+    for (Index v = 0; v < k_; ++v)
+      for (Index u = 0; u < k_; ++u) real_(top_ + v, left_ + u) = h(v * k_ + u);
+    FftR2CInto(real_, &h_spec_);
+  }
+  void FrameFromSpectrum(Index i, Image* out) {
+    prod_ = h_spec_ * spectra_[std::size_t(i)];
+    FftC2RInto(prod_, pad_.cols, &frame_);
+    const Shape m = lr();
+    out->setZero(m.rows, m.cols);
+    for (Index yy = 0; yy < m.rows; ++yy)
+      for (int a = 0; a < r_; ++a) {
+        const double* row = &frame_(yy * r_ + a, 0);
+        double* o = &(*out)(yy, 0);
+        for (Index xx = 0; xx < m.cols; ++xx)
+          for (int b = 0; b < r_; ++b) o[xx] += row[xx * r_ + b];
+      }
+  }
+  void BackProject(const Image& c, Index i) {
+    frame_.setZero(pad_.rows, pad_.cols);
+    for (Index y = 0; y < hr_.rows; ++y) {
+      const double* src = &c(y / r_, 0);
+      double* dst = &frame_(y, 0);
+      for (Index x = 0; x < hr_.cols; ++x) dst[x] = src[x / r_];
+    }
+    FftR2CInto(frame_, &prod_);
+    acc_ += prod_ * spectra_[std::size_t(i)].conjugate();
+  }
+
+  Shape pad_, hr_;
+  int r_;
+  Index k_, top_, left_;
+  std::vector<ComplexImage> spectra_;
+  Image real_, frame_;
+  ComplexImage h_spec_, prod_, acc_;
+  ImageStack cam_;
+};
+
+// AᵀWA + Λ (Λ diagonal) as the LinearOperator conjugate gradients takes.
+class StarFieldNormal final : public LinearOperator {
+ public:
+  StarFieldNormal(StarFieldModel* model, const ImageStack* w, Vector ridge)
+      : LinearOperator(ridge.size(), ridge.size(), "StarFieldNormal"), model_(model), w_(w), ridge_(std::move(ridge)) {}
+
+ private:
+  void ApplyImpl(ConstRef x, Ref y) const override {
+    model_->Normal(x, *w_, y);
+    y += ridge_.cwiseProduct(x);
+  }
+  void ApplyAdjointImpl(ConstRef y, Ref x) const override { ApplyImpl(y, x); }  // symmetric
+  StarFieldModel* model_;
+  const ImageStack* w_;
+  Vector ridge_;
+};
+
+// The preconditioner of the h solve: for many stars at random sub-pixel phases AᵀWA acts on h nearly as a
+// convolution with the pixel box's autocorrelation, d · |B(f)|² / r⁴ in Fourier (d its diagonal: mean |B|² =
+// r⁴), so its inverse plus the ridge is one K × K FFT pair; the backgrounds get 1 / Σ w_i.
+class PsfPreconditioner final : public LinearOperator {
+ public:
+  PsfPreconditioner(Index k, int r, double diag, double ridge, std::vector<double> background_diag)
+      : LinearOperator(k * k + Index(background_diag.size()), k * k + Index(background_diag.size()),
+                       "PsfPreconditioner"),
+        k_(k),
+        inverse_(k, k / 2 + 1),
+        background_diag_(std::move(background_diag)) {
+    for (Index v = 0; v < k; ++v)
+      for (Index u = 0; u <= k / 2; ++u) {
+        auto box2 = [&](Index f) {
+          const double a = kPi * double(f) / double(k);
+          if (f == 0) return double(r) * r;
+          const double sn = std::sin(a * r) / std::sin(a);
+          return sn * sn;
+        };
+        inverse_(v, u) = 1.0 / (diag * box2(v) * box2(u) / double(r * r) / double(r * r) + ridge);
+      }
+  }
+
+ private:
+  void ApplyImpl(ConstRef x, Ref y) const override {
+    const Image img = ToImage(x.head(k_ * k_), {k_, k_});
+    ComplexImage s = FftR2C(img);
+    s *= inverse_.cast<Complex>();
+    y.head(k_ * k_) = AsVector(FftC2R(s, k_));
+    for (std::size_t i = 0; i < background_diag_.size(); ++i)
+      y(k_ * k_ + Index(i)) = x(k_ * k_ + Index(i)) / background_diag_[i];
+  }
+  void ApplyAdjointImpl(ConstRef y, Ref x) const override { ApplyImpl(y, x); }  // symmetric
+  Index k_;
+  Image inverse_;
+  std::vector<double> background_diag_;
+};
+
+}  // namespace
+
+bool StarsPsfOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (psf_size_hr_px < 0 || psf_size_hr_px % 2)
+    return fail("psf_size_hr_px = " + std::to_string(psf_size_hr_px) + ", allowed 0 (auto) or an even size >= 4 r");
+  if (!(detection_sigma > 0) || !std::isfinite(detection_sigma))
+    return fail("detection_sigma = " + ToString(detection_sigma) + ", allowed > 0");
+  if (min_stars < 1) return fail("min_stars = " + std::to_string(min_stars) + ", allowed >= 1");
+  if (rounds < 1 || rounds > 50) return fail("rounds = " + std::to_string(rounds) + ", allowed [1, 50]");
+  if (!(regularisation >= 0) || !std::isfinite(regularisation))
+    return fail("regularisation = " + ToString(regularisation) + ", allowed >= 0");
+  if (fit_radius_px < 1 || fit_radius_px > 16)
+    return fail("fit_radius_px = " + std::to_string(fit_radius_px) + ", allowed [1, 16]");
+  if (cg_iterations < 1) return fail("cg_iterations = " + std::to_string(cg_iterations) + ", allowed >= 1");
+  if (!(cg_tolerance > 0 && cg_tolerance < 1))
+    return fail("cg_tolerance = " + ToString(cg_tolerance) + ", allowed (0, 1)");
+  if (max_stars < 1) return fail("max_stars = " + std::to_string(max_stars) + ", allowed >= 1");
+  return true;
+}
+
+std::string StarsPsfResult::BriefReport() const {
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "stars PSF: %d stars (%d saturated, %d dropped), K = %lld HR px, chi2/dof %.3f (%.3f per pixel near the "
+                "stars), %d rounds",
+                used, saturated, dropped, static_cast<long long>(psf.rows()), chi2_per_dof, chi2_near_stars, rounds);
+  return buf;
+}
+
+Image FourierShiftKernel(const Image& k, double dy, double dx) {
+  CheckArgument(k.size() > 0, "FourierShiftKernel", "kernel", "empty", "a non-empty kernel");
+  CheckArgument(std::isfinite(dy) && std::isfinite(dx), "FourierShiftKernel", "shift", ToString(dy) + ", " + ToString(dx),
+                "finite");
+  ComplexImage s = FftR2C(k);
+  for (Index v = 0; v < s.rows(); ++v)
+    for (Index u = 0; u < s.cols(); ++u) {
+      const double a = -2.0 * kPi * (double(SignedFrequency(v, k.rows())) * dy / double(k.rows()) +
+                                     double(u) * dx / double(k.cols()));
+      s(v, u) *= Complex(std::cos(a), std::sin(a));
+    }
+  return FftC2R(s, k.cols());
+}
+
+StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in, const ImageStack& weights_in,
+                                const std::vector<FrameOffset>& offsets, int r, const StarsPsfOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument(kFn, "options", why, "valid StarsPsfOptions");
+  const Index n = Index(y.size());
+  CheckArgument(n > 0, kFn, "frames", 0, "at least one frame");
+  CheckArgument(r >= 1 && r <= 16, kFn, "r", r, "1..16");
+  const Shape lr = ShapeOf(y[0]);
+  CheckArgument(Index(valid_in.size()) == n, kFn, "valid count", valid_in.size(), "one per frame (" + std::to_string(n) + ")");
+  CheckArgument(weights_in.empty() || Index(weights_in.size()) == n, kFn, "weights count", weights_in.size(),
+                "0 (from the background and the model) or one per frame (" + std::to_string(n) + ")");
+  CheckArgument(Index(offsets.size()) == n, kFn, "offsets count", offsets.size(), "one per frame (" + std::to_string(n) + ")");
+  for (Index i = 0; i < n; ++i) {
+    const std::string tag = "[" + std::to_string(i) + "]";
+    CheckArgument(ShapeOf(y[i]) == lr, kFn, "frames" + tag + " shape", ToString(ShapeOf(y[i])), "frame 0's " + ToString(lr));
+    CheckArgument(ShapeOf(valid_in[i]) == lr, kFn, "valid" + tag + " shape", ToString(ShapeOf(valid_in[i])), ToString(lr));
+    CheckArgument(std::isfinite(offsets[i].dy) && std::isfinite(offsets[i].dx), kFn, "offsets" + tag,
+                  ToString(offsets[i].dy) + ", " + ToString(offsets[i].dx), "finite HR px");
+    if (!weights_in.empty()) {
+      CheckArgument(ShapeOf(weights_in[i]) == lr, kFn, "weights" + tag + " shape", ToString(ShapeOf(weights_in[i])), ToString(lr));
+      CheckArgument(AllFinite(weights_in[i]) && (weights_in[i] >= 0).all(), kFn, "weights" + tag, "negative or non-finite",
+                    "finite inverse variances >= 0");
+    }
+  }
+  const Shape hr{lr.rows * r, lr.cols * r};
+  Index k = options.psf_size_hr_px > 0 ? options.psf_size_hr_px : std::min<Index>({32 * Index(r), hr.rows, hr.cols});
+  k -= k % 2;
+  const Index rfit = options.fit_radius_px;
+  const Index k_min = std::max<Index>(4 * r, 2 * r * (rfit + 1));
+  CheckArgument(k >= k_min && k <= std::min(hr.rows, hr.cols), kFn, "psf_size_hr_px", k,
+                "even, >= max(4 r, 2 r (fit_radius_px + 1)) = " + std::to_string(k_min) + " and <= the HR frame " +
+                    ToString(hr));
+
+  StarsPsfResult res;
+  res.offsets = offsets;
+  res.min_required = std::max<int>(options.min_stars, int((r * r + n - 1) / n));
+
+  // ---- Frames: valid pixels, background, noise. ---------------------------------------------------------------
+  ImageStack valid(n), mask(n);
+  std::vector<double> sigma(n), bg(n), var_floor(n), sigma_floor(n);
+  for (Index i = 0; i < n; ++i) {
+    valid[i] = ((valid_in[i] != 0) && y[i].isFinite()).cast<double>();
+    if (!weights_in.empty()) valid[i] *= (weights_in[i] > 0).cast<double>();
+    const Image yi = (valid[i] > 0).select(y[i], 0.0);
+    std::vector<double> v;
+    for (Index p = 0; p < yi.size(); ++p)
+      if (valid[i](p) > 0) v.push_back(yi(p));
+    CheckArgument(v.size() >= 16, kFn, "valid[" + std::to_string(i) + "]", std::to_string(v.size()) + " valid pixels",
+                  "at least 16 valid pixels per frame");
+    bg[i] = Median(v);
+    sigma[i] = EstimateBackgroundSigma(yi, valid[i]);
+    double peak = 0;
+    for (double a : v) peak = std::max(peak, a - bg[i]);
+    // Noise-free data have σ = 0: a floor keeps thresholds and weights finite without mattering for real data.
+    sigma_floor[i] = 1e-4 * peak + 1e-300;
+    sigma[i] = std::max(sigma[i], sigma_floor[i]);
+    var_floor[i] = sigma[i] * sigma[i];
+    mask[i] = Image::Ones(lr.rows, lr.cols);
+  }
+
+  // ---- Detection on frame 0. --------------------------------------------------------------------------------
+  auto det_image = [&](Index i) {
+    Image d = y[i] - bg[i];
+    return Image((valid[i] > 0).select(d, 0.0));
+  };
+  const double threshold0 = options.detection_sigma * sigma[0];
+  std::vector<Candidate> cands = Detect(det_image(0), valid[0], threshold0, rfit);
+  std::vector<Star> stars;
+  std::vector<Candidate> saturated;
+  for (const Candidate& c : cands) {
+    if (c.touches_invalid) {
+      bool merged = false;
+      for (const Candidate& s : saturated) merged = merged || std::hypot(s.y - c.y, s.x - c.x) < 3.0;
+      if (!merged) saturated.push_back(c);
+      continue;
+    }
+    Star s;
+    s.y = s.y_det = CameraToHr(c.y, r) - offsets[0].dy;
+    s.x = s.x_det = CameraToHr(c.x, r) - offsets[0].dx;
+    double f = 0;
+    for (Index dy = -rfit; dy <= rfit; ++dy)
+      for (Index dx = -rfit; dx <= rfit; ++dx) {
+        const Index yy = Index(std::lround(c.y)) + dy, xx = Index(std::lround(c.x)) + dx;
+        if (yy >= 0 && yy < lr.rows && xx >= 0 && xx < lr.cols && valid[0](yy, xx) > 0) f += y[0](yy, xx) - bg[0];
+      }
+    s.f = std::max(f, c.peak);
+    stars.push_back(s);
+  }
+  if (!options.known_stars.empty()) {
+    stars.clear();
+    for (const PointSource& p : options.known_stars) {
+      CheckArgument(std::isfinite(p.y) && std::isfinite(p.x) && p.flux > 0 && std::isfinite(p.flux), kFn,
+                    "known_stars", ToString(p.y) + ", " + ToString(p.x) + ", flux " + ToString(p.flux),
+                    "finite positions and positive fluxes");
+      Star s;
+      s.y = s.y_det = p.y;
+      s.x = s.x_det = p.x;
+      s.f = p.flux;
+      stars.push_back(s);
+    }
+  }
+  res.saturated = int(saturated.size());
+  res.detected = int(stars.size());
+  // Saturated (or bad-pixel-touching) detections: their unmodelled light must not enter h.
+  const Index rmask = 2 * rfit + 2;
+  for (const Candidate& c : saturated)
+    for (Index i = 0; i < n; ++i) {
+      const double cy = HrToCamera(CameraToHr(c.y, r) - offsets[0].dy + offsets[i].dy, r);
+      const double cx = HrToCamera(CameraToHr(c.x, r) - offsets[0].dx + offsets[i].dx, r);
+      for (Index yy = std::max<Index>(0, Index(cy) - rmask); yy <= std::min<Index>(lr.rows - 1, Index(cy) + rmask); ++yy)
+        for (Index xx = std::max<Index>(0, Index(cx) - rmask); xx <= std::min<Index>(lr.cols - 1, Index(cx) + rmask); ++xx)
+          mask[i](yy, xx) = 0;
+    }
+  const std::string threshold_text = ToString(options.detection_sigma) + " sigma = " + ToString(threshold0) +
+                                     " e- above the background " + ToString(bg[0]) + " e- of frame 0";
+  if (stars.empty() && saturated.empty())
+    throw InvalidArgument(kFn, "frames", "no point source above " + threshold_text,
+                          "frames with at least " + std::to_string(res.min_required) +
+                              " unsaturated point sources above the threshold (detection_sigma)");
+  if (stars.empty())
+    throw InvalidArgument(kFn, "frames",
+                          "only saturated stars (" + std::to_string(saturated.size()) +
+                              " detections touch invalid or saturated pixels, none above " + threshold_text + " is unsaturated)",
+                          "at least " + std::to_string(res.min_required) +
+                              " unsaturated point sources: a saturated core cannot constrain the PSF's core");
+  auto too_few = [&](std::size_t count, const char* stage) {
+    return InvalidArgument(
+        kFn, "usable stars", std::to_string(count) + " " + stage + " (" + std::to_string(saturated.size()) +
+                                 " saturated excluded; threshold " + threshold_text + ")",
+        ">= " + std::to_string(res.min_required) + " = max(min_stars " + std::to_string(options.min_stars) +
+            ", ceil(r^2/N) = " + std::to_string((r * r + n - 1) / n) +
+            ": N frames sample N of the r^2 sub-pixel phases per star, and no single star may define the PSF)");
+  };
+  if (int(stars.size()) < res.min_required) throw too_few(stars.size(), "detected");
+  auto by_flux = [](const Star& a, const Star& b) { return a.f > b.f; };
+  std::sort(stars.begin(), stars.end(), by_flux);
+  if (int(stars.size()) > options.max_stars) stars.resize(std::size_t(options.max_stars));
+
+  // ---- The global model of h: frames = D_r Crop (S_i ⊛ ZeroPad h). ----------------------------------------------
+  const Shape kk{k, k};
+  const Shape pad{NextFastFftSize(hr.rows + k), NextFastFftSize(hr.cols + k)};
+  ImageStack w(n);
+  auto update_weights = [&](const ImageStack* model) {
+    for (Index i = 0; i < n; ++i) {
+      if (!weights_in.empty()) {
+        w[i] = weights_in[i] * valid[i] * mask[i];
+      } else {
+        const Image m = model ? (*model)[i].max(0.0) : Image((y[i] - bg[i]).max(0.0));
+        w[i] = valid[i] * mask[i] / (var_floor[i] + m);
+      }
+    }
+  };
+  update_weights(nullptr);
+
+  Vector h = Vector::Zero(k * k);
+  Vector u;  // [h; b] of the last solve (warm start)
+  ImageStack model(n), resid(n);
+  // Ridge: λ(ρ) = regularisation · d_c · (1 + (ρ / 2r)²), d_c the centre pixel's diagonal of AᵀWA and ρ the
+  // distance from the centre in HR px: light in the core is shrunk by ~regularisation, the far wings (where
+  // few photons and the unmodelled faint stars are) more, toward 0; the background is not regularised.
+  Image ridge_shape(1, k * k + n);
+  for (Index v = 0; v < k; ++v)
+    for (Index q = 0; q < k; ++q) {
+      const double rho2 = double((v - k / 2) * (v - k / 2) + (q - k / 2) * (q - k / 2)) / double(4 * r * r);
+      ridge_shape(0, v * k + q) = 1.0 + rho2;
+    }
+  for (Index i = 0; i < n; ++i) ridge_shape(0, k * k + i) = 0.0;
+  std::unique_ptr<StarFieldModel> field;  // the stars of the current round
+  auto solve_h = [&]() {
+    field = std::make_unique<StarFieldModel>(stars, offsets, pad, hr, int(r), k);
+    Vector rhs(k * k + n);
+    ImageStack wy(n);
+    for (Index i = 0; i < n; ++i) wy[i] = (valid[i] > 0).select(y[i], 0.0) * w[i];
+    field->Backward(wy, rhs);
+    Vector delta = Vector::Zero(k * k + n), column(k * k + n);
+    delta((k / 2) * k + k / 2) = 1.0;
+    field->Normal(delta, w, column);
+    const double diag = column((k / 2) * k + k / 2);
+    const StarFieldNormal normal(field.get(), &w, options.regularisation * diag * AsVector(ridge_shape));
+    if (u.size() != k * k + n) {
+      u = Vector::Zero(k * k + n);
+      for (Index i = 0; i < n; ++i) u(k * k + i) = bg[i];
+    }
+    u.head(k * k) = h;
+    ConjugateGradientOptions cg;
+    cg.max_iterations = options.cg_iterations;
+    cg.tolerance = options.cg_tolerance;
+    std::vector<double> bdiag(n);
+    for (Index i = 0; i < n; ++i) bdiag[i] = std::max(w[i].sum(), 1e-300);
+    const PsfPreconditioner pre(k, r, diag, options.regularisation * diag, bdiag);
+    const SolverSummary sum = PreconditionedConjugateGradient(normal, pre, rhs, &u, cg);
+    res.cg_iterations_last = sum.iterations;
+    h = u.head(k * k);
+    for (Index i = 0; i < n; ++i) bg[i] = u(k * k + i);
+  };
+  // Unit sum and the core's first moment at the centre; the stars take the inverse scale and the opposite shift.
+  auto normalise_and_centre = [&]() {
+    Image img = ToImage(h, kk);
+    const double s = img.sum();
+    if (!(s > 0) || !std::isfinite(s))
+      throw InvalidArgument(kFn, "fitted PSF sum", ToString(s),
+                            "> 0: the stars' pixels do not determine a PSF (too faint or too few stars for K = " +
+                                std::to_string(k) + ")");
+    img /= s;
+    for (Star& st : stars) st.f *= s;
+    const FrameOffset c = CoreCentroid(img, 3.0 * r);
+    if (std::hypot(c.dy, c.dx) < double(k) / 4) {
+      img = FourierShiftKernel(img, -c.dy, -c.dx);
+      for (Star& st : stars) {
+        st.y += c.dy;
+        st.x += c.dx;
+      }
+    }
+    h = AsVector(img);
+  };
+  auto render_model = [&]() {
+    // The stars as normalise_and_centre left them (scaled fluxes, shifted positions).
+    field = std::make_unique<StarFieldModel>(stars, offsets, pad, hr, int(r), k);
+    for (Index i = 0; i < n; ++i) {
+      model[i] = field->Render(h, i);
+      resid[i] = (valid[i] > 0).select(Image(y[i] - bg[i] - model[i]), 0.0);
+      // The background noise again from the residual: with the stars subtracted, their gradients no longer
+      // inflate the neighbour differences the first estimate was made from (crowded or small frames), and only
+      // pixels where the stars' photon noise is below the background's (model < σ²) enter, so it does not either.
+      if (weights_in.empty()) {
+        const Image quiet = valid[i] * mask[i] * (model[i] < var_floor[i]).cast<double>();
+        const double s = EstimateBackgroundSigma(resid[i], quiet);
+        if (s > 0) var_floor[i] = std::max(s, sigma_floor[i]) * std::max(s, sigma_floor[i]);
+      }
+    }
+  };
+
+  for (int round = 0;; ++round) {
+    solve_h();
+    normalise_and_centre();
+    render_model();
+    update_weights(&model);
+    if (round == options.rounds) break;
+    res.rounds = round + 1;
+    const KernelRenderer renderer(ToImage(h, kk), r);
+    Patch patch;
+    // New stars in frame 0's residual (stars hidden by brighter ones, or dropped too early).
+    if (round > 0) {
+      // A residual peak counts when it stands out from the noise there (background and the model's photon
+      // noise) and from the model's own imperfection (kResidualFraction of the model at that pixel): an
+      // imperfectly subtracted bright star is not a new star.
+      Image thr(lr.rows, lr.cols);
+      const double k2 = options.detection_sigma * options.detection_sigma;
+      for (Index p = 0; p < thr.size(); ++p)
+        thr(p) = std::max(std::sqrt(k2 * (var_floor[0] + std::max(0.0, model[0](p)))), kResidualFraction * model[0](p));
+      for (const Candidate& c : Detect(resid[0], valid[0], 0.0, 1, &thr)) {
+        if (c.touches_invalid || mask[0](Index(std::lround(c.y)), Index(std::lround(c.x))) == 0) continue;
+        const double py = CameraToHr(c.y, r) - offsets[0].dy, px = CameraToHr(c.x, r) - offsets[0].dx;
+        bool near = false;
+        for (const Star& s : stars) near = near || std::hypot(s.y - py, s.x - px) < 2.0 * r;
+        if (near || int(stars.size()) >= options.max_stars) continue;
+        Star s;
+        s.y = s.y_det = py;
+        s.x = s.x_det = px;
+        // The least-squares flux on the 3 × 3 pixels around the peak.
+        renderer.Render(py + offsets[0].dy, px + offsets[0].dx, false, &patch);
+        double num = 0, den = 0;
+        for (Index dy = -1; dy <= 1; ++dy)
+          for (Index dx = -1; dx <= 1; ++dx) {
+            const Index yy = Index(std::lround(c.y)) + dy, xx = Index(std::lround(c.x)) + dx;
+            const Index gy = yy - patch.top, gx = xx - patch.left;
+            if (gy < 0 || gx < 0 || gy >= patch.g.rows() || gx >= patch.g.cols()) continue;
+            num += patch.g(gy, gx) * resid[0](yy, xx);
+            den += patch.g(gy, gx) * patch.g(gy, gx);
+          }
+        if (!(den > 0) || !(num > 0)) continue;
+        s.f = num / den;
+        for (Index i = 0; i < n; ++i) {
+          renderer.Render(s.y + offsets[i].dy, s.x + offsets[i].dx, false, &patch);
+          AddPatch(patch, -s.f, &resid[i]);
+        }
+        stars.push_back(s);
+        ++res.detected;
+      }
+      std::sort(stars.begin(), stars.end(), by_flux);
+    }
+    // Positions and fluxes: Gauss-Newton per star on its own box, all frames jointly, the others subtracted.
+    std::vector<bool> keep(stars.size(), true);
+    for (std::size_t j = 0; j < stars.size(); ++j) {
+      Star& s = stars[j];
+      for (Index i = 0; i < n; ++i) {  // put the star back: the data its fit sees
+        renderer.Render(s.y + offsets[i].dy, s.x + offsets[i].dx, false, &patch);
+        AddPatch(patch, s.f, &resid[i]);
+      }
+      bool ok = true;
+      for (int it = 0; it < 3 && ok; ++it) {
+        Eigen::Matrix3d jtj = Eigen::Matrix3d::Zero();
+        Eigen::Vector3d jte = Eigen::Vector3d::Zero();
+        for (Index i = 0; i < n; ++i) {
+          const double py = s.y + offsets[i].dy, px = s.x + offsets[i].dx;
+          renderer.Render(py, px, true, &patch);
+          const Index cy = Index(std::lround(HrToCamera(py, r))), cx = Index(std::lround(HrToCamera(px, r)));
+          for (Index yy = std::max<Index>(0, cy - rfit); yy <= std::min<Index>(lr.rows - 1, cy + rfit); ++yy)
+            for (Index xx = std::max<Index>(0, cx - rfit); xx <= std::min<Index>(lr.cols - 1, cx + rfit); ++xx) {
+              const double wt = w[i](yy, xx);
+              const Index gy = yy - patch.top, gx = xx - patch.left;
+              if (wt <= 0 || gy < 0 || gx < 0 || gy >= patch.g.rows() || gx >= patch.g.cols()) continue;
+              const Eigen::Vector3d jac(patch.g(gy, gx), s.f * patch.gy(gy, gx), s.f * patch.gx(gy, gx));
+              jtj.noalias() += wt * jac * jac.transpose();
+              jte.noalias() += wt * jac * (resid[i](yy, xx) - s.f * patch.g(gy, gx));
+            }
+        }
+        const Eigen::LDLT<Eigen::Matrix3d> ldlt(jtj);
+        if (ldlt.info() != Eigen::Success || !(jtj(0, 0) > 0) || ldlt.vectorD().minCoeff() <= 0) {
+          ok = false;
+          break;
+        }
+        const Eigen::Vector3d step = ldlt.solve(jte);
+        const double lim = 0.5 * r;
+        s.f += step(0);
+        s.y += std::clamp(step(1), -lim, lim);
+        s.x += std::clamp(step(2), -lim, lim);
+        s.sigma_f = std::sqrt(std::max(0.0, ldlt.solve(Eigen::Vector3d::UnitX())(0)));
+        if (!(s.f > 0) || !std::isfinite(s.f)) ok = false;
+      }
+      ok = ok && s.f > kDropSnr * s.sigma_f && std::hypot(s.y - s.y_det, s.x - s.x_det) <= kDropMove * r;
+      keep[j] = ok;
+      if (!ok) {
+        ++res.dropped;
+        continue;  // left in the residual: its light is data the others see
+      }
+      for (Index i = 0; i < n; ++i) {
+        renderer.Render(s.y + offsets[i].dy, s.x + offsets[i].dx, false, &patch);
+        AddPatch(patch, -s.f, &resid[i]);
+      }
+    }
+    std::vector<Star> kept;
+    for (std::size_t j = 0; j < stars.size(); ++j)
+      if (keep[j]) kept.push_back(stars[j]);
+    stars.swap(kept);
+    std::sort(stars.begin(), stars.end(), by_flux);
+    if (int(stars.size()) < res.min_required) throw too_few(stars.size(), "left after fitting");
+  }
+
+  // ---- Result. ----------------------------------------------------------------------------------------------
+  res.psf = ToImage(h, kk);
+  double chi2 = 0, chi2_near = 0;
+  Index npix = 0, nnear = 0;
+  for (Index i = 0; i < n; ++i) {
+    Image near = Image::Zero(lr.rows, lr.cols);
+    for (const Star& s : stars) {
+      const Index cy = Index(std::lround(HrToCamera(s.y + offsets[i].dy, r)));
+      const Index cx = Index(std::lround(HrToCamera(s.x + offsets[i].dx, r)));
+      for (Index yy = std::max<Index>(0, cy - rfit); yy <= std::min<Index>(lr.rows - 1, cy + rfit); ++yy)
+        for (Index xx = std::max<Index>(0, cx - rfit); xx <= std::min<Index>(lr.cols - 1, cx + rfit); ++xx)
+          near(yy, xx) = 1;
+    }
+    for (Index p = 0; p < near.size(); ++p)
+      if (w[i](p) > 0) {
+        const double c = w[i](p) * resid[i](p) * resid[i](p);
+        chi2 += c;
+        ++npix;
+        if (near(p) > 0) {
+          chi2_near += c;
+          ++nnear;
+        }
+      }
+  }
+  res.dof = npix - k * k - 3 * Index(stars.size()) - n;
+  res.chi2_per_dof = res.dof > 0 ? chi2 / double(res.dof) : 0.0;
+  res.chi2_near_stars = nnear > 0 ? chi2_near / double(nnear) : 0.0;
+  // Per-frame PSFs: h shifted by o_i on a window padded so the shift does not wrap the wings.
+  double omax = 0;
+  for (const FrameOffset& o : offsets) omax = std::max({omax, std::abs(o.dy), std::abs(o.dx)});
+  const Index margin = Index(std::ceil(omax)) + (Index(std::ceil(omax)) > 0 ? 1 : 0);
+  Image padded = Image::Zero(k + 2 * margin, k + 2 * margin);
+  padded.block(margin, margin, k, k) = res.psf;
+  for (const FrameOffset& o : offsets) {
+    Image p = FourierShiftKernel(padded, o.dy, o.dx);
+    p /= p.sum();
+    res.psfs.push_back(p);
+  }
+  for (const Star& s : stars) res.stars.push_back({s.y, s.x, s.f});
+  res.used = int(stars.size());
+  res.background_e = bg;
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+StarsPsfResult EstimateStarsPsf(const Dataset& d, const StarsPsfOptions& options) {
+  const std::size_t n = d.frames.size();
+  CheckArgument(n > 0, kFn, "dataset frames", 0, "at least one frame");
+  std::vector<FrameOffset> offsets(n);
+  for (std::size_t i = 0; i < n && i < d.offsets.size(); ++i) {
+    const DmOffset& o = d.offsets[i];
+    bool shape = !o.zernike.empty();
+    for (double a : o.actuators_m) shape = shape || a != 0;
+    CheckArgument(!shape, kFn, "dataset offsets[" + std::to_string(i) + "]", "Zernike or actuator terms",
+                  "tip/tilt shifts only (shift_px): the stars PSF is one shape shared by all frames, and these "
+                  "offsets change the PSF's shape from frame to frame");
+    offsets[i] = {o.shift_y_px * d.r, o.shift_x_px * d.r};
+  }
+  ImageStack weights;
+  if (d.weights) {
+    const double g2 = d.gain_e_per_adu * d.gain_e_per_adu;
+    for (std::size_t i = 0; i < n; ++i) weights.push_back((*d.weights)[i] * d.valid[i] / g2);
+  }
+  return EstimateStarsPsf(d.FramesElectrons(), d.valid, weights, offsets, d.r, options);
+}
+
+}  // namespace aosr
