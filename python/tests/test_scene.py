@@ -132,3 +132,13 @@ def test_scene_errors_carry_the_cli_message(demo_scene_path, cli, tmp_path):
         aosr.open_dataset(tmp_path)
     with pytest.raises(aosr.InvalidArgument, match="override"):
         aosr.load_scene(demo_scene_path, {"objects.x.flux": 1})
+
+
+def test_dm_gain_is_a_closed_loop_scene_option(demo_scene_path):
+    # ao.dm_gain (a DM stroke calibration error of the simulated hardware) reaches Python through the scene, as
+    # `aosr simulate --set ao.dm_gain=1.1` does; out of range it is the parser's InvalidArgument naming the field.
+    path = os.path.join(os.path.dirname(demo_scene_path), "paper-sim-r2.json")
+    s = aosr.load_scene(path, {"ao.dm_gain": 1.1})
+    assert "ao-loop" in s.plan()
+    with pytest.raises(aosr.InvalidArgument, match=r"ao\.dm_gain = 3; allowed: a number in \[0\.5, 2\]"):
+        aosr.load_scene(path, {"ao.dm_gain": 3})

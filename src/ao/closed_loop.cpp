@@ -93,6 +93,9 @@ bool ClosedLoopOptions::IsValid(std::string* why) const {
   if (!(std::isfinite(start_time_s) && start_time_s >= 0.0)) {
     return Fail(why, "start_time_s = " + ToString(start_time_s) + "; allowed: >= 0 and finite [s]");
   }
+  if (!(std::isfinite(dm_gain) && dm_gain >= 0.5 && dm_gain <= 2.0)) {
+    return Fail(why, "dm_gain = " + ToString(dm_gain) + "; allowed: [0.5, 2] (the mirror's response per commanded metre)");
+  }
   return true;
 }
 
@@ -185,6 +188,7 @@ void ClosedLoop::Step(bool record) {
   // 2. DM: the command of this frame, the mirror's OPD and the residual.
   const Vector& applied = controller_->applied_commands();
   dm_->Apply(applied, Eigen::Map<Vector>(dm_opd_.data(), n * n));
+  if (options_.dm_gain != 1.0) dm_opd_ *= options_.dm_gain;  // a stroke calibration error the loop ignores
   residual_ = dm_opd_;
   if (atmosphere_ != nullptr) residual_ += turbulence_;
   if (options_.common_static_opd_m.size() > 0) residual_ += options_.common_static_opd_m;

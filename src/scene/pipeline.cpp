@@ -533,6 +533,7 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
     lo.science = sampling;
     lo.psf_every_steps = s.ao.psf_every_steps;
     lo.science_static_opd_m = static_opd;
+    lo.dm_gain = s.ao.dm_gain;
     std::unique_ptr<ClosedLoop> loop = system.MakeLoop(lo);
     std::vector<Image> offsets;
     for (const DmOffset& o : s.offsets.frames) offsets.push_back(ExposureOpd(s, o, Image(), dm.get()));
@@ -720,6 +721,7 @@ ImageStack NominalPsfs(const SceneSpec& scene) {
   if (scene.ao.mode != AoSpec::Mode::kClosedLoop) return {};
   SceneSpec analytic = scene;
   analytic.ao.mode = AoSpec::Mode::kAnalytic;
+  analytic.ao.dm_gain = 1.0;  // the stroke error is the hardware's, unknown to the model (and analytic has none)
   return ScenePipeline(std::move(analytic)).ComputePsfs(nullptr, nullptr, nullptr);
 }
 

@@ -50,6 +50,9 @@ TEST(ClosedLoopErrorsTest, EveryOptionsFieldIsNamed) {
   ExpectInvalid([](ClosedLoopOptions& o) { o.psf_every_steps = 0; }, "psf_every_steps = 0");
   ExpectInvalid([](ClosedLoopOptions& o) { o.start_time_s = -1.0; }, "start_time_s = -1");
   ExpectInvalid([](ClosedLoopOptions& o) { o.start_time_s = kInf; }, "start_time_s = inf");
+  ExpectInvalid([](ClosedLoopOptions& o) { o.dm_gain = 0.4; }, "dm_gain = 0.4");
+  ExpectInvalid([](ClosedLoopOptions& o) { o.dm_gain = kNaN; }, "dm_gain = nan");
+  ExpectInvalid([](ClosedLoopOptions& o) { o.dm_gain = 2.5; }, "dm_gain = 2.5");
 }
 
 TEST(ClosedLoopErrorsTest, ConstructorArguments) {

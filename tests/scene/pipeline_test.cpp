@@ -119,6 +119,26 @@ TEST(ScenePipeline, ClosedLoopGeneratesScreensAndRunsTheLoop) {
   EXPECT_EQ(sim.counters.psfs_computed, 2);  // each exposure its own stretch of turbulence
 }
 
+TEST(ScenePipeline, DmGainChangesTheLoopButNotTheNominalModel) {
+  // ao.dm_gain is a hardware error: the loop's PSFs change (same seed, same turbulence), the nominal model
+  // (NominalPsfs, what the observer computes) is the same bytes as with a correct mirror.
+  nlohmann::json j = BaseScene();
+  j["frames"] = 2;
+  j["ao"] = {{"mode", "closed-loop"}, {"sensor", "geometric"}, {"time_per_frame_s", 0.01}, {"settling_s", 0.005}};
+  const SceneSpec exact = ParseScene(j, "<test>");
+  j["ao"]["dm_gain"] = 1.1;
+  const SceneSpec wrong = ParseScene(j, "<test>");
+  const ImageStack a = ScenePipeline(exact).ComputePsfs(nullptr, nullptr, nullptr);
+  const ImageStack b = ScenePipeline(wrong).ComputePsfs(nullptr, nullptr, nullptr);
+  ASSERT_EQ(a.size(), 2u);
+  ASSERT_EQ(b.size(), 2u);
+  EXPECT_GT((a[0] - b[0]).abs().sum(), 1e-6);
+  const ImageStack na = NominalPsfs(exact), nb = NominalPsfs(wrong);
+  ASSERT_EQ(na.size(), 2u);
+  ASSERT_EQ(nb.size(), 2u);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ((na[i] - nb[i]).abs().maxCoeff(), 0.0);
+}
+
 TEST(ScenePipeline, StarsOnlySceneDoesNoObjectTransform) {
   nlohmann::json j = BaseScene();
   j["objects"] = nlohmann::json::array({{{"type", "stars"}, {"count", 20}, {"flux_range_e", {10.0, 1000.0}}}});

@@ -424,6 +424,18 @@ TEST(SceneSpecErrorsTest, AoModeNeedsTheTelescopeSections) {
   EXPECT_THAT(ParseError(j), HasSubstr("ao.sensor = \"pyramid\"; allowed: one of ideal, geometric, diffractive"));
 }
 
+TEST(SceneSpecErrorsTest, DmGainOnlyInRangeAndOnlyForTheClosedLoop) {
+  Json j = BaseScene();
+  j["ao"] = {{"mode", "closed-loop"}, {"dm_gain", 3.0}};
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("ao.dm_gain = 3"), HasSubstr("[0.5, 2]")));
+  j["ao"] = {{"mode", "closed-loop"}, {"dm_gain", 0.4}};
+  EXPECT_THAT(ParseError(j), HasSubstr("ao.dm_gain = 0.4"));
+  j["ao"] = {{"mode", "analytic"}, {"dm_gain", 1.1}};  // the analytic model has no DM to mis-calibrate
+  EXPECT_THAT(ParseError(j), HasSubstr("dm_gain"));
+  j["ao"] = {{"mode", "closed-loop"}, {"dm_gain", 1.1}};
+  EXPECT_EQ(ParseError(j), "no exception");
+}
+
 TEST(SceneSpecErrorsTest, StaticAberrationsNeedNollAtLeastTwo) {
   Json j = BaseScene();
   j["static_aberrations"] = Json::array({Json{{"noll", 1}, {"rms_nm", 50}}});

@@ -447,6 +447,14 @@ TEST(SceneSpecTest, InlineTelescope) {
   EXPECT_NEAR(s.CameraPixelRad(), 1.65e-6 / 8.0, 1e-20);
 }
 
+TEST(SceneSpecTest, DmGainIsAClosedLoopOptionDefaultingToOne) {
+  Json j = BaseScene();
+  j["ao"] = {{"mode", "closed-loop"}};
+  EXPECT_EQ(ParseScene(j, "mem.json").ao.dm_gain, 1.0);
+  j["ao"]["dm_gain"] = 1.1;
+  EXPECT_EQ(ParseScene(j, "mem.json").ao.dm_gain, 1.1);
+}
+
 TEST(SceneSpecTest, CommentKeysAreIgnoredAtEveryLevel) {
   Json j = BaseScene();
   j["comment"] = "top";

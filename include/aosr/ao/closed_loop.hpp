@@ -6,7 +6,8 @@
 //   1. atmosphere:  phi_n = Atmosphere::Opd(t_n)  (frozen flow evolving continuously with t; zero if none)
 //                   + common_static_opd_m (a static aberration seen by sensor and science alike);
 //   2. DM:          the mirror holds c_n = Controller::applied_commands() (clipped to the stroke when
-//                   clip_to_stroke), so the residual is w_n = phi_n + H c_n (the DM's OPD adds, control.hpp);
+//                   clip_to_stroke), so the residual is w_n = phi_n + g_dm H c_n (the DM's OPD adds,
+//                   control.hpp; g_dm = dm_gain, 1 unless the mirror's stroke calibration is wrong);
 //   3. WFS:         m_n = WavefrontSensor::Measure(w_n), noise included;
 //   4. control:     Controller::Update(m_n) computes c_{n+1} (delay line, control.hpp);
 //   5. science:     the science camera sees w_n + science_static_opd_m (non-common-path aberration) at
@@ -95,6 +96,11 @@ struct ClosedLoopOptions {
   Image science_static_opd_m;
   // Time [s] at the start of frame 0, finite and >= 0 (Atmosphere times must be >= 0). Default 0.
   double start_time_s = 0.0;
+  // The mirror's actual response per commanded metre, in [0.5, 2]: the DM applies dm_gain * H c_n where the
+  // controller (its interaction model, POL reconstruction, integrator gain) assumes H c_n. A calibration
+  // error of the mirror's stroke (an influence-function amplitude wrong by dm_gain - 1) that nothing in the
+  // loop knows about; stroke clipping still acts on the commands. Default 1: the mirror does what it is told.
+  double dm_gain = 1.0;
 
   // True when every field is in range; otherwise false and `why` names the bad field. Image shapes are
   // checked by the ClosedLoop constructor (they depend on the pupil grid).

@@ -200,7 +200,10 @@ class ScenePipeline {
 // The nominal model PSFs of a closed-loop scene's exposures: those of the same scene with the Monte-Carlo loop
 // replaced by the analytic long-exposure AO residual (same telescope, AO system, atmosphere, static
 // aberrations and offsets), unit sum, the scene's PSF window. Empty for any other AO mode (the simulated PSFs
-// are then the model). Reconstructing closed-loop frames with these measures the cost of PSF mismatch.
+// are then the model). Reconstructing closed-loop frames with these measures the cost of PSF mismatch. The
+// scene's ao.dm_gain (a hardware stroke error) is not modelled: the nominal model assumes the DM does what it
+// is told. Static aberrations are modelled: a non-common-path aberration unknown to the observer is one that
+// the truth's scene lists and the model's does not (bench/psf_knowledge.py).
 ImageStack NominalPsfs(const SceneSpec& scene);
 
 // The pupil OPD [m] of one exposure: tip/tilt for the offset's shift (zernike.hpp, a = shift·D/4), its

@@ -115,6 +115,10 @@ struct AoSpec {
   double time_per_frame_s = 0.1;
   double settling_s = 0.1;
   int psf_every_steps = 1;
+  // Closed loop only: the DM's actual stroke per commanded metre, [0.5, 2] (ClosedLoopOptions::dm_gain): a
+  // stroke calibration error of the simulated hardware. NominalPsfs (pipeline.hpp) does not model it: it is
+  // an error the observer does not know about. Default 1.
+  double dm_gain = 1.0;
   std::uint64_t seed = 0;  // atmosphere and WFS noise
 };
 
