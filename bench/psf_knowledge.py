@@ -109,11 +109,12 @@ for _m in GS_MAGNITUDES:
 # The rows: (key, label, truth, model). model is "oracle" (no --model-psfs), "cli:VALUE" (--model-psfs VALUE as
 # given, e.g. cli:nominal), "base-nominal" (the unmodified scene's nominal_psfs.fits of the base truth), or a
 # function patching the telescope preset of the model's scene (NominalPsfs of the modified scene).
-# A row for `--model-psfs stars` (empirical PSFs from the field's stars, branch stars) goes here, after the
-# nominal row: ("stars", "empirical PSFs from the stars in the frames (--model-psfs stars)", "base", "cli:stars").
+# The stars row (--model-psfs stars: empirical PSFs from the point sources in the frames, solvers/stars_psf.hpp)
+# runs on the star field only: the USAF target has no stars to build it from.
 ROWS = [
     ("oracle", "oracle PSFs (the simulation's own)", "base", "oracle"),
     ("nominal", "nominal model (--model-psfs nominal)", "base", "cli:nominal"),
+    ("stars", "empirical PSFs from the field's stars (--model-psfs stars; star field only)", "base", "cli:stars"),
     ("r0-30", "model r0 -30 % (0.105 m)", "base", set_path(["atmosphere", "r0_m"], 0.7, True)),
     ("r0+30", "model r0 +30 % (0.195 m)", "base", set_path(["atmosphere", "r0_m"], 1.3, True)),
     ("wind2", "model wind x2 (every layer)", "base", scale_layers(2.0)),
@@ -263,6 +264,8 @@ def main():
     for c in cells:
         target, band, r = c
         for row in ROWS:
+            if row[3] == "cli:stars" and target != "stars":
+                continue
             margs = model_args(target, band, r, row, models, truths)
             for m in methods(target, r):
                 rjobs.append(pool.submit(recon_job, target, band, r, row, m, margs, truths[c + (row[2],)]["dir"]))
@@ -342,7 +345,8 @@ def main():
                 else:
                     cells_txt.append("%+.2f (%+.2f)" % (res[k]["psnr_al"] - res[o]["psnr_al"],
                                                         res[k]["psnr"] - res[o]["psnr"]))
-            L.append("| %s | %s |" % (row[1], " | ".join(cells_txt)))
+            if any(cells_txt):
+                L.append("| %s | %s |" % (row[1], " | ".join(cells_txt)))
         L.append("")
     L.append("Oracle rows: the aligned PSNR itself [dB].")
     L.append("")
@@ -366,6 +370,8 @@ def main():
     L += header("model")
     for row in ROWS:
         txt = []
+        if ("usaf", combos[0][0], combos[0][1], row[0], "tikhonov") not in res:
+            continue
         for b, r in combos:
             k = res[("usaf", b, r, row[0], "tikhonov")]
             txt.append("%+.1f, %+.1f" % (k["dy_mas"], k["dx_mas"]))
