@@ -375,6 +375,62 @@ int PivotedQrRank(Complex* a, int n, int k, double floor, double* work, Complex*
   return inv2 > 0 && 1.0 / inv2 >= 4.0 * floor * floor ? j : -1;
 }
 
+// σ² of X (p x k, p <= k, column-major, leading dimension p), ascending in d, to the accuracy of an SVD of X
+// (absolute error ~ε σ_max σ): the eigenvalues of X Xᴴ, the small ones refined by Rayleigh-Ritz on X itself, as
+// FourierSystem::DecomposeBinEigen does (its comment says why that is as accurate as an SVD).
+bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std::vector<Complex>* buffer,
+                                  std::vector<double>* work) {
+  buffer->resize(3 * std::size_t(p) * p + std::size_t(k) * p + p);
+  work->resize(3 * std::size_t(p) * p + 2 * p);
+  Complex* m = buffer->data();
+  Complex* u = m + p * p;
+  Complex* rot = u + p * p;
+  Complex* w = rot + p * p;
+  Complex* tmp = w + std::size_t(k) * p;
+  for (int i = 0; i < p; ++i)
+    for (int j = 0; j <= i; ++j) {
+      Complex sum = 0;
+      for (int c = 0; c < k; ++c) sum += MulConj(x[c * p + i], x[c * p + j]);
+      m[i * p + j] = sum;
+      m[j * p + i] = std::conj(sum);
+    }
+  if (!bins::HermitianEigen(m, p, d, u, work->data())) return false;
+  constexpr double kSplit = 1e-3, kGap = 10.0;
+  int t = p;
+  for (int depth = 0; depth < 16 && t > 1; ++depth) {
+    const double top = d[t - 1];
+    if (!(top > 0)) break;
+    int cut = 0;
+    while (cut < t && d[cut] < kSplit * top) ++cut;
+    while (cut > 0 && cut < t && d[cut] < kGap * std::max(d[cut - 1], 0.0)) ++cut;
+    if (cut == 0 || cut == t) break;
+    for (int j = 0; j < cut; ++j)
+      for (int c = 0; c < k; ++c) {
+        Complex sum = 0;
+        for (int i = 0; i < p; ++i) sum += ConjMul(x[c * p + i], u[i * p + j]);
+        w[j * k + c] = sum;
+      }
+    for (int j = 0; j < cut; ++j)
+      for (int l = 0; l <= j; ++l) {
+        Complex sum = 0;
+        for (int c = 0; c < k; ++c) sum += ConjMul(w[j * k + c], w[l * k + c]);
+        m[j * cut + l] = sum;
+        m[l * cut + j] = std::conj(sum);
+      }
+    if (!bins::HermitianEigen(m, cut, d, rot, work->data())) return false;
+    for (int i = 0; i < p; ++i) {
+      for (int j = 0; j < cut; ++j) {
+        Complex sum = 0;
+        for (int l = 0; l < cut; ++l) sum += Mul(u[i * p + l], rot[l * cut + j]);
+        tmp[j] = sum;
+      }
+      for (int j = 0; j < cut; ++j) u[i * p + j] = tmp[j];
+    }
+    t = cut;
+  }
+  return true;
+}
+
 }  // namespace
 
 FourierSystem::BinView FourierSystem::View(Index bin) const {
@@ -403,33 +459,60 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
   // σ_max(A(u))² (a diagonal entry of AᴴA).
   std::vector<double> traces(nb_), col_max(nb_);
   const double inv_rr = 1.0 / double(rr_);
-  ForBinBlocks(nb_, [&](Index i) {
-    const Index uy = i / lr.cols, ux = i % lr.cols;
-    Complex* a = &a_[i * stride];
-    double* p = &prior_[i * rr_];
-    double* pinv = &prior_inv_[i * rr_];
-    double trace = 0, cmax = 0;
-    bool positive = true;
+  const Shape hr = model.hr_shape();
+  const Index half = hr.cols / 2 + 1;
+  // One LR row of bins per task (a fixed partition): its bins read r HR rows of each frame's half-spectrum OTF
+  // (and their Hermitian mirrors), directly, row by row.
+  ParallelFor(lr.rows, [&](Index uy) {
+    std::vector<const Complex*> row(std::size_t(n_) * r), mirror_row(std::size_t(n_) * r);
+    for (int f = 0; f < n_; ++f)
+      for (int ky = 0; ky < r; ++ky) {
+        const Index fy = uy + ky * lr.rows;
+        row[f * r + ky] = &model.otf(f)(fy, 0);
+        mirror_row[f * r + ky] = &model.otf(f)((hr.rows - fy) % hr.rows, 0);
+      }
+    // Alias by alias, frame by frame, a stream along the OTF row into this row's bins (which stay in cache):
+    // one bin at a time would read N r² rows at once, more streams than the prefetcher follows.
+    std::vector<Complex> b(lr.cols);
     for (int ky = 0; ky < r; ++ky)
       for (int kx = 0; kx < r; ++kx) {
         const int c = ky * r + kx;
-        const Index fy = uy + ky * lr.rows, fx = ux + kx * lr.cols;
-        const Complex b = model.PixelTransfer(fy, fx) * inv_rr;
-        double col = 0;
+        const Index fy = uy + ky * lr.rows;
+        for (Index ux = 0; ux < lr.cols; ++ux) b[ux] = model.PixelTransfer(fy, ux + kx * lr.cols) * inv_rr;
         for (int f = 0; f < n_; ++f) {
-          const Complex v = b * model.Otf(f, fy, fx);
-          a[c * n_ + f] = v;
-          col += Norm2(v);
+          // H_i(fy, fx) from the half spectrum (MultiFrameModel::Otf), times B/r² (AliasedSystem).
+          const Complex* h = row[f * r + ky];
+          const Complex* hm = mirror_row[f * r + ky];
+          Complex* out = &a_[(uy * lr.cols) * stride + c * n_ + f];
+          for (Index ux = 0; ux < lr.cols; ++ux) {
+            const Index fx = ux + kx * lr.cols;
+            out[ux * stride] = Mul(b[ux], fx < half ? h[fx] : std::conj(hm[hr.cols - fx]));
+          }
         }
+        const double* sym = &prior_symbol(fy, 0);
+        for (Index ux = 0; ux < lr.cols; ++ux) {
+          const double pv = sym[ux + kx * lr.cols];
+          prior_[(uy * lr.cols + ux) * rr_ + c] = pv;
+          prior_inv_[(uy * lr.cols + ux) * rr_ + c] = pv > 0 ? 1.0 / pv : 0.0;
+        }
+      }
+    for (Index ux = 0; ux < lr.cols; ++ux) {
+      const Index i = uy * lr.cols + ux;
+      const Complex* a = &a_[i * stride];
+      const double* p = &prior_[i * rr_];
+      double trace = 0, cmax = 0;
+      bool positive = true;
+      for (int c = 0; c < rr_; ++c) {
+        double col = 0;
+        for (int f = 0; f < n_; ++f) col += Norm2(a[c * n_ + f]);
         trace += col;
         cmax = std::max(cmax, col);
-        p[c] = prior_symbol(fy, fx);
-        pinv[c] = p[c] > 0 ? 1.0 / p[c] : 0.0;
         positive = positive && p[c] > 0;
       }
-    traces[i] = trace;
-    col_max[i] = cmax;
-    prior_positive_[i] = positive;
+      traces[i] = trace;
+      col_max[i] = cmax;
+      prior_positive_[i] = positive;
+    }
   });
   // The largest σ² over all bins sets the rank floor. σ_max(u)² lies in [col_max(u), tr(u)], so only bins whose
   // trace reaches the largest lower bound can hold it (usually the DC bin alone): their Gram's eigenvalues.
@@ -458,9 +541,9 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
   // Columns whose squared norms sum to at most 1e-4 floor² move no singular value by more than 1 % of the floor
   // (Weyl), so they are dropped first (aliases beyond the optical cutoff or on a zero of the pixel box). The
   // rank of the rest is certified by the Cholesky factor L of its Gram matrix G (n' x n'): λ_min(G) >=
-  // 1/tr G⁻¹ = 1/||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding. Bins the certificate
-  // cannot decide (a σ near the floor) get the Gram's eigenvalues, and where those are within the Gram's
-  // rounding of the floor, the singular values of the reduced A(u).
+  // 1/tr G⁻¹ = 1/||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding. Bins it cannot decide
+  // (a σ near or below the floor) try a pivoted Householder QR (bounds on σ without squaring), then singular values
+  // to an SVD's accuracy (refined Gram eigenvalues), and an SVD where one lies within 1e-4 of the floor².
   ForBinBlocks(nb_, [&](Index i) {
     if (!CanonicalBin(i)) return;
     const Complex* a = &a_[i * stride];
@@ -530,10 +613,32 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
       rank_[i] = qr_rank;
       return;
     }
-    Eigen::MatrixXcd dense(n_, kept);
-    for (int k = 0; k < kept; ++k)
-      for (int f = 0; f < n_; ++f) dense(f, k) = a[kp[k] * n_ + f];
-    const Eigen::VectorXd sv2 = Eigen::JacobiSVD<Eigen::MatrixXcd>(dense).singularValues().array().square().matrix();
+    // The singular values of the reduced A(u) to an SVD's accuracy (refined Gram eigenvalues); an SVD only where
+    // one lies within 1e-4 of the floor², closer than that accuracy can be trusted to classify.
+    const int p = std::min(n_, kept), k = std::max(n_, kept);
+    std::vector<Complex> x(std::size_t(p) * k), buffer;
+    std::vector<double> d(p), eig_work;
+    for (int c = 0; c < kept; ++c)
+      for (int f = 0; f < n_; ++f) {
+        const Complex z = a[kp[c] * n_ + f];
+        if (n_ <= kept) {
+          x[std::size_t(c) * p + f] = z;  // X = A (N x kept)
+        } else {
+          x[std::size_t(f) * p + c] = std::conj(z);  // X = Aᴴ (kept x N)
+        }
+      }
+    Eigen::VectorXd sv2 = Eigen::Map<Eigen::VectorXd>(d.data(), p);
+    bool decided = RefinedSquaredSingularValues(x.data(), p, k, d.data(), &buffer, &eig_work);
+    if (decided) {
+      sv2 = Eigen::Map<Eigen::VectorXd>(d.data(), p);
+      decided = !((sv2.array() - floor2).abs() <= 1e-4 * floor2).any();
+    }
+    if (!decided) {
+      Eigen::MatrixXcd dense(n_, kept);
+      for (int c = 0; c < kept; ++c)
+        for (int f = 0; f < n_; ++f) dense(f, c) = a[kp[c] * n_ + f];
+      sv2 = Eigen::JacobiSVD<Eigen::MatrixXcd>(dense).singularValues().array().square().matrix();
+    }
     rank_[i] = int((sv2.array() > floor2).count());
   });
   for (Index i = 0; i < nb_; ++i) {
@@ -909,6 +1014,17 @@ void FourierSystem::MakeSpectral() const {
       }
     }
   });
+  for (Index i = 0; i < nb_; ++i) {
+    const int weight = sp->weight[i];
+    if (!weight) continue;
+    for (int k = 0; k < sp->q[i]; ++k) {
+      sp->term_s2.push_back(sp->s2[i * sp->q_max + k]);
+      sp->term_wc.push_back(weight * sp->c[i * sp->q_max + k]);
+      sp->term_weight.push_back(weight);
+    }
+    sp->fixed_residual += weight * sp->perp[i];
+    sp->fixed_dof += weight * double(n_ - sp->q[i]);
+  }
   spectral_ = std::move(sp);
 }
 
@@ -919,49 +1035,85 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prio
   const double w = lambda / rr;
   const Index n = n_;
   Fit f;
-  // Sums over the decomposed bins, on fixed blocks of bins, reduced in block order (the same bits on any number of
-  // threads).
-  const Index blocks = (nb_ + kBinBlock - 1) / kBinBlock;
-  std::vector<double> part(4 * blocks, 0.0);
-  ParallelFor(blocks, [&](Index block) {
-    double res_sum = 0, dof_sum = 0, prior_sum = 0, dprior_sum = 0;  // Σ_u ||P^½ X||² and its derivative by w
-    const Index end = std::min(nb_, (block + 1) * kBinBlock);
-    for (Index i = block * kBinBlock; i < end; ++i) {
-      const int weight = sp.weight[i];
-      if (!weight) continue;
-      const int q = sp.q[i];
-      const double* s2 = &sp.s2[i * sp.q_max];
-      const double* c = &sp.c[i * sp.q_max];
-      double res = sp.perp[i], dof = double(n - q), prior = 0, dprior = 0;
-      for (int k = 0; k < q; ++k) {
-        // w / (s² + w), 1 where both vanish (an unseen direction keeps all its data in the residual).
-        const double d = s2[k] + w;
-        const double g = d > 0 ? w / d : 1.0;
-        res += g * g * c[k];
-        dof += g;
-        if (want_prior && d > 0) {
-          // z = P^½ X = s/(s² + w) (uᴴY) v: ||z||² = s² c/(s² + w)², d/dw = −2 s² c/(s² + w)³.
-          const double e = s2[k] * c[k] / (d * d);
-          prior += e;
-          dprior -= 2.0 * e / d;
-        }
-      }
-      res_sum += weight * res;
-      dof_sum += weight * dof;
-      prior_sum += weight * prior;
-      dprior_sum += weight * dprior;
-    }
-    part[4 * block] = res_sum;
-    part[4 * block + 1] = dof_sum;
-    part[4 * block + 2] = prior_sum;
-    part[4 * block + 3] = dprior_sum;
-  });
   double prior = 0, dprior = 0;
-  for (Index b = 0; b < blocks; ++b) {
-    f.residual2 += part[4 * b];
-    f.dof += part[4 * b + 1];
-    prior += part[4 * b + 2];
-    dprior += part[4 * b + 3];
+  if (w > 0 && !want_prior) {
+    // The search's common case, one stream of terms: w/(s² + w) and its square, in fixed blocks of terms on
+    // four independent lanes each (vectorisable without reassociation), lanes and blocks reduced in a fixed
+    // order (the same bits on any thread count and instruction set).
+    constexpr Index kTerms = 8192;
+    const Index count = Index(sp.term_s2.size()), blocks = (count + kTerms - 1) / kTerms;
+    std::vector<double> part(2 * blocks, 0.0);
+    const double* s2 = sp.term_s2.data();
+    const double* wc = sp.term_wc.data();
+    const double* wt = sp.term_weight.data();
+    ParallelFor(blocks, [&](Index block) {
+      double res[4] = {0, 0, 0, 0}, dof[4] = {0, 0, 0, 0};
+      const Index end = std::min(count, (block + 1) * kTerms);
+      Index t = block * kTerms;
+      for (; t + 4 <= end; t += 4)
+        for (int l = 0; l < 4; ++l) {
+          const double g = w / (s2[t + l] + w);
+          res[l] += g * g * wc[t + l];
+          dof[l] += g * wt[t + l];
+        }
+      for (; t < end; ++t) {
+        const double g = w / (s2[t] + w);
+        res[0] += g * g * wc[t];
+        dof[0] += g * wt[t];
+      }
+      part[2 * block] = (res[0] + res[1]) + (res[2] + res[3]);
+      part[2 * block + 1] = (dof[0] + dof[1]) + (dof[2] + dof[3]);
+    });
+    f.residual2 = sp.fixed_residual;
+    f.dof = sp.fixed_dof;
+    for (Index b = 0; b < blocks; ++b) {
+      f.residual2 += part[2 * b];
+      f.dof += part[2 * b + 1];
+    }
+  } else {
+    // Sums over the decomposed bins, on fixed blocks of bins, reduced in block order (the same bits on any number of
+    // threads).
+    const Index blocks = (nb_ + kBinBlock - 1) / kBinBlock;
+    std::vector<double> part(4 * blocks, 0.0);
+    ParallelFor(blocks, [&](Index block) {
+      double res_sum = 0, dof_sum = 0, prior_sum = 0, dprior_sum = 0;  // Σ_u ||P^½ X||² and its derivative by w
+      const Index end = std::min(nb_, (block + 1) * kBinBlock);
+      for (Index i = block * kBinBlock; i < end; ++i) {
+        const int weight = sp.weight[i];
+        if (!weight) continue;
+        const int q = sp.q[i];
+        const double* s2 = &sp.s2[i * sp.q_max];
+        const double* c = &sp.c[i * sp.q_max];
+        double res = sp.perp[i], dof = double(n - q), prior = 0, dprior = 0;
+        for (int k = 0; k < q; ++k) {
+          // w / (s² + w), 1 where both vanish (an unseen direction keeps all its data in the residual).
+          const double d = s2[k] + w;
+          const double g = d > 0 ? w / d : 1.0;
+          res += g * g * c[k];
+          dof += g;
+          if (want_prior && d > 0) {
+            // z = P^½ X = s/(s² + w) (uᴴY) v: ||z||² = s² c/(s² + w)², d/dw = −2 s² c/(s² + w)³.
+            const double e = s2[k] * c[k] / (d * d);
+            prior += e;
+            dprior -= 2.0 * e / d;
+          }
+        }
+        res_sum += weight * res;
+        dof_sum += weight * dof;
+        prior_sum += weight * prior;
+        dprior_sum += weight * dprior;
+      }
+      part[4 * block] = res_sum;
+      part[4 * block + 1] = dof_sum;
+      part[4 * block + 2] = prior_sum;
+      part[4 * block + 3] = dprior_sum;
+    });
+    for (Index b = 0; b < blocks; ++b) {
+      f.residual2 += part[4 * b];
+      f.dof += part[4 * b + 1];
+      prior += part[4 * b + 2];
+      dprior += part[4 * b + 3];
+    }
   }
   for (Index i : sp.direct) {
     const BinView b = View(i);
@@ -1149,8 +1301,9 @@ class FourierInverseOp final : public LinearOperator {
     const Shape lr{hr_.rows / r_, hr_.cols / r_};
     const ComplexImage B = FftForward(AsImage(Vector(b), hr_).cast<Complex>());
     ComplexImage X(hr_.rows, hr_.cols);
-    Eigen::VectorXcd v(r_ * r_), z(r_ * r_);
-    for (Index uy = 0; uy < lr.rows; ++uy)
+    // Bin rows in parallel: each task writes only its bins' r² HR entries (the same bits on any thread count).
+    ParallelFor(lr.rows, [&](Index uy) {
+      Eigen::VectorXcd v(r_ * r_), z(r_ * r_);
       for (Index ux = 0; ux < lr.cols; ++ux) {
         for (int ky = 0; ky < r_; ++ky)
           for (int kx = 0; kx < r_; ++kx) v[ky * r_ + kx] = B(uy + ky * lr.rows, ux + kx * lr.cols);
@@ -1158,6 +1311,7 @@ class FourierInverseOp final : public LinearOperator {
         for (int ky = 0; ky < r_; ++ky)
           for (int kx = 0; kx < r_; ++kx) X(uy + ky * lr.rows, ux + kx * lr.cols) = z[ky * r_ + kx];
       }
+    });
     const Image out = FftInverse(X).real() * scale_;
     x = AsVector(out);
   }

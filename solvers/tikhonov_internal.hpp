@@ -38,7 +38,8 @@ class FourierSystem {
     double dprior2 = 0;
   };
   Fit Evaluate(double lambda, bool want_trace) const;
-  // The same residual and trace from one decomposition per bin (an SVD), made on first use after SetData: with
+  // The same residual and trace from one decomposition per bin (SetSpectralMethod), made on first use after SetData:
+  // with
   // B(u) = A(u) P(u)^(-1/2) = U diag(s) Vᴴ and c = |Uᴴ Y(u)|², w = λ/r²,
   //   ||Y − A X||² = Σ_k (w / (s_k² + w))² c_k + ||(I − UUᴴ) Y||²,   N − tr H = Σ_k w / (s_k² + w) + (N − q),
   // q = min(N, r²): O(q) per bin and λ instead of a solve, so a λ rule may evaluate as often as it likes
@@ -104,6 +105,10 @@ class FourierSystem {
     std::vector<int> q;         // values used per bin
     std::vector<char> weight;   // 2 for one bin of a mirror pair (the other copies it), 1 if self-mirror, else 0
     std::vector<Index> direct;  // bins with a zero of the prior (solved at each λ)
+    // The same values as one stream of terms (the counted bins' q values in bin order) for the λ loop:
+    // s², weight·c and weight; and the λ-independent parts Σ weight·perp and Σ weight·(N − q).
+    std::vector<double> term_s2, term_wc, term_weight;
+    double fixed_residual = 0, fixed_dof = 0;
   };
   void MakeSpectral() const;
   void DecomposeBinSvd(Index bin, Spectral* sp) const;
