@@ -667,5 +667,61 @@ TEST(TikhonovTest, SpectralEigenPathMatchesTheSvdPath) {
     }
 }
 
+// The flat engine on 1 and 2 threads gives the same bits (DESIGN.md §4): ranks, λ₀, the spectral sums of every
+// λ rule (the terms stream and the per-bin path), the GCV λ and the solve, on a grid of several bin blocks and
+// term blocks (96 x 96 LR bins), with N < r², N > r² and duplicate frames.
+TEST(TikhonovTest, FlatEngineIsBitIdenticalOnOneAndTwoThreads) {
+  struct Case {
+    int r;
+    std::vector<std::pair<double, double>> shifts;
+  };
+  const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}},
+                                   {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}, {0.3, 1.7}}},
+                                   {2, {{0, 0}, {0, 0}, {1.5, 0.5}, {0.5, 1.5}}}};
+  const int saved = DefaultThreads();
+  for (const Case& c : cases) {
+    const Shape hr{96 * c.r, 96 * c.r};
+    const MultiFrameModel m = RasterModel(hr, c.r, c.shifts, 1.5);
+    TikhonovOptions o;
+    o.lambda_rule = TikhonovLambdaRule::kGcv;
+    const ImageStack frames = test::AddNoise(m.Render(test::RandomImage(hr, 3).abs()), 0.02, 5);
+    struct Run {
+      Index deficient, unconstrained;
+      double lambda0, lambda, score;
+      FourierSystem::Fit fit, with_prior;
+      Image x;
+    };
+    const auto run = [&](int threads) {
+      SetDefaultThreads(threads);
+      FourierSystem sys(m, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+      sys.SetData(frames);
+      Run out;
+      int evaluations = 0;
+      out.deficient = sys.deficient_bins();
+      out.unconstrained = sys.unconstrained();
+      out.lambda0 = sys.lambda0();
+      out.lambda = tikhonov_internal::GcvSearch(sys, o, &out.score, &evaluations);
+      out.fit = sys.EvaluateSpectral(out.lambda);
+      out.with_prior = sys.EvaluateSpectral(out.lambda, true);
+      out.x = sys.Solve(out.lambda);
+      return out;
+    };
+    const Run one = run(1), two = run(2);
+    const std::string what = "r = " + std::to_string(c.r) + ", N = " + std::to_string(c.shifts.size());
+    EXPECT_EQ(one.deficient, two.deficient) << what;
+    EXPECT_EQ(one.unconstrained, two.unconstrained) << what;
+    EXPECT_EQ(one.lambda0, two.lambda0) << what;
+    EXPECT_EQ(one.lambda, two.lambda) << what;
+    EXPECT_EQ(one.score, two.score) << what;
+    EXPECT_EQ(one.fit.residual2, two.fit.residual2) << what;
+    EXPECT_EQ(one.fit.dof, two.fit.dof) << what;
+    EXPECT_EQ(one.with_prior.residual2, two.with_prior.residual2) << what;
+    EXPECT_EQ(one.with_prior.prior2, two.with_prior.prior2) << what;
+    EXPECT_EQ(one.with_prior.dprior2, two.with_prior.dprior2) << what;
+    EXPECT_TRUE((one.x == two.x).all()) << what;
+  }
+  SetDefaultThreads(saved);
+}
+
 }  // namespace
 }  // namespace aosr
