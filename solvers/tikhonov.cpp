@@ -217,156 +217,435 @@ namespace tikhonov_internal {
 
 Image PriorSymbolImage(const TikhonovOptions& options, Shape hr) {
   Image p(hr.rows, hr.cols);
+  if (options.prior == TikhonovPrior::kGradient || options.prior == TikhonovPrior::kLaplacian) {
+    // Separable: the same arithmetic as TikhonovPriorSymbol (4 (sin²y + sin²x), squared for the Laplacian),
+    // with the sines per row and per column instead of per pixel.
+    std::vector<double> sy2(hr.rows), sx2(hr.cols);
+    for (Index fy = 0; fy < hr.rows; ++fy) {
+      const double s = std::sin(M_PI * double(fy) / double(hr.rows));
+      sy2[fy] = s * s;
+    }
+    for (Index fx = 0; fx < hr.cols; ++fx) {
+      const double s = std::sin(M_PI * double(fx) / double(hr.cols));
+      sx2[fx] = s * s;
+    }
+    const bool laplacian = options.prior == TikhonovPrior::kLaplacian;
+    for (Index fy = 0; fy < hr.rows; ++fy)
+      for (Index fx = 0; fx < hr.cols; ++fx) {
+        const double g = 4.0 * (sy2[fy] + sx2[fx]);
+        p(fy, fx) = laplacian ? g * g : g;
+      }
+    return p;
+  }
   for (Index fy = 0; fy < hr.rows; ++fy)
     for (Index fx = 0; fx < hr.cols; ++fx) p(fy, fx) = TikhonovPriorSymbol(options, hr, fy, fx);
   return p;
+}
+
+namespace {
+
+using bins::Norm2;
+
+// Bins per parallel task of the per-bin passes: a fixed partition, so every task writes the same bins whatever
+// the thread count.
+constexpr Index kBinBlock = 512;
+
+template <class F>
+void ForBinBlocks(Index bins, const F& f) {
+  ParallelFor((bins + kBinBlock - 1) / kBinBlock, [&](Index block) {
+    const Index end = std::min(bins, (block + 1) * kBinBlock);
+    for (Index i = block * kBinBlock; i < end; ++i) f(i);
+  });
+}
+
+// a·conj(b) and conj(a)·b without the NaN-recovery branch of std::complex's product (finite data here).
+inline Complex MulConj(Complex a, Complex b) {
+  return {a.real() * b.real() + a.imag() * b.imag(), a.imag() * b.real() - a.real() * b.imag()};
+}
+inline Complex ConjMul(Complex a, Complex b) {
+  return {a.real() * b.real() + a.imag() * b.imag(), a.real() * b.imag() - a.imag() * b.real()};
+}
+inline Complex Mul(Complex a, Complex b) {
+  return {a.real() * b.real() - a.imag() * b.imag(), a.real() * b.imag() + a.imag() * b.real()};
+}
+
+// bins::CholeskyInPlace with |z|² as re² + im² (no hypot): the same factor layout (1/L_ii on the diagonal).
+inline bool Cholesky(Complex* g, int n, double pivot_floor) {
+  for (int j = 0; j < n; ++j) {
+    double d = g[j * n + j].real();
+    for (int k = 0; k < j; ++k) d -= Norm2(g[j * n + k]);
+    if (!(d > pivot_floor)) return false;
+    const double inv = 1.0 / std::sqrt(d);
+    g[j * n + j] = inv;
+    for (int i = j + 1; i < n; ++i) {
+      Complex s = g[i * n + j];
+      for (int k = 0; k < j; ++k) s -= MulConj(g[i * n + k], g[j * n + k]);
+      g[i * n + j] = s * inv;
+    }
+  }
+  return true;
+}
+
+// Gram matrix of the columns `keep` (all r² if keep is null) of the column-major N x r² matrix a: the smaller of
+// A Aᴴ (N x N) and Aᴴ A (k x k), row-major, both triangles. Returns its size.
+int Gram(const Complex* a, int n, const int* keep, int kept, Complex* g) {
+  const bool rows = n <= kept;
+  const int size = rows ? n : kept;
+  for (int p = 0; p < size; ++p)
+    for (int q = 0; q <= p; ++q) {
+      Complex sum = 0;
+      if (rows) {
+        for (int k = 0; k < kept; ++k) {
+          const Complex* col = a + Index(keep ? keep[k] : k) * n;
+          sum += MulConj(col[p], col[q]);
+        }
+      } else {
+        const Complex* cp = a + Index(keep ? keep[p] : p) * n;
+        const Complex* cq = a + Index(keep ? keep[q] : q) * n;
+        for (int f = 0; f < n; ++f) sum += ConjMul(cp[f], cq[f]);
+      }
+      g[p * size + q] = sum;
+      g[q * size + p] = std::conj(sum);
+    }
+  return size;
+}
+
+// The rank of the column-major n x k matrix `a` (destroyed) against `floor`, certified without forming a Gram
+// matrix: Householder QR with column pivoting, A Π = Q [R₁₁ R₁₂; 0 R₂₂], stopped at the first step j where the
+// trailing columns' Frobenius norm is at most floor/2. Then σ_{j+1}(A) <= ||R₂₂||₂ <= floor/2 and
+// σ_j(A) >= σ_min(R₁₁) >= 1/||R₁₁⁻¹||_F; rank j is certified when that bound is at least 2·floor. Householder
+// QR is backward stable (errors ε σ_max(A), far below a floor of 1e-9 σ_max), so the bounds hold to that margin.
+// Returns -1 when not certified (a singular value within a factor 2 of the floor). `work`: 2k doubles + n complex.
+int PivotedQrRank(Complex* a, int n, int k, double floor, double* work, Complex* v) {
+  double* norms = work;
+  const int steps = std::min(n, k);
+  int j = 0;
+  for (; j < steps; ++j) {
+    double rest = 0, best = -1;
+    int pivot = j;
+    for (int c = j; c < k; ++c) {
+      double s = 0;
+      for (int i = j; i < n; ++i) s += Norm2(a[c * n + i]);
+      norms[c] = s;
+      rest += s;
+      if (s > best) best = s, pivot = c;
+    }
+    if (rest <= 0.25 * floor * floor) break;
+    if (pivot != j)
+      for (int i = 0; i < n; ++i) std::swap(a[j * n + i], a[pivot * n + i]);
+    // Householder on rows j..n-1 of column j: H x = −phase ||x|| e₁.
+    Complex* x = a + j * n + j;
+    const int len = n - j;
+    const double alpha = std::sqrt(norms[pivot]);
+    const double a0 = std::sqrt(Norm2(x[0]));
+    const Complex phase = a0 > 0 ? x[0] / a0 : Complex(1.0);
+    for (int i = 0; i < len; ++i) v[i] = x[i];
+    v[0] += phase * alpha;
+    const double vnorm2 = 2.0 * alpha * (alpha + a0);
+    x[0] = -phase * alpha;
+    for (int i = 1; i < len; ++i) x[i] = 0;
+    if (vnorm2 > 0)
+      for (int c = j + 1; c < k; ++c) {
+        Complex* col = a + c * n + j;
+        Complex dot = 0;
+        for (int i = 0; i < len; ++i) dot += ConjMul(v[i], col[i]);
+        dot *= 2.0 / vnorm2;
+        for (int i = 0; i < len; ++i) col[i] -= Mul(v[i], dot);
+      }
+  }
+  if (j == 0) return 0;
+  // ||R₁₁⁻¹||²_F row by row of R₁₁⁻¹ᴴ... column by column of R₁₁⁻¹: back substitution of e_i (R upper, R(p,q) =
+  // a[q n + p]).
+  double inv2 = 0;
+  Complex* z = v;
+  for (int e = 0; e < j; ++e) {
+    for (int p = j - 1; p >= 0; --p) {
+      if (p > e) {
+        z[p] = 0;
+        continue;
+      }
+      Complex sum = p == e ? Complex(1.0) : Complex(0.0);
+      for (int q = p + 1; q <= e; ++q) sum -= Mul(a[q * n + p], z[q]);
+      const Complex d = a[p * n + p];
+      if (!(Norm2(d) > 0)) return -1;
+      z[p] = sum / d;
+      inv2 += Norm2(z[p]);
+    }
+  }
+  return inv2 > 0 && 1.0 / inv2 >= 4.0 * floor * floor ? j : -1;
+}
+
+// σ² of X (p x k, p <= k, column-major, leading dimension p), ascending in d, to the accuracy of an SVD of X
+// (absolute error ~ε σ_max σ): the eigenvalues of X Xᴴ, the small ones refined by Rayleigh-Ritz on X itself, as
+// FourierSystem::DecomposeBinEigen does (its comment says why that is as accurate as an SVD).
+bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std::vector<Complex>* buffer,
+                                  std::vector<double>* work) {
+  buffer->resize(3 * std::size_t(p) * p + std::size_t(k) * p + p);
+  work->resize(3 * std::size_t(p) * p + 2 * p);
+  Complex* m = buffer->data();
+  Complex* u = m + p * p;
+  Complex* rot = u + p * p;
+  Complex* w = rot + p * p;
+  Complex* tmp = w + std::size_t(k) * p;
+  for (int i = 0; i < p; ++i)
+    for (int j = 0; j <= i; ++j) {
+      Complex sum = 0;
+      for (int c = 0; c < k; ++c) sum += MulConj(x[c * p + i], x[c * p + j]);
+      m[i * p + j] = sum;
+      m[j * p + i] = std::conj(sum);
+    }
+  if (!bins::HermitianEigen(m, p, d, u, work->data())) return false;
+  constexpr double kSplit = 1e-3, kGap = 10.0;
+  int t = p;
+  for (int depth = 0; depth < 16 && t > 1; ++depth) {
+    const double top = d[t - 1];
+    if (!(top > 0)) break;
+    int cut = 0;
+    while (cut < t && d[cut] < kSplit * top) ++cut;
+    while (cut > 0 && cut < t && d[cut] < kGap * std::max(d[cut - 1], 0.0)) ++cut;
+    if (cut == 0 || cut == t) break;
+    for (int j = 0; j < cut; ++j)
+      for (int c = 0; c < k; ++c) {
+        Complex sum = 0;
+        for (int i = 0; i < p; ++i) sum += ConjMul(x[c * p + i], u[i * p + j]);
+        w[j * k + c] = sum;
+      }
+    for (int j = 0; j < cut; ++j)
+      for (int l = 0; l <= j; ++l) {
+        Complex sum = 0;
+        for (int c = 0; c < k; ++c) sum += ConjMul(w[j * k + c], w[l * k + c]);
+        m[j * cut + l] = sum;
+        m[l * cut + j] = std::conj(sum);
+      }
+    if (!bins::HermitianEigen(m, cut, d, rot, work->data())) return false;
+    for (int i = 0; i < p; ++i) {
+      for (int j = 0; j < cut; ++j) {
+        Complex sum = 0;
+        for (int l = 0; l < cut; ++l) sum += Mul(u[i * p + l], rot[l * cut + j]);
+        tmp[j] = sum;
+      }
+      for (int j = 0; j < cut; ++j) u[i * p + j] = tmp[j];
+    }
+    t = cut;
+  }
+  return true;
+}
+
+}  // namespace
+
+FourierSystem::BinView FourierSystem::View(Index bin) const {
+  return BinView{Eigen::Map<const Eigen::MatrixXcd>(&a_[bin * n_ * rr_], n_, rr_),
+                 Eigen::Map<const Eigen::VectorXcd>(&y_[bin * n_], n_),
+                 Eigen::Map<const Eigen::VectorXd>(&prior_[bin * rr_], rr_), prior_positive_[bin] != 0, rank_[bin]};
 }
 
 FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_symbol, double rank_tolerance,
                              TikhonovBinSolver solver)
     : model_(model), solver_(solver) {
   const Shape lr = model.lr_shape();
-  const int r = model.r(), rr = r * r;
-  bins_.resize(lr.size());
-  // Ranks. σ(A(u))² are the eigenvalues of the smaller Gram matrix G (n x n, n = min(N, r²)). Most bins are
-  // certified full-rank without computing them: G's Cholesky factor gives tr G⁻¹ = ||L⁻¹||²_F, and
-  // λ_min(G) >= 1 / tr G⁻¹, so a bound above the floor proves rank n at the cost of two small triangular
-  // passes. The rest get the eigenvalues (and the checks below). The largest σ² over all bins (which sets
-  // the floor) needs exact eigenvalues only where λ_max can be largest: λ_max(G) lies in [tr G / n, tr G].
-  // Bins are independent: each task writes its own entries; reductions run in bin order afterwards (the
-  // same bits for any thread count).
-  const int n_frames = model.frames();
-  const int n_gram = std::min(n_frames, rr);
-  std::vector<Complex> grams(bins_.size() * n_gram * n_gram);
-  std::vector<double> traces(bins_.size(), 0.0);
+  const int r = model.r();
+  n_ = model.frames();
+  rr_ = r * r;
+  nb_ = lr.size();
+  const Index stride = Index(n_) * rr_;
+  a_.resize(nb_ * stride);
+  y_.assign(nb_ * n_, Complex(0));
+  prior_.resize(nb_ * rr_);
+  prior_inv_.resize(nb_ * rr_);
+  prior_positive_.assign(nb_, 0);
+  rank_.assign(nb_, 0);
+  // Pass 1, one per bin: A(u) (entries (1/r²) B(f_k) H_i(f_k), MultiFrameModel::AliasedSystem's arithmetic),
+  // the prior, ||A(u)||²_F = tr of its Gram matrix, and its largest squared column norm, a lower bound of
+  // σ_max(A(u))² (a diagonal entry of AᴴA).
+  std::vector<double> traces(nb_), col_max(nb_);
+  const double inv_rr = 1.0 / double(rr_);
+  const Shape hr = model.hr_shape();
+  const Index half = hr.cols / 2 + 1;
+  // One LR row of bins per task (a fixed partition): its bins read r HR rows of each frame's half-spectrum OTF
+  // (and their Hermitian mirrors), directly, row by row.
   ParallelFor(lr.rows, [&](Index uy) {
+    std::vector<const Complex*> row(std::size_t(n_) * r), mirror_row(std::size_t(n_) * r);
+    for (int f = 0; f < n_; ++f)
+      for (int ky = 0; ky < r; ++ky) {
+        const Index fy = uy + ky * lr.rows;
+        row[f * r + ky] = &model.otf(f)(fy, 0);
+        mirror_row[f * r + ky] = &model.otf(f)((hr.rows - fy) % hr.rows, 0);
+      }
+    // Alias by alias, frame by frame, a stream along the OTF row into this row's bins (which stay in cache):
+    // one bin at a time would read N r² rows at once, more streams than the prefetcher follows.
+    std::vector<Complex> b(lr.cols);
+    for (int ky = 0; ky < r; ++ky)
+      for (int kx = 0; kx < r; ++kx) {
+        const int c = ky * r + kx;
+        const Index fy = uy + ky * lr.rows;
+        for (Index ux = 0; ux < lr.cols; ++ux) b[ux] = model.PixelTransfer(fy, ux + kx * lr.cols) * inv_rr;
+        for (int f = 0; f < n_; ++f) {
+          // H_i(fy, fx) from the half spectrum (MultiFrameModel::Otf), times B/r² (AliasedSystem).
+          const Complex* h = row[f * r + ky];
+          const Complex* hm = mirror_row[f * r + ky];
+          Complex* out = &a_[(uy * lr.cols) * stride + c * n_ + f];
+          for (Index ux = 0; ux < lr.cols; ++ux) {
+            const Index fx = ux + kx * lr.cols;
+            out[ux * stride] = Mul(b[ux], fx < half ? h[fx] : std::conj(hm[hr.cols - fx]));
+          }
+        }
+        const double* sym = &prior_symbol(fy, 0);
+        for (Index ux = 0; ux < lr.cols; ++ux) {
+          const double pv = sym[ux + kx * lr.cols];
+          prior_[(uy * lr.cols + ux) * rr_ + c] = pv;
+          prior_inv_[(uy * lr.cols + ux) * rr_ + c] = pv > 0 ? 1.0 / pv : 0.0;
+        }
+      }
     for (Index ux = 0; ux < lr.cols; ++ux) {
       const Index i = uy * lr.cols + ux;
-      Bin& b = bins_[i];
-      b.a = model.AliasedSystem(uy, ux);
-      b.y = Eigen::VectorXcd::Zero(n_frames);
-      b.prior.resize(rr);
-      for (int ky = 0; ky < r; ++ky)
-        for (int kx = 0; kx < r; ++kx)
-          b.prior[ky * r + kx] = prior_symbol(uy + ky * lr.rows, ux + kx * lr.cols);
-      b.prior_positive = (b.prior.array() > 0).all();
-      Complex* g = &grams[i * n_gram * n_gram];
-      const Complex* a = b.a.data();  // column-major N x r²
-      const bool rows = n_frames <= rr;  // G = A Aᴴ (N x N), else Aᴴ A (r² x r²)
-      for (int p = 0; p < n_gram; ++p)
-        for (int q = 0; q <= p; ++q) {
-          Complex sum = 0;
-          if (rows) {
-            for (int c = 0; c < rr; ++c) sum += a[c * n_frames + p] * std::conj(a[c * n_frames + q]);
-          } else {
-            for (int f = 0; f < n_frames; ++f) sum += std::conj(a[p * n_frames + f]) * a[q * n_frames + f];
-          }
-          g[p * n_gram + q] = sum;
-          g[q * n_gram + p] = std::conj(sum);
-        }
-      for (int p = 0; p < n_gram; ++p) traces[i] += g[p * n_gram + p].real();
+      const Complex* a = &a_[i * stride];
+      const double* p = &prior_[i * rr_];
+      double trace = 0, cmax = 0;
+      bool positive = true;
+      for (int c = 0; c < rr_; ++c) {
+        double col = 0;
+        for (int f = 0; f < n_; ++f) col += Norm2(a[c * n_ + f]);
+        trace += col;
+        cmax = std::max(cmax, col);
+        positive = positive && p[c] > 0;
+      }
+      traces[i] = trace;
+      col_max[i] = cmax;
+      prior_positive_[i] = positive;
     }
   });
-  double trace_max_over_n = 0;
-  for (double t : traces) trace_max_over_n = std::max(trace_max_over_n, t / double(n_gram));
-  const auto gram_eigenvalues = [&](Index i) {
-    const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> g(
-        &grams[i * n_gram * n_gram], n_gram, n_gram);
-    return Eigen::VectorXd(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(Eigen::MatrixXcd(g), Eigen::EigenvaluesOnly)
-                               .eigenvalues()
-                               .cwiseMax(0.0));
-  };
-  std::vector<double> lambda_max(bins_.size(), 0.0);
-  ParallelFor(Index(bins_.size()), [&](Index i) {
-    if (n_gram > 0 && traces[i] >= trace_max_over_n) lambda_max[i] = gram_eigenvalues(i).maxCoeff();
-  });
-  double trace_ata = 0, trace_p = 0, sv2_max = 0;
-  for (std::size_t i = 0; i < bins_.size(); ++i) {
-    trace_ata += traces[i];  // tr G = ||A(u)||²_F
-    trace_p += bins_[i].prior.sum();
-    sv2_max = std::max(sv2_max, lambda_max[i]);
+  // The largest σ² over all bins sets the rank floor. σ_max(u)² lies in [col_max(u), tr(u)], so only bins whose
+  // trace reaches the largest lower bound can hold it (usually the DC bin alone): their Gram's eigenvalues.
+  const int n_gram = std::min(n_, rr_);
+  double lower = 0, trace_ata = 0, trace_p = 0;
+  for (Index i = 0; i < nb_; ++i) lower = std::max(lower, col_max[i]);
+  double sv2_max = 0;
+  {
+    std::vector<Complex> g(std::size_t(n_gram) * n_gram);
+    for (Index i = 0; i < nb_; ++i) {
+      trace_ata += traces[i];
+      for (int c = 0; c < rr_; ++c) trace_p += prior_[i * rr_ + c];
+      if (n_gram == 0 || traces[i] < lower) continue;
+      Gram(&a_[i * stride], n_, nullptr, rr_, g.data());
+      const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> gm(
+          g.data(), n_gram, n_gram);
+      sv2_max = std::max(sv2_max, Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(Eigen::MatrixXcd(gm),
+                                                                                   Eigen::EigenvaluesOnly)
+                                      .eigenvalues()
+                                      .maxCoeff());
+    }
   }
-  // A Gram matrix holds σ² only to about n ε σ_max(u)² absolutely (n its size), so a value that close to the
-  // rank floor cannot be classified from it. Such bins (strong bins with aliases beyond the optical cutoff or
-  // on a zero of the pixel box, or degenerate frames) are looked at again without their negligible columns:
-  // columns whose squared norms sum to at most 1e-4 floor² move no singular value by more than 1 % of the
-  // floor (Weyl), so only a σ within 1 % of the floor could be classified differently from an SVD of A(u).
-  // The reduced Gram usually decides; if not, the SVD of the reduced matrix does (it resolves σ to ε σ_max).
-  const double floor2_all = std::pow(rank_tolerance, 2) * sv2_max;
-  const auto ambiguous = [&](const Eigen::VectorXd& values) {
-    if (values.size() == 0) return false;
-    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(values.size()) * values.maxCoeff();
-    return ((values.array() - floor2_all).abs() <= noise).any();
-  };
-  // Bins u and −u have conjugate systems, hence the same rank: one of each pair is classified.
-  const auto mirror = [&](Index i) { return MirrorBin(i); };
-  const auto canonical = [&](Index i) { return CanonicalBin(i); };
-  std::vector<Eigen::VectorXd> sv2(bins_.size());
-  std::vector<char> certified(bins_.size(), 0);
-  ParallelFor(lr.rows, [&](Index uy) {
-    std::vector<Complex> l(n_gram * n_gram), w(n_gram);
-    for (Index ux = 0; ux < lr.cols; ++ux) {
-      const Index i = uy * lr.cols + ux;
-      if (n_gram == 0 || !canonical(i)) continue;
-      // The certificate: λ_min >= 1 / ||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding.
-      std::copy(&grams[i * n_gram * n_gram], &grams[(i + 1) * n_gram * n_gram], l.begin());
-      const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(n_gram) * traces[i];
-      if (bins::CholeskyInPlace(l.data(), n_gram, noise)) {
-        double inv_trace = 0;  // ||L⁻¹||²_F, column by column of L⁻¹ (forward substitution of e_j)
-        for (int j = 0; j < n_gram; ++j) {
-          for (int p = 0; p < n_gram; ++p) {
-            Complex sum = p == j ? 1.0 : 0.0;
-            for (int q = j; q < p; ++q) sum -= l[p * n_gram + q] * w[q];
-            w[p] = p < j ? 0.0 : sum * l[p * n_gram + p].real();
-            if (p >= j) inv_trace += std::norm(w[p]);
-          }
-        }
-        if (inv_trace > 0 && 1.0 / inv_trace > 4.0 * (floor2_all + noise)) {
-          certified[i] = 1;
-          continue;
-        }
-      }
-      sv2[i] = gram_eigenvalues(i);
-    }
-  });
-  ParallelFor(Index(bins_.size()), [&](Index i) {
-    if (!canonical(i) || certified[i] || !ambiguous(sv2[i])) return;
-    const Eigen::MatrixXcd& a = bins_[i].a;
-    const Eigen::VectorXd norms = a.colwise().squaredNorm().transpose();
-    std::vector<Index> order(norms.size());
-    for (Index k = 0; k < norms.size(); ++k) order[k] = k;
-    std::sort(order.begin(), order.end(), [&](Index x, Index y) { return norms[x] < norms[y] || (norms[x] == norms[y] && x < y); });
-    double dropped = 0;
-    std::vector<Index> keep;
-    for (Index k : order) {
-      if (dropped + norms[k] <= 1e-4 * floor2_all) {
-        dropped += norms[k];
-      } else {
-        keep.push_back(k);
-      }
-    }
-    std::sort(keep.begin(), keep.end());
-    Eigen::MatrixXcd reduced(a.rows(), Index(keep.size()));
-    for (std::size_t c = 0; c < keep.size(); ++c) reduced.col(Index(c)) = a.col(keep[c]);
-    if (reduced.cols() == 0) {
-      sv2[i] = Eigen::VectorXd::Zero(1);
-      return;
-    }
-    const Eigen::MatrixXcd g = reduced.rows() <= reduced.cols() ? Eigen::MatrixXcd(reduced * reduced.adjoint())
-                                                                : Eigen::MatrixXcd(reduced.adjoint() * reduced);
-    sv2[i] = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().cwiseMax(0.0);
-    if (ambiguous(sv2[i]))
-      sv2[i] = Eigen::JacobiSVD<Eigen::MatrixXcd>(reduced).singularValues().array().square().matrix();
-  });
   sv_floor_ = rank_tolerance * std::sqrt(sv2_max);
   const double floor2 = sv_floor_ * sv_floor_;
-  for (Index i = 0; i < Index(bins_.size()); ++i)
-    if (canonical(i)) bins_[i].rank = certified[i] ? n_gram : int((sv2[i].array() > floor2).count());
-  for (Index i = 0; i < Index(bins_.size()); ++i) {
-    if (!canonical(i)) bins_[i].rank = bins_[mirror(i)].rank;
-    if (bins_[i].rank < rr) {
+  // Pass 2, ranks (one bin of each mirror pair: u and −u have conjugate systems, hence the same rank).
+  // Columns whose squared norms sum to at most 1e-4 floor² move no singular value by more than 1 % of the floor
+  // (Weyl), so they are dropped first (aliases beyond the optical cutoff or on a zero of the pixel box). The
+  // rank of the rest is certified by the Cholesky factor L of its Gram matrix G (n' x n'): λ_min(G) >=
+  // 1/tr G⁻¹ = 1/||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding. Bins it cannot decide
+  // (a σ near or below the floor) try a pivoted Householder QR (bounds on σ without squaring), then singular values
+  // to an SVD's accuracy (refined Gram eigenvalues), and an SVD where one lies within 1e-4 of the floor².
+  ForBinBlocks(nb_, [&](Index i) {
+    if (!CanonicalBin(i)) return;
+    const Complex* a = &a_[i * stride];
+    double norms[256];
+    int keep[256];
+    std::vector<double> norm_heap;
+    std::vector<int> keep_heap;
+    double* nrm = rr_ <= 256 ? norms : (norm_heap.resize(rr_), norm_heap.data());
+    int* kp = rr_ <= 256 ? keep : (keep_heap.resize(rr_), keep_heap.data());
+    const double threshold = 1e-4 * floor2;
+    double small = 0;
+    for (int c = 0; c < rr_; ++c) {
+      double s = 0;
+      for (int f = 0; f < n_; ++f) s += Norm2(a[c * n_ + f]);
+      nrm[c] = s;
+      if (s <= threshold) small += s;
+    }
+    int kept = 0;
+    if (small <= threshold) {  // every column below the threshold fits: drop them all
+      for (int c = 0; c < rr_; ++c)
+        if (nrm[c] > threshold) kp[kept++] = c;
+    } else {  // drop the smallest columns while their sum fits (ascending order, ties by index)
+      std::vector<int> order(rr_);
+      for (int c = 0; c < rr_; ++c) order[c] = c;
+      std::sort(order.begin(), order.end(),
+                [&](int x, int y) { return nrm[x] < nrm[y] || (nrm[x] == nrm[y] && x < y); });
+      double dropped = 0;
+      std::vector<char> drop(rr_, 0);
+      for (int c : order)
+        if (dropped + nrm[c] <= threshold) dropped += nrm[c], drop[c] = 1;
+      for (int c = 0; c < rr_; ++c)
+        if (!drop[c]) kp[kept++] = c;
+    }
+    const int size = std::min(n_, kept);
+    if (size == 0) {
+      rank_[i] = 0;
+      return;
+    }
+    std::vector<Complex> g(std::size_t(size) * size), l(g.size()), w(size);
+    Gram(a, n_, kp, kept, g.data());
+    double trace = 0;
+    for (int p = 0; p < size; ++p) trace += g[p * size + p].real();
+    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(size) * trace;
+    l = g;
+    if (Cholesky(l.data(), size, noise)) {
+      double inv_trace = 0;  // ||L⁻¹||²_F, column by column of L⁻¹ (forward substitution of e_j)
+      for (int j = 0; j < size; ++j)
+        for (int p = j; p < size; ++p) {
+          Complex sum = p == j ? 1.0 : 0.0;
+          for (int q = j; q < p; ++q) sum -= Mul(l[p * size + q], w[q]);
+          w[p] = sum * l[p * size + p].real();
+          inv_trace += Norm2(w[p]);
+        }
+      if (inv_trace > 0 && 1.0 / inv_trace > 4.0 * (floor2 + noise)) {
+        rank_[i] = size;
+        return;
+      }
+    }
+
+    // Not certified by the Gram: the pivoted QR of the reduced A(u), and where even that cannot decide, its SVD.
+    std::vector<Complex> reduced(std::size_t(n_) * kept), v(n_);
+    std::vector<double> qr_work(2 * std::size_t(kept));
+    for (int k = 0; k < kept; ++k)
+      for (int f = 0; f < n_; ++f) reduced[std::size_t(k) * n_ + f] = a[kp[k] * n_ + f];
+    const int qr_rank = PivotedQrRank(reduced.data(), n_, kept, sv_floor_, qr_work.data(), v.data());
+    if (qr_rank >= 0) {
+      rank_[i] = qr_rank;
+      return;
+    }
+    // The singular values of the reduced A(u) to an SVD's accuracy (refined Gram eigenvalues); an SVD only where
+    // one lies within 1e-4 of the floor², closer than that accuracy can be trusted to classify.
+    const int p = std::min(n_, kept), k = std::max(n_, kept);
+    std::vector<Complex> x(std::size_t(p) * k), buffer;
+    std::vector<double> d(p), eig_work;
+    for (int c = 0; c < kept; ++c)
+      for (int f = 0; f < n_; ++f) {
+        const Complex z = a[kp[c] * n_ + f];
+        if (n_ <= kept) {
+          x[std::size_t(c) * p + f] = z;  // X = A (N x kept)
+        } else {
+          x[std::size_t(f) * p + c] = std::conj(z);  // X = Aᴴ (kept x N)
+        }
+      }
+    Eigen::VectorXd sv2 = Eigen::Map<Eigen::VectorXd>(d.data(), p);
+    bool decided = RefinedSquaredSingularValues(x.data(), p, k, d.data(), &buffer, &eig_work);
+    if (decided) {
+      sv2 = Eigen::Map<Eigen::VectorXd>(d.data(), p);
+      decided = !((sv2.array() - floor2).abs() <= 1e-4 * floor2).any();
+    }
+    if (!decided) {
+      Eigen::MatrixXcd dense(n_, kept);
+      for (int c = 0; c < kept; ++c)
+        for (int f = 0; f < n_; ++f) dense(f, c) = a[kp[c] * n_ + f];
+      sv2 = Eigen::JacobiSVD<Eigen::MatrixXcd>(dense).singularValues().array().square().matrix();
+    }
+    rank_[i] = int((sv2.array() > floor2).count());
+  });
+  for (Index i = 0; i < nb_; ++i) {
+    if (!CanonicalBin(i)) rank_[i] = rank_[MirrorBin(i)];
+    if (rank_[i] < rr_) {
       ++deficient_;
-      unconstrained_ += rr - bins_[i].rank;
+      unconstrained_ += rr_ - rank_[i];
     }
   }
   lambda0_ = trace_p > 0 && trace_ata > 0 ? trace_ata / trace_p : 1.0;
@@ -375,26 +654,26 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_sy
 void FourierSystem::SetData(const ImageStack& frames) {
   spectral_.reset();  // made from the data: stale now
   const Shape lr = model_.lr_shape();
-  for (int i = 0; i < model_.frames(); ++i) {
+  for (int i = 0; i < n_; ++i) {
     const ComplexImage s = FftForward(frames.at(i).cast<Complex>());
-    for (Index u = 0; u < lr.size(); ++u) bins_[u].y[i] = s(u / lr.cols, u % lr.cols);
+    for (Index u = 0; u < nb_; ++u) y_[u * n_ + i] = s(u / lr.cols, u % lr.cols);
   }
 }
 
-FourierSystem::Path FourierSystem::Choose(const Bin& b, double w) const {
-  const Index n = b.a.rows(), rr = b.a.cols();
-  if (w > 0 && b.prior_positive && solver_ != TikhonovBinSolver::kNormalEquations &&
-      (solver_ == TikhonovBinSolver::kWoodbury || n < rr))
+FourierSystem::Path FourierSystem::Choose(Index bin, double w) const {
+  const bool positive = prior_positive_[bin] != 0;
+  if (w > 0 && positive && solver_ != TikhonovBinSolver::kNormalEquations &&
+      (solver_ == TikhonovBinSolver::kWoodbury || n_ < rr_))
     return Path::kWoodbury;
-  if (b.rank == rr || (w > 0 && b.prior_positive)) return Path::kNormal;
+  if (rank_[bin] == rr_ || (w > 0 && positive)) return Path::kNormal;
   return Path::kMinimumNorm;
 }
 
 namespace {
 
 // The stacked system [A; √(wP)] of a bin, its SVD with the global floor (minimum-norm path).
-Eigen::JacobiSVD<Eigen::MatrixXcd> StackedSvd(const Eigen::MatrixXcd& a, const Eigen::VectorXd& prior,
-                                              double w, double sv_floor) {
+template <class A, class P>
+Eigen::JacobiSVD<Eigen::MatrixXcd> StackedSvd(const A& a, const P& prior, double w, double sv_floor) {
   const Index n = a.rows(), rr = a.cols();
   Eigen::MatrixXcd stacked = Eigen::MatrixXcd::Zero(n + rr, rr);
   stacked.topRows(n) = a;
@@ -407,10 +686,11 @@ Eigen::JacobiSVD<Eigen::MatrixXcd> StackedSvd(const Eigen::MatrixXcd& a, const E
 
 }  // namespace
 
-FourierSystem::BinSolution FourierSystem::SolveBin(const Bin& b, double w, bool want_trace) const {
+FourierSystem::BinSolution FourierSystem::SolveBin(Index bin, double w, bool want_trace) const {
+  const BinView b = View(bin);
   const Index n = b.a.rows(), rr = b.a.cols();
   BinSolution s;
-  Path path = Choose(b, w);
+  Path path = Choose(bin, w);
   if (path == Path::kWoodbury) {
     // (3): K = A P⁻¹ Aᴴ + w I (N x N), X = P⁻¹ Aᴴ K⁻¹ Y.
     const Eigen::MatrixXcd ap = b.a * b.prior.cwiseInverse().asDiagonal();  // A P⁻¹
@@ -457,9 +737,10 @@ FourierSystem::BinSolution FourierSystem::SolveBin(const Bin& b, double w, bool 
   return s;
 }
 
-Eigen::MatrixXcd FourierSystem::InverseBin(const Bin& b, double w, bool* proper, bool* woodbury) const {
+Eigen::MatrixXcd FourierSystem::InverseBin(Index bin, double w, bool* proper, bool* woodbury) const {
+  const BinView b = View(bin);
   const Index rr = b.a.cols();
-  Path path = Choose(b, w);
+  Path path = Choose(bin, w);
   *woodbury = false;
   if (path == Path::kWoodbury) {
     // G⁻¹ = (P⁻¹ − P⁻¹Aᴴ K⁻¹ A P⁻¹) / w.
@@ -498,15 +779,15 @@ Eigen::MatrixXcd FourierSystem::InverseBin(const Bin& b, double w, bool* proper,
 }
 
 FourierSystem::Fit FourierSystem::Evaluate(double lambda, bool want_trace) const {
-  const double w = lambda / double(model_.r() * model_.r());
+  const double w = lambda / double(rr_);
   Fit f;
-  for (const Bin& b : bins_) {
-    const BinSolution s = SolveBin(b, w, want_trace);
+  for (Index i = 0; i < nb_; ++i) {
+    const BinSolution s = SolveBin(i, w, want_trace);
     f.residual2 += s.residual2;
     f.dof += s.dof;
     f.woodbury_bins += s.woodbury;
   }
-  f.residual2 /= double(bins_.size());  // Parseval for the unnormalised DFT: ||y||² = Σ|Y|² / m²
+  f.residual2 /= double(nb_);  // Parseval for the unnormalised DFT: ||y||² = Σ|Y|² / m²
   return f;
 }
 
@@ -522,91 +803,321 @@ bool FourierSystem::CanonicalBin(Index bin) const {
   return ux < mux || (ux == mux && bin / lr.cols <= m / lr.cols);
 }
 
+void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp) const {
+  // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's range, so
+  // the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||².
+  const BinView b = View(i);
+  const int q = std::min(n_, rr_);
+  const Eigen::MatrixXcd whitened = b.a * b.prior.cwiseSqrt().cwiseInverse().asDiagonal();
+  const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(whitened, Eigen::ComputeFullU);
+  const Eigen::VectorXcd uy = svd.matrixU().adjoint() * b.y;
+  for (int k = 0; k < q; ++k) {
+    sp->s2[i * sp->q_max + k] = svd.singularValues()[k] * svd.singularValues()[k];
+    sp->c[i * sp->q_max + k] = Norm2(uy[k]);
+  }
+  sp->q[i] = q;
+  sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
+}
+
+void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, std::vector<double>* scratch) const {
+  // B = A P^(-1/2) (N x r², column-major), and the data Y. The singular values of B and the projections of Y on
+  // its left singular vectors come from the eigen-decomposition of the q x q Gram matrix M = B Bᴴ, which is
+  // exact for the large ones but holds each eigenvalue only to ~ q ε ||M|| absolutely: the small s² (aliases
+  // beyond the optical cutoff, 1e-10 .. 1e-20 of the largest in most bins of the shipped scenes) would be lost,
+  // and GCV at small λ weighs exactly those. So they are refined by Rayleigh-Ritz on B itself: with U_S the
+  // eigenvectors of the eigenvalues below 1e-3 of the largest (the split moved up to a gap of 10x, so that U_S
+  // spans the small invariant subspace to an angle θ ~ ε), W = Bᴴ U_S is formed from B (rounding ε s_max per
+  // column, as in an SVD of B) and the m x m matrix Wᴴ W = U_Sᴴ B Bᴴ U_S, whose eigenvalues are the small s²
+  // to ~ε s_max s + θ² s_max², is decomposed again; repeated while its own eigenvalues span more than 1e3.
+  // That is the accuracy of an SVD of B (absolute error ~ε s_max in s). Columns of B whose squared norms sum
+  // to at most ε² ||B||²_F (below the rounding of any factorisation of B) are dropped first. Where N > r² the
+  // Householder QR B = Q [R; 0] comes first: the Gram matrix is then R Rᴴ and ||Y||² − ||UᴴY||² is the sum of
+  // squares of the trailing entries of QᴴY (no cancellation).
+  const int n = n_, rr = rr_;
+  const Complex* a = &a_[i * n * rr];
+  const double* pinv = &prior_inv_[i * rr];
+  const Complex* y = &y_[i * n];
+  const int qn = std::min(n, rr);
+  // Scratch (doubles): B 2·n·rr, Y 2n, M 2qn², U 2qn², d qn, eigen work 3qn² + 2qn, W 2·rr·qn, M_S 2qn², R 2qn²,
+  // rotated 2·n·qn, v 2n, norms rr, keep rr.
+  const std::size_t need = 2 * std::size_t(n) * rr + 2 * n + 8 * std::size_t(qn) * qn + qn + 3 * qn * qn + 2 * qn +
+                           2 * std::size_t(rr) * qn + 2 * std::size_t(n) * qn + 2 * n + 2 * std::size_t(rr) + 16;
+  if (scratch->size() < need) scratch->resize(need);
+  double* base = scratch->data();
+  Complex* bw = reinterpret_cast<Complex*>(base);
+  Complex* yv = bw + std::size_t(n) * rr;
+  Complex* m = yv + n;
+  Complex* u = m + qn * qn;
+  Complex* ms = u + qn * qn;
+  Complex* rot = ms + qn * qn;
+  Complex* w = rot + qn * qn;
+  Complex* tmp = w + std::size_t(rr) * qn;
+  Complex* v = tmp + std::size_t(n) * qn;
+  double* d = reinterpret_cast<double*>(v + n);
+  double* ework = d + qn;
+  double* norms = ework + 3 * qn * qn + 2 * qn;
+  int* keep = reinterpret_cast<int*>(norms + rr);
+  // B and its column norms; columns below ε² ||B||²_F in total dropped (ascending, ties by index).
+  double total = 0;
+  for (int c = 0; c < rr; ++c) {
+    const double sc = std::sqrt(pinv[c]);
+    double s = 0;
+    for (int f = 0; f < n; ++f) {
+      const Complex z = a[c * n + f] * sc;
+      bw[c * n + f] = z;
+      s += Norm2(z);
+    }
+    norms[c] = s;
+    total += s;
+  }
+  const double eps = std::numeric_limits<double>::epsilon();
+  const double threshold = eps * eps * total;
+  double small = 0;
+  for (int c = 0; c < rr; ++c)
+    if (norms[c] <= threshold) small += norms[c];
+  int kept = 0;
+  if (small <= threshold) {
+    for (int c = 0; c < rr; ++c)
+      if (norms[c] > threshold) keep[kept++] = c;
+  } else {
+    std::vector<int> order(rr);
+    for (int c = 0; c < rr; ++c) order[c] = c;
+    std::sort(order.begin(), order.end(),
+              [&](int x, int z) { return norms[x] < norms[z] || (norms[x] == norms[z] && x < z); });
+    double dropped = 0;
+    std::vector<char> drop(rr, 0);
+    for (int c : order)
+      if (dropped + norms[c] <= threshold) dropped += norms[c], drop[c] = 1;
+    for (int c = 0; c < rr; ++c)
+      if (!drop[c]) keep[kept++] = c;
+  }
+  for (int k = 0; k < kept; ++k)
+    if (keep[k] != k)
+      for (int f = 0; f < n; ++f) bw[k * n + f] = bw[keep[k] * n + f];
+  for (int f = 0; f < n; ++f) yv[f] = y[f];
+  // Rows of the (q x kept) matrix whose Gram is taken: B itself (q = N), or R of B = QR (q = kept < N).
+  int q = n;
+  double perp = 0;
+  if (kept < n) {
+    q = kept;
+    for (int j = 0; j < kept; ++j) {
+      Complex* x = bw + j * n + j;
+      const int len = n - j;
+      double alpha2 = 0;
+      for (int t = 0; t < len; ++t) alpha2 += Norm2(x[t]);
+      const double alpha = std::sqrt(alpha2), a0 = std::sqrt(Norm2(x[0]));
+      if (!(alpha > 0)) continue;
+      const Complex phase = a0 > 0 ? x[0] / a0 : Complex(1.0);
+      for (int t = 0; t < len; ++t) v[t] = x[t];
+      v[0] += phase * alpha;
+      const double scale = 1.0 / (alpha * (alpha + a0));  // 2 / ||v||²
+      x[0] = -phase * alpha;
+      for (int t = 1; t < len; ++t) x[t] = 0;
+      const auto reflect = [&](Complex* col) {
+        Complex dot = 0;
+        for (int t = 0; t < len; ++t) dot += ConjMul(v[t], col[t]);
+        dot *= scale;
+        for (int t = 0; t < len; ++t) col[t] -= Mul(v[t], dot);
+      };
+      for (int c = j + 1; c < kept; ++c) reflect(bw + c * n + j);
+      reflect(yv + j);
+    }
+    for (int f = kept; f < n; ++f) perp += Norm2(yv[f]);
+  }
+  double* s2_out = &sp->s2[i * sp->q_max];
+  double* c_out = &sp->c[i * sp->q_max];
+  sp->q[i] = q;
+  sp->perp[i] = perp;
+  if (q == 0) return;
+  // M = Bw Bwᴴ (q x q), Bw(p, c) = bw[c n + p].
+  for (int p = 0; p < q; ++p)
+    for (int t = 0; t <= p; ++t) {
+      Complex sum = 0;
+      for (int c = 0; c < kept; ++c) sum += MulConj(bw[c * n + p], bw[c * n + t]);
+      m[p * q + t] = sum;
+      m[t * q + p] = std::conj(sum);
+    }
+  if (!bins::HermitianEigen(m, q, d, u, ework))
+    throw NumericalError("Tikhonov spectral decomposition: the eigen-solver did not converge (non-finite data?)");
+  // Rayleigh-Ritz refinement of the small eigenvalues (a prefix of the ascending d), on B itself.
+  constexpr double kSplit = 1e-3, kGap = 10.0;
+  int t = q;
+  for (int depth = 0; depth < 16 && t > 1; ++depth) {
+    const double top = d[t - 1];
+    if (!(top > 0)) break;
+    int cut = 0;
+    while (cut < t && d[cut] < kSplit * top) ++cut;
+    while (cut > 0 && cut < t && d[cut] < kGap * std::max(d[cut - 1], 0.0)) ++cut;
+    if (cut == 0 || cut == t) break;
+    // W = Bwᴴ U_S (kept x cut), column j from eigenvector j (U row-major q x q: U(p, j) = u[p q + j]).
+    for (int j = 0; j < cut; ++j)
+      for (int c = 0; c < kept; ++c) {
+        Complex sum = 0;
+        for (int p = 0; p < q; ++p) sum += ConjMul(bw[c * n + p], u[p * q + j]);
+        w[j * kept + c] = sum;
+      }
+    for (int j = 0; j < cut; ++j)
+      for (int l = 0; l <= j; ++l) {
+        Complex sum = 0;
+        for (int c = 0; c < kept; ++c) sum += ConjMul(w[j * kept + c], w[l * kept + c]);
+        ms[j * cut + l] = sum;
+        ms[l * cut + j] = std::conj(sum);
+      }
+    if (!bins::HermitianEigen(ms, cut, d, rot, ework))
+      throw NumericalError("Tikhonov spectral decomposition: the eigen-solver did not converge (non-finite data?)");
+    // U_S ← U_S R.
+    for (int p = 0; p < q; ++p) {
+      for (int j = 0; j < cut; ++j) {
+        Complex sum = 0;
+        for (int l = 0; l < cut; ++l) sum += Mul(u[p * q + l], rot[l * cut + j]);
+        tmp[j] = sum;
+      }
+      for (int j = 0; j < cut; ++j) u[p * q + j] = tmp[j];
+    }
+    t = cut;
+  }
+  for (int k = 0; k < q; ++k) {
+    Complex proj = 0;
+    for (int p = 0; p < q; ++p) proj += ConjMul(u[p * q + k], yv[p]);
+    s2_out[k] = std::max(d[k], 0.0);
+    c_out[k] = Norm2(proj);
+  }
+}
+
 void FourierSystem::MakeSpectral() const {
   auto sp = std::make_unique<Spectral>();
-  const Index nb = Index(bins_.size());
-  sp->offset.assign(nb + 1, 0);
-  for (Index i = 0; i < nb; ++i) {
-    const Bin& b = bins_[i];
-    const Index q = b.prior_positive ? std::min(b.a.rows(), b.a.cols()) : 0;
-    sp->offset[i + 1] = sp->offset[i] + q;
-    if (!b.prior_positive) sp->direct.push_back(i);
+  sp->q_max = std::min(n_, rr_);
+  sp->s2.assign(nb_ * sp->q_max, 0.0);
+  sp->c.assign(nb_ * sp->q_max, 0.0);
+  sp->perp.assign(nb_, 0.0);
+  sp->q.assign(nb_, 0);
+  sp->weight.assign(nb_, 0);
+  for (Index i = 0; i < nb_; ++i) {
+    if (!prior_positive_[i]) {
+      sp->direct.push_back(i);
+    } else if (CanonicalBin(i)) {
+      // Bins u and −u have conjugate systems and data (real frames, real PSFs, an even prior), hence the same
+      // singular values and |UᴴY|²: one of each pair is decomposed and counted twice.
+      sp->weight[i] = MirrorBin(i) == i ? 1 : 2;
+    }
   }
-  sp->s2.resize(sp->offset[nb]);
-  sp->c.resize(sp->offset[nb]);
-  sp->perp = Eigen::VectorXd::Zero(nb);
-  // One SVD per mirror pair of bins, in parallel: each task writes only its own segment. The bins u and −u
-  // have conjugate systems and data (real frames, real PSFs, an even prior), hence the same singular values
-  // and the same |UᴴY|²: the second of each pair copies the first.
-  const auto mirror = [&](Index i) { return MirrorBin(i); };
-  const auto canonical = [&](Index i) { return CanonicalBin(i); };
-  // Tasks are rows of bins, so that each task sizes its SVD workspace once (Eigen's JacobiSVD allocates in
-  // its constructor and reuses that memory in compute()) instead of allocating for every bin.
-  const Index lr_cols = model_.lr_shape().cols, lr_rows = model_.lr_shape().rows;
-  ParallelFor(lr_rows, [&](Index uy_row) {
-    Eigen::MatrixXcd whitened;
-    Eigen::JacobiSVD<Eigen::MatrixXcd> svd;
-    Eigen::VectorXcd uy;
-    for (Index i = uy_row * lr_cols; i < (uy_row + 1) * lr_cols; ++i) {
-      const Bin& b = bins_[i];
-      if (!b.prior_positive || !canonical(i)) continue;
-      const Index q = sp->offset[i + 1] - sp->offset[i];
-      // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's
-      // range, so the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||² that
-      // would cancel for nearly fitted data. (The eigen-decomposition of the N x N matrix A P⁻¹ Aᴴ costs
-      // about as much here and loses small s² to rounding at the scale of the largest: 100x the SVD's error
-      // at λ = 1e-8 λ₀.)
-      if (svd.rows() != b.a.rows() || svd.cols() != b.a.cols())
-        svd = Eigen::JacobiSVD<Eigen::MatrixXcd>(b.a.rows(), b.a.cols(), Eigen::ComputeFullU);
-      whitened.noalias() = b.a * b.prior.cwiseSqrt().cwiseInverse().asDiagonal();
-      svd.compute(whitened, Eigen::ComputeFullU);
-      uy.noalias() = svd.matrixU().adjoint() * b.y;
-      sp->s2.segment(sp->offset[i], q) = svd.singularValues().array().square().matrix();
-      sp->c.segment(sp->offset[i], q) = uy.head(q).cwiseAbs2();
-      sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
+  // One decomposition per counted bin, on fixed blocks of bins: each writes only its own slots.
+  ParallelFor((nb_ + kBinBlock - 1) / kBinBlock, [&](Index block) {
+    std::vector<double> scratch;
+    const Index end = std::min(nb_, (block + 1) * kBinBlock);
+    for (Index i = block * kBinBlock; i < end; ++i) {
+      if (!sp->weight[i]) continue;
+      if (spectral_method_ == SpectralMethod::kSvd) {
+        DecomposeBinSvd(i, sp.get());
+      } else {
+        DecomposeBinEigen(i, sp.get(), &scratch);
+      }
     }
   });
-  ParallelFor(nb, [&](Index i) {
-    if (!bins_[i].prior_positive || canonical(i)) return;
-    const Index m = mirror(i), q = sp->offset[i + 1] - sp->offset[i];
-    sp->s2.segment(sp->offset[i], q) = sp->s2.segment(sp->offset[m], q);
-    sp->c.segment(sp->offset[i], q) = sp->c.segment(sp->offset[m], q);
-    sp->perp[i] = sp->perp[m];
-  });
+  for (Index i = 0; i < nb_; ++i) {
+    const int weight = sp->weight[i];
+    if (!weight) continue;
+    for (int k = 0; k < sp->q[i]; ++k) {
+      sp->term_s2.push_back(sp->s2[i * sp->q_max + k]);
+      sp->term_wc.push_back(weight * sp->c[i * sp->q_max + k]);
+      sp->term_weight.push_back(weight);
+    }
+    sp->fixed_residual += weight * sp->perp[i];
+    sp->fixed_dof += weight * double(n_ - sp->q[i]);
+  }
   spectral_ = std::move(sp);
 }
 
 FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prior) const {
   if (!spectral_) MakeSpectral();
   const Spectral& sp = *spectral_;
-  const double rr = double(model_.r() * model_.r());
+  const double rr = double(rr_);
   const double w = lambda / rr;
-  const Index n = model_.frames();
+  const Index n = n_;
   Fit f;
-  double prior = 0, dprior = 0;  // Σ_u ||P^½ X||² and its derivative by w
-  for (Index i = 0; i + 1 < Index(sp.offset.size()); ++i) {
-    const Index q = sp.offset[i + 1] - sp.offset[i];
-    if (q == 0) continue;  // a direct bin, below
-    double res = sp.perp[i], dof = double(n - q);
-    for (Index k = sp.offset[i]; k < sp.offset[i + 1]; ++k) {
-      // w / (s² + w), 1 where both vanish (an unseen direction keeps all its data in the residual).
-      const double d = sp.s2[k] + w;
-      const double g = d > 0 ? w / d : 1.0;
-      res += g * g * sp.c[k];
-      dof += g;
-      if (want_prior && d > 0) {
-        // z = P^½ X = s/(s² + w) (uᴴY) v: ||z||² = s² c/(s² + w)², d/dw = −2 s² c/(s² + w)³.
-        const double e = sp.s2[k] * sp.c[k] / (d * d);
-        prior += e;
-        dprior -= 2.0 * e / d;
+  double prior = 0, dprior = 0;
+  if (w > 0 && !want_prior) {
+    // The search's common case, one stream of terms: w/(s² + w) and its square, in fixed blocks of terms on
+    // four independent lanes each (vectorisable without reassociation), lanes and blocks reduced in a fixed
+    // order (the same bits on any thread count and instruction set).
+    constexpr Index kTerms = 8192;
+    const Index count = Index(sp.term_s2.size()), blocks = (count + kTerms - 1) / kTerms;
+    std::vector<double> part(2 * blocks, 0.0);
+    const double* s2 = sp.term_s2.data();
+    const double* wc = sp.term_wc.data();
+    const double* wt = sp.term_weight.data();
+    ParallelFor(blocks, [&](Index block) {
+      double res[4] = {0, 0, 0, 0}, dof[4] = {0, 0, 0, 0};
+      const Index end = std::min(count, (block + 1) * kTerms);
+      Index t = block * kTerms;
+      for (; t + 4 <= end; t += 4)
+        for (int l = 0; l < 4; ++l) {
+          const double g = w / (s2[t + l] + w);
+          res[l] += g * g * wc[t + l];
+          dof[l] += g * wt[t + l];
+        }
+      for (; t < end; ++t) {
+        const double g = w / (s2[t] + w);
+        res[0] += g * g * wc[t];
+        dof[0] += g * wt[t];
       }
+      part[2 * block] = (res[0] + res[1]) + (res[2] + res[3]);
+      part[2 * block + 1] = (dof[0] + dof[1]) + (dof[2] + dof[3]);
+    });
+    f.residual2 = sp.fixed_residual;
+    f.dof = sp.fixed_dof;
+    for (Index b = 0; b < blocks; ++b) {
+      f.residual2 += part[2 * b];
+      f.dof += part[2 * b + 1];
     }
-    f.residual2 += res;
-    f.dof += dof;
+  } else {
+    // Sums over the decomposed bins, on fixed blocks of bins, reduced in block order (the same bits on any number of
+    // threads).
+    const Index blocks = (nb_ + kBinBlock - 1) / kBinBlock;
+    std::vector<double> part(4 * blocks, 0.0);
+    ParallelFor(blocks, [&](Index block) {
+      double res_sum = 0, dof_sum = 0, prior_sum = 0, dprior_sum = 0;  // Σ_u ||P^½ X||² and its derivative by w
+      const Index end = std::min(nb_, (block + 1) * kBinBlock);
+      for (Index i = block * kBinBlock; i < end; ++i) {
+        const int weight = sp.weight[i];
+        if (!weight) continue;
+        const int q = sp.q[i];
+        const double* s2 = &sp.s2[i * sp.q_max];
+        const double* c = &sp.c[i * sp.q_max];
+        double res = sp.perp[i], dof = double(n - q), prior = 0, dprior = 0;
+        for (int k = 0; k < q; ++k) {
+          // w / (s² + w), 1 where both vanish (an unseen direction keeps all its data in the residual).
+          const double d = s2[k] + w;
+          const double g = d > 0 ? w / d : 1.0;
+          res += g * g * c[k];
+          dof += g;
+          if (want_prior && d > 0) {
+            // z = P^½ X = s/(s² + w) (uᴴY) v: ||z||² = s² c/(s² + w)², d/dw = −2 s² c/(s² + w)³.
+            const double e = s2[k] * c[k] / (d * d);
+            prior += e;
+            dprior -= 2.0 * e / d;
+          }
+        }
+        res_sum += weight * res;
+        dof_sum += weight * dof;
+        prior_sum += weight * prior;
+        dprior_sum += weight * dprior;
+      }
+      part[4 * block] = res_sum;
+      part[4 * block + 1] = dof_sum;
+      part[4 * block + 2] = prior_sum;
+      part[4 * block + 3] = dprior_sum;
+    });
+    for (Index b = 0; b < blocks; ++b) {
+      f.residual2 += part[4 * b];
+      f.dof += part[4 * b + 1];
+      prior += part[4 * b + 2];
+      dprior += part[4 * b + 3];
+    }
   }
   for (Index i : sp.direct) {
-    const Bin& b = bins_[i];
-    const BinSolution s = SolveBin(b, w, true);
+    const BinView b = View(i);
+    const BinSolution s = SolveBin(i, w, true);
     f.residual2 += s.residual2;
     f.dof += s.dof;
     if (want_prior) {
@@ -614,42 +1125,45 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prio
       const Eigen::VectorXcd px = b.prior.cast<Complex>().cwiseProduct(s.x);
       prior += (s.x.conjugate().cwiseProduct(px)).sum().real();
       bool proper = true, woodbury = false;
-      const Eigen::MatrixXcd g = InverseBin(b, w, &proper, &woodbury);
+      const Eigen::MatrixXcd g = InverseBin(i, w, &proper, &woodbury);
       dprior -= 2.0 * (px.adjoint() * g * px)(0, 0).real();
     }
   }
-  f.residual2 /= double(bins_.size());  // Parseval, as in Evaluate
+  f.residual2 /= double(nb_);  // Parseval, as in Evaluate
   if (want_prior) {
     // ||Γx||² = (1/M²) Σ_u ||P^½ X(u)||², M² = m² r²; dη/dλ = (dη/dw)/r².
-    f.prior2 = prior / (double(bins_.size()) * rr);
-    f.dprior2 = dprior / (double(bins_.size()) * rr * rr);
+    f.prior2 = prior / (double(nb_) * rr);
+    f.dprior2 = dprior / (double(nb_) * rr * rr);
   }
   return f;
 }
 
-bool FourierSystem::SolveBinInPlace(const Bin& b, double w, Path path, Complex* x, Complex* scratch) const {
+bool FourierSystem::SolveBinInPlace(Index bin, double w, Path path, Complex* x, Complex* scratch) const {
   // The per-bin solves of SolveBin on caller-owned scratch (no allocation): A is column-major N x r².
-  const int n = int(b.a.rows()), rr = int(b.a.cols());
-  const Complex* a = b.a.data();
-  const double* p = b.prior.data();
+  const int n = n_, rr = rr_;
+  const Complex* a = &a_[bin * n * rr];
+  const Complex* y = &y_[bin * n];
+  const double* p = &prior_[bin * rr];
+  const double* pinv = &prior_inv_[bin * rr];
   if (path == Path::kWoodbury) {
     // (3): K = A P⁻¹ Aᴴ + w I (N x N), X = P⁻¹ Aᴴ K⁻¹ Y.
     Complex* k = scratch;
     Complex* z = scratch + n * n;
     for (int i = 0; i < n; ++i)
       for (int j = 0; j <= i; ++j) {
-        Complex sum = i == j ? Complex(w) : Complex(0);
-        for (int c = 0; c < rr; ++c) sum += a[c * n + i] * std::conj(a[c * n + j]) / p[c];
+        Complex sum = 0;
+        for (int c = 0; c < rr; ++c) sum += MulConj(a[c * n + i], a[c * n + j]) * pinv[c];
+        if (i == j) sum = Complex(sum.real() + w, 0.0);
         k[i * n + j] = sum;
         k[j * n + i] = std::conj(sum);
       }
-    if (!bins::CholeskyInPlace(k, n, 0.0)) return false;
-    for (int i = 0; i < n; ++i) z[i] = b.y[i];
+    if (!Cholesky(k, n, 0.0)) return false;
+    for (int i = 0; i < n; ++i) z[i] = y[i];
     bins::Substitute(k, n, z);
     for (int c = 0; c < rr; ++c) {
       Complex sum = 0;
-      for (int i = 0; i < n; ++i) sum += std::conj(a[c * n + i]) * z[i];
-      x[c] = sum / p[c];
+      for (int i = 0; i < n; ++i) sum += ConjMul(a[c * n + i], z[i]);
+      x[c] = sum * pinv[c];
     }
     return true;
   }
@@ -657,15 +1171,18 @@ bool FourierSystem::SolveBinInPlace(const Bin& b, double w, Path path, Complex* 
   Complex* g = scratch;
   for (int c = 0; c < rr; ++c)
     for (int d = 0; d <= c; ++d) {
-      Complex sum = c == d ? Complex(w * p[c]) : Complex(0);
-      for (int i = 0; i < n; ++i) sum += std::conj(a[c * n + i]) * a[d * n + i];
+      Complex sum = 0;
+      const Complex* ac = a + c * n;
+      const Complex* ad = a + d * n;
+      for (int i = 0; i < n; ++i) sum += ConjMul(ac[i], ad[i]);
+      if (c == d) sum = Complex(sum.real() + w * p[c], 0.0);
       g[c * rr + d] = sum;
       g[d * rr + c] = std::conj(sum);
     }
-  if (!bins::CholeskyInPlace(g, rr, 0.0)) return false;
+  if (!Cholesky(g, rr, 0.0)) return false;
   for (int c = 0; c < rr; ++c) {
     Complex sum = 0;
-    for (int i = 0; i < n; ++i) sum += std::conj(a[c * n + i]) * b.y[i];
+    for (int i = 0; i < n; ++i) sum += ConjMul(a[c * n + i], y[i]);
     x[c] = sum;
   }
   bins::Substitute(g, rr, x);
@@ -690,23 +1207,26 @@ Image FourierSystem::Solve(double lambda, Fit* fit) const {
       const Index mux = (lr.cols - ux) % lr.cols;
       if (!(ux < mux || (ux == mux && uy <= muy))) continue;
       const bool self_mirror = ux == mux && uy == muy;
-      const Bin& b = bins_[uy * lr.cols + ux];
-      Path path = Choose(b, w);
+      const Index bin = uy * lr.cols + ux;
+      Path path = Choose(bin, w);
       bool done = false, woodbury = false;
       if (path == Path::kWoodbury) {
-        done = woodbury = SolveBinInPlace(b, w, Path::kWoodbury, x, scratch.data());
+        done = woodbury = SolveBinInPlace(bin, w, Path::kWoodbury, x, scratch.data());
         if (!done) path = Path::kNormal;
       }
-      if (!done && path == Path::kNormal) done = SolveBinInPlace(b, w, Path::kNormal, x, scratch.data());
+      if (!done && path == Path::kNormal) done = SolveBinInPlace(bin, w, Path::kNormal, x, scratch.data());
       if (!done) {  // the minimum-norm path (rare: a rank-deficient bin with a zero of the prior)
-        const BinSolution s = SolveBin(b, w, false);
+        const BinSolution s = SolveBin(bin, w, false);
         for (int c = 0; c < rr; ++c) x[c] = s.x[c];
       }
+      // The residual |Y − A X|², frame by frame (A column-major: frame i of alias c at c·N + i).
+      const Complex* a = &a_[bin * n * rr];
+      const Complex* y = &y_[bin * n];
       double res = 0;
       for (int i = 0; i < n; ++i) {
         Complex ax = 0;
-        for (int c = 0; c < rr; ++c) ax += b.a(i, c) * x[c];
-        res += std::norm(b.y[i] - ax);
+        for (int c = 0; c < rr; ++c) ax += Mul(a[c * n + i], x[c]);
+        res += Norm2(y[i] - ax);
       }
       row_residual[uy] += self_mirror ? res : 2 * res;
       row_woodbury[uy] += woodbury ? (self_mirror ? 1 : 2) : 0;
@@ -733,7 +1253,7 @@ Image FourierSystem::Solve(double lambda, Fit* fit) const {
     f.residual2 += row_residual[uy];
     f.woodbury_bins += row_woodbury[uy];
   }
-  f.residual2 /= double(bins_.size());  // Parseval, as in Evaluate
+  f.residual2 /= double(nb_);  // Parseval, as in Evaluate
   if (fit) *fit = f;
   Image x = FftC2R(X, hr.cols);
   if (!AllFinite(x)) throw NumericalError("Tikhonov Fourier solve produced non-finite values");
@@ -743,15 +1263,22 @@ Image FourierSystem::Solve(double lambda, Fit* fit) const {
 std::vector<Eigen::MatrixXcd> FourierSystem::Inverses(double lambda, bool* proper,
                                                       Index* woodbury_bins) const {
   const double w = lambda / double(model_.r() * model_.r());
-  std::vector<Eigen::MatrixXcd> out(bins_.size());
-  bool ok = true;
+  std::vector<Eigen::MatrixXcd> out(nb_);
+  std::vector<char> ok(nb_, 1), used(nb_, 0);
+  // Each bin's inverse on its own; the flags are reduced in bin order afterwards.
+  ForBinBlocks(nb_, [&](Index i) {
+    bool proper_i = true, woodbury_i = false;
+    out[i] = InverseBin(i, w, &proper_i, &woodbury_i);
+    ok[i] = proper_i;
+    used[i] = woodbury_i;
+  });
   Index wb = 0;
-  for (std::size_t i = 0; i < bins_.size(); ++i) {
-    bool used = false;
-    out[i] = InverseBin(bins_[i], w, &ok, &used);
-    wb += used;
+  bool all_ok = true;
+  for (Index i = 0; i < nb_; ++i) {
+    all_ok = all_ok && ok[i];
+    wb += used[i];
   }
-  if (proper) *proper = ok;
+  if (proper) *proper = all_ok;
   if (woodbury_bins) *woodbury_bins = wb;
   return out;
 }
@@ -774,8 +1301,9 @@ class FourierInverseOp final : public LinearOperator {
     const Shape lr{hr_.rows / r_, hr_.cols / r_};
     const ComplexImage B = FftForward(AsImage(Vector(b), hr_).cast<Complex>());
     ComplexImage X(hr_.rows, hr_.cols);
-    Eigen::VectorXcd v(r_ * r_), z(r_ * r_);
-    for (Index uy = 0; uy < lr.rows; ++uy)
+    // Bin rows in parallel: each task writes only its bins' r² HR entries (the same bits on any thread count).
+    ParallelFor(lr.rows, [&](Index uy) {
+      Eigen::VectorXcd v(r_ * r_), z(r_ * r_);
       for (Index ux = 0; ux < lr.cols; ++ux) {
         for (int ky = 0; ky < r_; ++ky)
           for (int kx = 0; kx < r_; ++kx) v[ky * r_ + kx] = B(uy + ky * lr.rows, ux + kx * lr.cols);
@@ -783,6 +1311,7 @@ class FourierInverseOp final : public LinearOperator {
         for (int ky = 0; ky < r_; ++ky)
           for (int kx = 0; kx < r_; ++kx) X(uy + ky * lr.rows, ux + kx * lr.cols) = z[ky * r_ + kx];
       }
+    });
     const Image out = FftInverse(X).real() * scale_;
     x = AsVector(out);
   }

@@ -38,7 +38,8 @@ class FourierSystem {
     double dprior2 = 0;
   };
   Fit Evaluate(double lambda, bool want_trace) const;
-  // The same residual and trace from one decomposition per bin (an SVD), made on first use after SetData: with
+  // The same residual and trace from one decomposition per bin (SetSpectralMethod), made on first use after SetData:
+  // with
   // B(u) = A(u) P(u)^(-1/2) = U diag(s) Vᴴ and c = |Uᴴ Y(u)|², w = λ/r²,
   //   ||Y − A X||² = Σ_k (w / (s_k² + w))² c_k + ||(I − UUᴴ) Y||²,   N − tr H = Σ_k w / (s_k² + w) + (N − q),
   // q = min(N, r²): O(q) per bin and λ instead of a solve, so a λ rule may evaluate as often as it likes
@@ -47,6 +48,16 @@ class FourierSystem {
   // want_prior adds η = ||Γx||² = (1/(m² r²)) Σ_u Σ_k s_k² c_k/(s_k² + w)² and its derivative by λ,
   // dη/dλ = −(2/(m² r⁴)) Σ_u Σ_k s_k² c_k/(s_k² + w)³ (direct bins: −2 Re (Px)ᴴ G⁻¹ (Px) per bin).
   Fit EvaluateSpectral(double lambda, bool want_prior = false) const;
+  // How EvaluateSpectral's per-bin decomposition is made. kEigen (default): the eigen-decomposition of the
+  // whitened Gram matrix B Bᴴ (q x q, q = min(N, r²), after a Householder QR of B when N > r² so that the part of
+  // Y no λ fits is a sum of squares), its small eigenvalues refined by Rayleigh-Ritz on B itself (tikhonov.cpp
+  // says why that is as accurate as an SVD of B). kSvd: the SVD of B (the reference the tests compare with).
+  // Setting it discards a decomposition already made.
+  enum class SpectralMethod { kEigen, kSvd };
+  void SetSpectralMethod(SpectralMethod method) {
+    spectral_method_ = method;
+    spectral_.reset();
+  }
   Image Solve(double lambda, Fit* fit = nullptr) const;
 
   // G(u)⁻¹ for every bin (pseudo-inverse where singular; *proper = false then).
@@ -54,18 +65,21 @@ class FourierSystem {
 
   const MultiFrameModel& model() const { return model_; }
   double lambda0() const { return lambda0_; }  // Σ tr AᴴA / Σ tr P
-  Index bins() const { return Index(bins_.size()); }
+  Index bins() const { return nb_; }
   Index deficient_bins() const { return deficient_; }
   Index unconstrained() const { return unconstrained_; }
 
  private:
-  struct Bin {
-    Eigen::MatrixXcd a;     // N x r²
-    Eigen::VectorXcd y;     // N data values
-    Eigen::VectorXd prior;  // |Γ̂|² on the r² aliased bins
-    bool prior_positive = false;
-    int rank = 0;
+  // Bin i of the flat per-bin arrays, seen as Eigen matrices (no copy): A(u) column-major N x r², the data
+  // Y(u) and the prior P(u) on the r² aliases.
+  struct BinView {
+    Eigen::Map<const Eigen::MatrixXcd> a;
+    Eigen::Map<const Eigen::VectorXcd> y;
+    Eigen::Map<const Eigen::VectorXd> prior;
+    bool prior_positive;
+    int rank;
   };
+  BinView View(Index bin) const;
   struct BinSolution {
     Eigen::VectorXcd x;
     double residual2 = 0;
@@ -73,22 +87,33 @@ class FourierSystem {
     bool woodbury = false;
   };
   enum class Path { kWoodbury, kNormal, kMinimumNorm };
-  Path Choose(const Bin& b, double w) const;
-  BinSolution SolveBin(const Bin& b, double w, bool want_trace) const;
+  Path Choose(Index bin, double w) const;
+  BinSolution SolveBin(Index bin, double w, bool want_trace) const;
   // SolveBin's Woodbury or normal-equations path on caller scratch (max(r⁴, N² + N) values) without
   // allocation; false where the Cholesky fails (the caller falls back as SolveBin does).
-  bool SolveBinInPlace(const Bin& b, double w, Path path, Complex* x, Complex* scratch) const;
-  Eigen::MatrixXcd InverseBin(const Bin& b, double w, bool* proper, bool* woodbury) const;
+  bool SolveBinInPlace(Index bin, double w, Path path, Complex* x, Complex* scratch) const;
+  Eigen::MatrixXcd InverseBin(Index bin, double w, bool* proper, bool* woodbury) const;
 
   // EvaluateSpectral's per-bin decomposition (empty until first use; `direct` lists the bins solved directly).
+  // Flat, a fixed stride of q_max = min(N, r²) values per bin; q[i] of them are used (fewer where columns of B
+  // below its rounding were dropped; the rest are directions B does not reach, counted in N − q).
   struct Spectral {
-    Eigen::VectorXd s2;     // s_k², q per bin, concatenated
-    Eigen::VectorXd c;      // |Uᴴ Y|_k², likewise
-    Eigen::VectorXd perp;   // ||(I − UUᴴ) Y||² per bin
-    std::vector<Index> offset;  // start of each bin's values in s2 and c
-    std::vector<Index> direct;  // bins with a zero of the prior
+    int q_max = 0;
+    std::vector<double> s2;     // s_k² of bin i at i·q_max
+    std::vector<double> c;      // |u_kᴴ Y|², likewise
+    std::vector<double> perp;   // ||(I − UUᴴ) Y||² per bin
+    std::vector<int> q;         // values used per bin
+    std::vector<char> weight;   // 2 for one bin of a mirror pair (the other copies it), 1 if self-mirror, else 0
+    std::vector<Index> direct;  // bins with a zero of the prior (solved at each λ)
+    // The same values as one stream of terms (the counted bins' q values in bin order) for the λ loop:
+    // s², weight·c and weight; and the λ-independent parts Σ weight·perp and Σ weight·(N − q).
+    std::vector<double> term_s2, term_wc, term_weight;
+    double fixed_residual = 0, fixed_dof = 0;
   };
   void MakeSpectral() const;
+  void DecomposeBinSvd(Index bin, Spectral* sp) const;
+  void DecomposeBinEigen(Index bin, Spectral* sp, std::vector<double>* scratch) const;
+  SpectralMethod spectral_method_ = SpectralMethod::kEigen;
   // The bin of −u (LR frequencies), and whether `bin` is the one of its pair {u, −u} that is computed (the
   // other is its conjugate: real frames, real PSFs, an even prior).
   Index MirrorBin(Index bin) const;
@@ -97,7 +122,16 @@ class FourierSystem {
 
   const MultiFrameModel& model_;
   TikhonovBinSolver solver_;
-  std::vector<Bin> bins_;
+  // The per-bin data, flat (one allocation per quantity, bin-major, a fixed stride per bin): built in one pass
+  // over blocks of bins, on DefaultThreads() threads, each block writing only its own bins.
+  int n_ = 0, rr_ = 0;              // N frames, r² aliases
+  Index nb_ = 0;                    // LR bins
+  std::vector<Complex> a_;          // A(u): bin i at i·N·r², column-major N x r²
+  std::vector<Complex> y_;          // Y(u): bin i at i·N
+  std::vector<double> prior_;       // P(u): bin i at i·r²
+  std::vector<double> prior_inv_;   // 1/P(u) where P > 0, else 0
+  std::vector<char> prior_positive_;
+  std::vector<int> rank_;
   double sv_floor_ = 0;
   double lambda0_ = 1;
   Index deficient_ = 0, unconstrained_ = 0;

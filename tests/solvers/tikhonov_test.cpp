@@ -559,3 +559,169 @@ TEST(TikhonovTest, GcvContinuousOptimumAgreesWithAFineGrid) {
 
 }  // namespace
 }  // namespace aosr
+
+// ---- issue 22: the λ search without a per-bin SVD ---------------------------------------------------------------
+
+#include "solvers/bin_kernels.hpp"
+
+namespace aosr {
+namespace {
+
+using tikhonov_internal::FourierSystem;
+using tikhonov_internal::PriorSymbolImage;
+
+// The allocation-free Hermitian eigen-solver of the per-bin passes: eigenvalues to a few ε ||M|| of Eigen's,
+// orthonormal eigenvectors and M U = U diag(d) to rounding, at every size the bins use (1 .. 16), on random Gram
+// matrices with a dominant column, with duplicate rows (singular) and the zero matrix.
+TEST(TikhonovTest, HermitianEigenSolverIsExactToRounding) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> n01;
+  for (int n : {1, 2, 3, 4, 8, 9, 16})
+    for (int variant = 0; variant < 4; ++variant) {
+      Eigen::MatrixXcd b(n, 2 * n + 1);
+      for (Index i = 0; i < b.size(); ++i) b.data()[i] = Complex(n01(rng), n01(rng));
+      if (variant == 1) b.col(0) *= 1e6;
+      if (variant == 2 && n > 1) b.row(1) = b.row(0);
+      if (variant == 3) b.setZero();
+      const Eigen::MatrixXcd m = b * b.adjoint();
+      std::vector<Complex> a(n * n), u(n * n);
+      std::vector<double> d(n), work(3 * n * n + 2 * n);
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) a[i * n + j] = m(i, j);
+      ASSERT_TRUE(bins::HermitianEigen(a.data(), n, d.data(), u.data(), work.data()));
+      const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> U(u.data(), n, n);
+      const Eigen::Map<const Eigen::VectorXd> D(d.data(), n);
+      const Eigen::VectorXd reference = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(m).eigenvalues();
+      const double scale = std::max(1.0, m.norm());
+      const std::string what = "n = " + std::to_string(n) + ", variant " + std::to_string(variant);
+      EXPECT_LT((D - reference).cwiseAbs().maxCoeff(), 1e-14 * scale) << what;
+      EXPECT_LT((U.adjoint() * U - Eigen::MatrixXcd::Identity(n, n)).norm(), 1e-13) << what;
+      EXPECT_LT((m * U - U * D.asDiagonal()).norm(), 1e-14 * scale) << what;
+      for (int k = 1; k < n; ++k) EXPECT_LE(d[k - 1], d[k]) << what;
+    }
+}
+
+// The λ rules' per-bin decomposition by the eigen-decomposition of the whitened Gram matrix with Rayleigh-Ritz
+// refinement (the default) against the SVD of the whitened bins (the former path): the GCV curve, its residual and
+// its trace agree to 1e-10 relative over twelve decades of λ, the GCV search picks the same λ (to 1e-9 decades:
+// the curves agree far below the golden-section search's 1e-4-decade resolution) and so the same image, at
+// r = 2, 4, 8 with N < r², N = r² and N > r², with a wide PSF (aliases beyond the optical cutoff: singular values
+// 1e-10 .. 1e-20 of the largest in most bins, as in the shipped scenes) and with duplicate frames (rank-deficient
+// bins).
+TEST(TikhonovTest, SpectralEigenPathMatchesTheSvdPath) {
+  struct Case {
+    int r;
+    std::vector<std::pair<double, double>> shifts;
+    double sigma;
+  };
+  const std::vector<Case> cases = {
+      {2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}, 2.5},                                     // N < r²
+      {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}, 1.0},                                      // N = r²
+      {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}, {0.3, 1.7}}, 2.5},              // N > r²
+      {2, {{0, 0}, {0, 0}, {1.5, 0.5}}, 1.5},                                          // duplicate frames
+      {4, {{0, 0}, {1.5, 2.5}, {3.2, 0.7}, {2.1, 3.3}}, 3.0},                          // N < r²
+      {4, {{0, 0}, {0, 0}, {2.5, 1.5}}, 2.0},                                          // duplicates, N < r²
+      {8, {{0, 0}, {2.5, 1.5}, {5.5, 4.5}, {1, 6}}, 4.0}};                             // N < r²
+  std::vector<Case> all = cases;
+  {
+    Case square{4, {}, 2.0}, tall{4, {}, 2.0};  // N = r² and N > r² at r = 4
+    for (int k = 0; k < 16; ++k) square.shifts.push_back({0.25 * k + 0.1 * (k % 3), 0.37 * k});
+    tall.shifts = square.shifts;
+    for (int k = 0; k < 4; ++k) tall.shifts.push_back({0.6 * k + 0.2, 1.1 * k});
+    all.push_back(square);
+    all.push_back(tall);
+  }
+  for (const Case& c : all)
+    for (TikhonovPrior prior : {TikhonovPrior::kGradient, TikhonovPrior::kPowerSpectrum}) {
+      const Shape hr{c.r * 6, c.r * 8};
+      const MultiFrameModel m = RasterModel(hr, c.r, c.shifts, c.sigma);
+      TikhonovOptions o;
+      o.prior = prior;
+      o.lambda_rule = TikhonovLambdaRule::kGcv;
+      const ImageStack frames = test::AddNoise(m.Render(test::RandomImage(hr, 9).abs() + 0.5), 0.02, 4);
+      FourierSystem eig(m, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+      FourierSystem svd(m, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+      svd.SetSpectralMethod(FourierSystem::SpectralMethod::kSvd);
+      eig.SetData(frames);
+      svd.SetData(frames);
+      const std::string what = std::string(ToString(prior)) + ", r = " + std::to_string(c.r) + ", N = " +
+                               std::to_string(c.shifts.size()) + ", sigma " + ToString(c.sigma);
+      const double n_data = double(m.frames()) * double(eig.bins());
+      for (double t = -8; t <= 4; t += 0.5) {
+        const double lambda = eig.lambda0() * std::pow(10.0, t);
+        const FourierSystem::Fit a = eig.EvaluateSpectral(lambda, true), b = svd.EvaluateSpectral(lambda, true);
+        const double gcv_a = n_data * a.residual2 / (a.dof * a.dof), gcv_b = n_data * b.residual2 / (b.dof * b.dof);
+        EXPECT_NEAR(gcv_a, gcv_b, 1e-10 * gcv_b) << what << ", log10(λ/λ0) = " << t;
+        EXPECT_NEAR(a.residual2, b.residual2, 1e-10 * b.residual2) << what << ", log10(λ/λ0) = " << t;
+        EXPECT_NEAR(a.dof, b.dof, 1e-10 * b.dof) << what << ", log10(λ/λ0) = " << t;
+        EXPECT_NEAR(a.prior2, b.prior2, 1e-9 * b.prior2) << what << ", log10(λ/λ0) = " << t;
+      }
+      double score_a = 0, score_b = 0;
+      int evals_a = 0, evals_b = 0;
+      const double lambda_a = tikhonov_internal::GcvSearch(eig, o, &score_a, &evals_a);
+      const double lambda_b = tikhonov_internal::GcvSearch(svd, o, &score_b, &evals_b);
+      EXPECT_LE(std::abs(std::log10(lambda_a / lambda_b)), 1e-9) << what;
+      EXPECT_NEAR(score_a, score_b, 1e-10 * score_b) << what;
+      const Image xa = eig.Solve(lambda_a), xb = svd.Solve(lambda_b);
+      EXPECT_LE((xa - xb).matrix().norm(), 1e-8 * xb.matrix().norm()) << what;
+    }
+}
+
+// The flat engine on 1 and 2 threads gives the same bits (DESIGN.md §4): ranks, λ₀, the spectral sums of every
+// λ rule (the terms stream and the per-bin path), the GCV λ and the solve, on a grid of several bin blocks and
+// term blocks (96 x 96 LR bins), with N < r², N > r² and duplicate frames.
+TEST(TikhonovTest, FlatEngineIsBitIdenticalOnOneAndTwoThreads) {
+  struct Case {
+    int r;
+    std::vector<std::pair<double, double>> shifts;
+  };
+  const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}},
+                                   {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}, {0.3, 1.7}}},
+                                   {2, {{0, 0}, {0, 0}, {1.5, 0.5}, {0.5, 1.5}}}};
+  const int saved = DefaultThreads();
+  for (const Case& c : cases) {
+    const Shape hr{96 * c.r, 96 * c.r};
+    const MultiFrameModel m = RasterModel(hr, c.r, c.shifts, 1.5);
+    TikhonovOptions o;
+    o.lambda_rule = TikhonovLambdaRule::kGcv;
+    const ImageStack frames = test::AddNoise(m.Render(test::RandomImage(hr, 3).abs()), 0.02, 5);
+    struct Run {
+      Index deficient, unconstrained;
+      double lambda0, lambda, score;
+      FourierSystem::Fit fit, with_prior;
+      Image x;
+    };
+    const auto run = [&](int threads) {
+      SetDefaultThreads(threads);
+      FourierSystem sys(m, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+      sys.SetData(frames);
+      Run out;
+      int evaluations = 0;
+      out.deficient = sys.deficient_bins();
+      out.unconstrained = sys.unconstrained();
+      out.lambda0 = sys.lambda0();
+      out.lambda = tikhonov_internal::GcvSearch(sys, o, &out.score, &evaluations);
+      out.fit = sys.EvaluateSpectral(out.lambda);
+      out.with_prior = sys.EvaluateSpectral(out.lambda, true);
+      out.x = sys.Solve(out.lambda);
+      return out;
+    };
+    const Run one = run(1), two = run(2);
+    const std::string what = "r = " + std::to_string(c.r) + ", N = " + std::to_string(c.shifts.size());
+    EXPECT_EQ(one.deficient, two.deficient) << what;
+    EXPECT_EQ(one.unconstrained, two.unconstrained) << what;
+    EXPECT_EQ(one.lambda0, two.lambda0) << what;
+    EXPECT_EQ(one.lambda, two.lambda) << what;
+    EXPECT_EQ(one.score, two.score) << what;
+    EXPECT_EQ(one.fit.residual2, two.fit.residual2) << what;
+    EXPECT_EQ(one.fit.dof, two.fit.dof) << what;
+    EXPECT_EQ(one.with_prior.residual2, two.with_prior.residual2) << what;
+    EXPECT_EQ(one.with_prior.prior2, two.with_prior.prior2) << what;
+    EXPECT_EQ(one.with_prior.dprior2, two.with_prior.dprior2) << what;
+    EXPECT_TRUE((one.x == two.x).all()) << what;
+  }
+  SetDefaultThreads(saved);
+}
+
+}  // namespace
+}  // namespace aosr
