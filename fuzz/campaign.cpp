@@ -108,6 +108,7 @@ const char* WeightsName(aosr::DatasetWeights w) {
     case aosr::DatasetWeights::kAuto: return "auto";
     case aosr::DatasetWeights::kDataset: return "dataset";
     case aosr::DatasetWeights::kMask: return "mask";
+    case aosr::DatasetWeights::kBackground: return "background";
   }
   return "?";
 }

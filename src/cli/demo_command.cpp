@@ -217,7 +217,7 @@ void RunDemo(const DemoArgs& args) {
     progress.Step("bicubic upsampling of frame 0");
     Stopwatch c;
     results.push_back({"bicubic", "bicubic (1 frame)", BicubicUpsample(scene.frames[0], scene.options.r), {}, 0,
-                       "one frame", false});
+                       "one frame", false, "", 0, "converged"});
     results.back().seconds = c.Seconds();
   }
   double tikhonov_lambda = 0, tv_mu = 0;
