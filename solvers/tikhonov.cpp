@@ -375,26 +375,23 @@ int PivotedQrRank(Complex* a, int n, int k, double floor, double* work, Complex*
   return inv2 > 0 && 1.0 / inv2 >= 4.0 * floor * floor ? j : -1;
 }
 
-// σ² of X (p x k, p <= k, column-major, leading dimension p), ascending in d, to the accuracy of an SVD of X
-// (absolute error ~ε σ_max σ): the eigenvalues of X Xᴴ, the small ones refined by Rayleigh-Ritz on X itself, as
-// FourierSystem::DecomposeBinEigen does (its comment says why that is as accurate as an SVD).
-bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std::vector<Complex>* buffer,
-                                  std::vector<double>* work) {
-  buffer->resize(3 * std::size_t(p) * p + std::size_t(k) * p + p);
-  work->resize(3 * std::size_t(p) * p + 2 * p);
-  Complex* m = buffer->data();
-  Complex* u = m + p * p;
-  Complex* rot = u + p * p;
-  Complex* w = rot + p * p;
-  Complex* tmp = w + std::size_t(k) * p;
+// The eigen-decomposition of X Xᴴ (X p x k, element (i, c) at x[c ld + i]) into ascending eigenvalues d and
+// eigenvectors u (row-major p x p: u[i p + j] is component i of eigenvector j), the small eigenvalues refined by
+// Rayleigh-Ritz on X itself to the accuracy of an SVD of X (absolute error ~ε σ_max σ in each σ² = d):
+// FourierSystem::DecomposeBinEigen says why. Scratch: m, rot p x p, w k x p, tmp p (complex); work 3p² + 2p.
+// False if the eigen-solver did not converge (non-finite data).
+bool RefinedGramEigen(const Complex* x, int p, int k, int ld, double* d, Complex* u, Complex* m, Complex* rot,
+                      Complex* w, Complex* tmp, double* work) {
   for (int i = 0; i < p; ++i)
     for (int j = 0; j <= i; ++j) {
       Complex sum = 0;
-      for (int c = 0; c < k; ++c) sum += MulConj(x[c * p + i], x[c * p + j]);
+      for (int c = 0; c < k; ++c) sum += MulConj(x[c * ld + i], x[c * ld + j]);
       m[i * p + j] = sum;
       m[j * p + i] = std::conj(sum);
     }
-  if (!bins::HermitianEigen(m, p, d, u, work->data())) return false;
+  if (!bins::HermitianEigen(m, p, d, u, work)) return false;
+  // Refinement of the small eigenvalues (a prefix of the ascending d): U_S the eigenvectors below kSplit of the
+  // largest (the split moved up to a gap of kGap), W = Xᴴ U_S from X, and the eigenvalues of Wᴴ W.
   constexpr double kSplit = 1e-3, kGap = 10.0;
   int t = p;
   for (int depth = 0; depth < 16 && t > 1; ++depth) {
@@ -407,7 +404,7 @@ bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std
     for (int j = 0; j < cut; ++j)
       for (int c = 0; c < k; ++c) {
         Complex sum = 0;
-        for (int i = 0; i < p; ++i) sum += ConjMul(x[c * p + i], u[i * p + j]);
+        for (int i = 0; i < p; ++i) sum += ConjMul(x[c * ld + i], u[i * p + j]);
         w[j * k + c] = sum;
       }
     for (int j = 0; j < cut; ++j)
@@ -417,7 +414,8 @@ bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std
         m[j * cut + l] = sum;
         m[l * cut + j] = std::conj(sum);
       }
-    if (!bins::HermitianEigen(m, cut, d, rot, work->data())) return false;
+    if (!bins::HermitianEigen(m, cut, d, rot, work)) return false;
+    // U_S ← U_S R.
     for (int i = 0; i < p; ++i) {
       for (int j = 0; j < cut; ++j) {
         Complex sum = 0;
@@ -429,6 +427,19 @@ bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std
     t = cut;
   }
   return true;
+}
+
+// σ² of X (p x k, p <= k, column-major, leading dimension p), ascending in d, to the accuracy of an SVD of X.
+bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std::vector<Complex>* buffer,
+                                  std::vector<double>* work) {
+  buffer->resize(3 * std::size_t(p) * p + std::size_t(k) * p + p);
+  work->resize(3 * std::size_t(p) * p + 2 * p);
+  Complex* m = buffer->data();
+  Complex* u = m + p * p;
+  Complex* rot = u + p * p;
+  Complex* w = rot + p * p;
+  Complex* tmp = w + std::size_t(k) * p;
+  return RefinedGramEigen(x, p, k, p, d, u, m, rot, w, tmp, work->data());
 }
 
 }  // namespace
@@ -848,8 +859,7 @@ void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, std::vector<double>
   Complex* yv = bw + std::size_t(n) * rr;
   Complex* m = yv + n;
   Complex* u = m + qn * qn;
-  Complex* ms = u + qn * qn;
-  Complex* rot = ms + qn * qn;
+  Complex* rot = u + 2 * qn * qn;  // (one q x q slot unused since the refinement reuses M)
   Complex* w = rot + qn * qn;
   Complex* tmp = w + std::size_t(rr) * qn;
   Complex* v = tmp + std::size_t(n) * qn;
@@ -929,53 +939,9 @@ void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, std::vector<double>
   sp->q[i] = q;
   sp->perp[i] = perp;
   if (q == 0) return;
-  // M = Bw Bwᴴ (q x q), Bw(p, c) = bw[c n + p].
-  for (int p = 0; p < q; ++p)
-    for (int t = 0; t <= p; ++t) {
-      Complex sum = 0;
-      for (int c = 0; c < kept; ++c) sum += MulConj(bw[c * n + p], bw[c * n + t]);
-      m[p * q + t] = sum;
-      m[t * q + p] = std::conj(sum);
-    }
-  if (!bins::HermitianEigen(m, q, d, u, ework))
+  // M = Bw Bwᴴ (q x q), Bw(p, c) = bw[c n + p], its small eigenvalues refined on Bw.
+  if (!RefinedGramEigen(bw, q, kept, n, d, u, m, rot, w, tmp, ework))
     throw NumericalError("Tikhonov spectral decomposition: the eigen-solver did not converge (non-finite data?)");
-  // Rayleigh-Ritz refinement of the small eigenvalues (a prefix of the ascending d), on B itself.
-  constexpr double kSplit = 1e-3, kGap = 10.0;
-  int t = q;
-  for (int depth = 0; depth < 16 && t > 1; ++depth) {
-    const double top = d[t - 1];
-    if (!(top > 0)) break;
-    int cut = 0;
-    while (cut < t && d[cut] < kSplit * top) ++cut;
-    while (cut > 0 && cut < t && d[cut] < kGap * std::max(d[cut - 1], 0.0)) ++cut;
-    if (cut == 0 || cut == t) break;
-    // W = Bwᴴ U_S (kept x cut), column j from eigenvector j (U row-major q x q: U(p, j) = u[p q + j]).
-    for (int j = 0; j < cut; ++j)
-      for (int c = 0; c < kept; ++c) {
-        Complex sum = 0;
-        for (int p = 0; p < q; ++p) sum += ConjMul(bw[c * n + p], u[p * q + j]);
-        w[j * kept + c] = sum;
-      }
-    for (int j = 0; j < cut; ++j)
-      for (int l = 0; l <= j; ++l) {
-        Complex sum = 0;
-        for (int c = 0; c < kept; ++c) sum += ConjMul(w[j * kept + c], w[l * kept + c]);
-        ms[j * cut + l] = sum;
-        ms[l * cut + j] = std::conj(sum);
-      }
-    if (!bins::HermitianEigen(ms, cut, d, rot, ework))
-      throw NumericalError("Tikhonov spectral decomposition: the eigen-solver did not converge (non-finite data?)");
-    // U_S ← U_S R.
-    for (int p = 0; p < q; ++p) {
-      for (int j = 0; j < cut; ++j) {
-        Complex sum = 0;
-        for (int l = 0; l < cut; ++l) sum += Mul(u[p * q + l], rot[l * cut + j]);
-        tmp[j] = sum;
-      }
-      for (int j = 0; j < cut; ++j) u[p * q + j] = tmp[j];
-    }
-    t = cut;
-  }
   for (int k = 0; k < q; ++k) {
     Complex proj = 0;
     for (int p = 0; p < q; ++p) proj += ConjMul(u[p * q + k], yv[p]);
