@@ -9,6 +9,7 @@
 
 #include "aosr/ao/random.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/core/levenberg_marquardt.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/io/image_io.hpp"
 
@@ -289,44 +290,27 @@ PowerSpectrumFit FitPowerSpectrum(const std::vector<Image>& images, const PowerS
   CheckArgument(annuli.size() >= 5, fn, "images", std::to_string(annuli.size()) + " annuli with power in [" +
                 Fmt("%.4g", f_lo) + ", " + Fmt("%.4g", f_hi) + "] cycles/px", "at least 5 (widen the frequency range or the grid)");
 
-  // Levenberg-Marquardt from the grid-search start.
-  Eigen::VectorXd theta = Start(annuli, f_lo, options.fit_floor);
-  Eigen::MatrixXd jac;
-  Eigen::VectorXd res = Residuals(theta, annuli, grid, options.window, &jac);
-  double cost = 0.5 * res.squaredNorm(), mu = 1e-3;
-  for (int it = 0; it < options.max_iterations; ++it) {
-    out.iterations = it + 1;
-    const Eigen::MatrixXd jtj = jac.transpose() * jac;
-    const Eigen::VectorXd g = jac.transpose() * res;
-    bool accepted = false;
-    for (int tries = 0; tries < 40 && !accepted; ++tries) {
-      Eigen::MatrixXd a = jtj;
-      for (Index j = 0; j < a.rows(); ++j) a(j, j) += mu * std::max(jtj(j, j), 1e-12);
-      const Eigen::VectorXd step_theta = a.ldlt().solve(-g);
-      Eigen::VectorXd trial = theta + step_theta;
-      trial[1] = std::clamp(trial[1], std::log(1e-8), std::log(100.0));
-      trial[2] = std::clamp(trial[2], kMinSlope, kMaxSlope);
-      if (params > 3) trial[3] = std::max(trial[3], std::log(1e-300));
-      Eigen::MatrixXd trial_jac;
-      const Eigen::VectorXd trial_res = Residuals(trial, annuli, grid, options.window, &trial_jac);
-      const double trial_cost = 0.5 * trial_res.squaredNorm();
-      if (std::isfinite(trial_cost) && trial_cost <= cost) {
-        const double decrease = cost - trial_cost;
-        out.converged = decrease <= options.tolerance * std::max(cost, 1e-300) || step_theta.norm() < 1e-12;
-        theta = trial, res = trial_res, jac = trial_jac, cost = trial_cost;
-        accepted = true;
-        mu = std::max(mu / 3, 1e-12);
-      } else {
-        mu *= 4;
-      }
-    }
-    if (!accepted) out.converged = true;  // no step decreases the cost: a minimum to the damping's resolution
-    if (out.converged) break;
-  }
+  // Levenberg-Marquardt from the grid-search start, within the bounds (core/levenberg_marquardt.hpp).
+  LevenbergMarquardtOptions lm;
+  lm.max_iterations = options.max_iterations;
+  lm.tolerance = options.tolerance;
+  const LevenbergMarquardtResult fit = LevenbergMarquardt(
+      [&](const Eigen::VectorXd& t, Eigen::MatrixXd* jac) { return Residuals(t, annuli, grid, options.window, jac); },
+      Start(annuli, f_lo, options.fit_floor),
+      [&](Eigen::VectorXd t) {
+        t[1] = std::clamp(t[1], std::log(1e-8), std::log(100.0));
+        t[2] = std::clamp(t[2], kMinSlope, kMaxSlope);
+        if (params > 3) t[3] = std::max(t[3], std::log(1e-300));
+        return t;
+      },
+      lm);
+  const Eigen::VectorXd& theta = fit.theta;
+  out.iterations = fit.iterations;
+  out.converged = fit.converged;
   out.model = ModelOf(theta);
   out.spectrum = PowerSpectrumGrid(out.model, grid);
   std::vector<double> means;
-  res = Residuals(theta, annuli, grid, options.window, nullptr, &means);
+  Eigen::VectorXd res = Residuals(theta, annuli, grid, options.window, nullptr, &means);
   double n_total = 0;
   for (const Annulus& a : annuli) {
     out.annulus_frequency.push_back(a.frequency);

@@ -9,6 +9,7 @@
 #include <map>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/levenberg_marquardt.hpp"
 #include "aosr/core/fft.hpp"
 
 namespace aosr {
@@ -272,48 +273,28 @@ FramePowerSpectrumFit FitFramePowerSpectrum(const MultiFrameModel& model, const 
   // Levenberg-Marquardt within the bounds.
   FramePowerSpectrumFit out;
   const double fixed_v = options.noise_variance;
-  Eigen::MatrixXd jac;
-  Eigen::VectorXd res = Residuals(s, theta, fixed_v, &jac);
-  double cost = 0.5 * res.squaredNorm(), mu = 1e-3;
-  auto clamp = [&](Eigen::VectorXd t) {
-    t[1] = std::clamp(t[1], std::log(f0_min), std::log(kMaxCorner));
-    t[2] = std::clamp(t[2], 0.0, kMaxSlope);
-    if (fit_v) t[3] = std::max(t[3], std::log(v_min));
-    return t;
-  };
-  for (int it = 0; it < options.max_iterations; ++it) {
-    out.iterations = it + 1;
-    const Eigen::MatrixXd jtj = jac.transpose() * jac;
-    const Eigen::VectorXd g = jac.transpose() * res;
-    bool accepted = false;
-    for (int tries = 0; tries < 40 && !accepted; ++tries) {
-      Eigen::MatrixXd a = jtj;
-      for (Index j = 0; j < a.rows(); ++j) a(j, j) += mu * std::max(jtj(j, j), 1e-12);
-      const Eigen::VectorXd step = a.ldlt().solve(-g);
-      const Eigen::VectorXd trial = clamp(theta + step);
-      Eigen::MatrixXd trial_jac;
-      const Eigen::VectorXd trial_res = Residuals(s, trial, fixed_v, &trial_jac);
-      const double trial_cost = 0.5 * trial_res.squaredNorm();
-      if (std::isfinite(trial_cost) && trial_cost <= cost) {
-        out.converged = cost - trial_cost <= options.tolerance * std::max(cost, 1e-300) ||
-                        (trial - theta).norm() < 1e-12;
-        theta = trial, res = trial_res, jac = trial_jac, cost = trial_cost;
-        accepted = true;
-        mu = std::max(mu / 3, 1e-12);
-      } else {
-        mu *= 4;
-      }
-    }
-    if (!accepted) out.converged = true;  // no step decreases the cost: a minimum to the damping's resolution
-    if (out.converged) break;
-  }
+  LevenbergMarquardtOptions lm;
+  lm.max_iterations = options.max_iterations;
+  lm.tolerance = options.tolerance;
+  const LevenbergMarquardtResult fit = LevenbergMarquardt(
+      [&](const Eigen::VectorXd& t, Eigen::MatrixXd* jac) { return Residuals(s, t, fixed_v, jac); }, theta,
+      [&](Eigen::VectorXd t) {
+        t[1] = std::clamp(t[1], std::log(f0_min), std::log(kMaxCorner));
+        t[2] = std::clamp(t[2], 0.0, kMaxSlope);
+        if (fit_v) t[3] = std::max(t[3], std::log(v_min));
+        return t;
+      },
+      lm);
+  theta = fit.theta;
+  out.iterations = fit.iterations;
+  out.converged = fit.converged;
   out.model.amplitude = std::exp(theta[0]);
   out.model.corner = std::exp(theta[1]);
   out.model.slope = theta[2];
   out.model.floor = 0;
   out.noise_variance = fit_v ? std::exp(theta[3]) : fixed_v;
   out.noise_fitted = fit_v;
-  res = Residuals(s, theta, fixed_v, nullptr, &out.annulus_model);
+  const Eigen::VectorXd res = Residuals(s, theta, fixed_v, nullptr, &out.annulus_model);
   double n_total = 0;
   for (Index b = 0; b < nb; ++b) {
     out.annulus_frequency.push_back(s.radius[b]);
