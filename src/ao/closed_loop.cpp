@@ -1,9 +1,12 @@
 #include "aosr/ao/closed_loop.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <utility>
+
+#include <Eigen/Dense>
 
 #include "aosr/ao/shack_hartmann.hpp"
 #include "aosr/core/error.hpp"
@@ -171,6 +174,42 @@ ClosedLoop::ClosedLoop(const Image& amplitude, double diameter_m, Atmosphere* at
 }
 
 ClosedLoop::~ClosedLoop() = default;
+
+void ClosedLoop::CalibrateTiltResponse() {
+  // The sensor's response A = [a_y a_x] to a pure tip and tilt (central differences about a flat wavefront),
+  // then P = (A^T A)^-1 A^T.
+  const Index n = amplitude_.rows();
+  const double pitch = diameter_m_ / static_cast<double>(n);
+  auto coord = [&](Index i) { return (static_cast<double>(i) + 0.5 - 0.5 * static_cast<double>(n)) * pitch; };
+  Eigen::Matrix<double, Eigen::Dynamic, 2> response(wfs_->n_measurements(), 2);
+  for (int axis = 0; axis < 2; ++axis) {
+    tilt_opd_[axis] = Image(n, n);
+    for (Index i = 0; i < n; ++i)
+      for (Index k = 0; k < n; ++k) tilt_opd_[axis](i, k) = axis == 0 ? coord(i) : coord(k);
+    response.col(axis) = TiltDerivative(Image::Zero(n, n), axis);
+  }
+  const Eigen::Matrix2d gram = response.transpose() * response;
+  CheckArgument(gram.determinant() > 1e-12 * gram.trace() * gram.trace(), "ClosedLoop::RunSubExposures", "wfs",
+                wfs_->Describe(), "a sensor that sees tip and tilt (offset_calibration on-sky), or kFlat");
+  tilt_projector_ = gram.inverse() * response.transpose();
+  tilt_response_ = response;
+}
+
+Vector ClosedLoop::TiltDerivative(const Image& opd_m, int axis) {
+  // rad (20 micro-arcseconds): inside any sensor's linear range, and a centroid change ~1e-4 of a pixel, far
+  // above rounding. Central differences cancel the quadratic part of a diffractive centroid.
+  const double s = 1e-10;
+  probe_ = opd_m + s * tilt_opd_[axis];
+  Vector plus = wfs_->MeasureNoiseless(probe_);
+  probe_ = opd_m - s * tilt_opd_[axis];
+  return (plus - wfs_->MeasureNoiseless(probe_)) / (2.0 * s);
+}
+
+Eigen::Matrix2d ClosedLoop::TiltGain(const Image& opd_m) {
+  Eigen::Matrix2d g;
+  for (int axis = 0; axis < 2; ++axis) g.col(axis) = tilt_projector_ * TiltDerivative(opd_m, axis);
+  return g;
+}
 
 double ClosedLoop::time_s() const {
   return options_.start_time_s + (static_cast<double>(frame_) + 0.5) * controller_->frame_time_s();
@@ -347,10 +386,38 @@ std::vector<ClosedLoopResult> ClosedLoop::RunSubExposures(const std::vector<Imag
                             "finite values where the pupil transmits");
     }
   }
+  const long steps = std::llround(exposure_s / t);
+  const long settle = std::llround(settling_s / t);
   std::vector<ClosedLoopResult> results;
   for (const Vector& offset : offsets) {
     wfs_->SetReferenceOffset(offset);
-    results.push_back(Run(exposure_s, settling_s));
+    long remaining = settle;
+    Eigen::Matrix2d gain = Eigen::Matrix2d::Identity();
+    if (options_.offset_calibration == OffsetCalibration::kOnSky) {
+      if (tilt_projector_.cols() == 0) CalibrateTiltResponse();
+      // Probe the sensor's tip/tilt gain at the loop's operating point over the first half of the settling
+      // (at least one frame), then rescale the offset's tip/tilt content so that the loop holds the
+      // commanded tilt: with the measured tilt G T for a true tilt T, holding P o' = G P o gives T = P o.
+      const long probe = std::max(1L, settle / 2);
+      Eigen::Matrix2d sum = Eigen::Matrix2d::Zero();
+      for (long k = 0; k < probe; ++k) {
+        Step(false);
+        sum += TiltGain(residual_);
+      }
+      gain = sum / static_cast<double>(probe);
+      const Eigen::Vector2d tilt = tilt_projector_ * offset;
+      wfs_->SetReferenceOffset(offset + tilt_response_ * ((gain - Eigen::Matrix2d::Identity()) * tilt));
+      remaining = std::max(0L, settle - probe);
+    }
+    for (long k = 0; k < remaining; ++k) Step(false);
+    const double start = time_s();
+    BeginRecording();
+    for (long k = 0; k < steps; ++k) Step(true);
+    results.push_back(FinishRecording(static_cast<int>(settle + (settle == 0 && options_.offset_calibration ==
+                                                                     OffsetCalibration::kOnSky)),
+                                      start));
+    results.back().tilt_gain[0] = gain(0, 0);
+    results.back().tilt_gain[1] = gain(1, 1);
     if (after_each && !after_each(int(results.size()))) break;
   }
   return results;

@@ -195,6 +195,7 @@ OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline,
     e["strehl"] = i < sim.strehl.size() ? sim.strehl[i] : 0.0;
     e["psf_window_fraction"] = i < sim.psf_window_fraction.size() ? sim.psf_window_fraction[i] : 0.0;
     e["distinct_psf"] = i < sim.distinct_psf.size() ? sim.distinct_psf[i] : int(i);
+    if (i < sim.tilt_gain.size()) e["wfs_tilt_gain"] = {sim.tilt_gain[i][0], sim.tilt_gain[i][1]};
     exposures.push_back(e);
   }
   s["exposures"] = exposures;

@@ -376,9 +376,11 @@ void ScenePipeline::Compile() {
     const char* sensor = s.ao.sensor == SensorKind::kIdeal ? "ideal" : s.ao.sensor == SensorKind::kGeometric ? "geometric SH" : "diffractive SH";
     const std::string atmosphere = s.telescope.atmosphere ? std::to_string(s.telescope.atmosphere->layers.size()) + "-layer atmosphere"
                                                           : "no atmosphere";
+    const int runs = s.ao.antithetic && s.telescope.atmosphere ? 2 : 1;
     add("ao-loop", atmosphere + ", " + sensor + " WFS, " + std::to_string(steps) + " steps per exposure (" +
-                       std::to_string(psf_steps) + " PSF frames) at " + Fmt("%g", rate) + " Hz",
-        s.frames, s.frames * (steps * kLoopStepS128 * (n * n) / (128.0 * 128.0) + psf_steps * psf_each));
+                       std::to_string(psf_steps) + " PSF frames) at " + Fmt("%g", rate) + " Hz" +
+                       (runs == 2 ? ", twice (antithetic pair)" : ""),
+        s.frames * runs, runs * s.frames * (steps * kLoopStepS128 * (n * n) / (128.0 * 128.0) + psf_steps * psf_each));
   }
   add("psf", std::string(ModeName(s.ao.mode)) + " PSF, " + std::to_string(k) + "^2 at " + Fmt("%.3g", g.hr_pixel_lambda_over_d) +
                  " lambda/D from a " + std::to_string(n) + "^2 pupil; " + std::to_string(distinct_count_) + " distinct of " +
@@ -505,7 +507,8 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
 
 ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
                                       std::vector<double>* strehl, SimulationCounters* counters,
-                                      const std::function<bool(int)>& step) const {
+                                      const std::function<bool(int)>& step,
+                                      std::vector<std::array<double, 2>>* tilt_gain) const {
   const SceneSpec& s = scene_;
   const Index n = s.telescope.pupil_px;
   const Image amplitude = s.telescope.PupilAmplitude();
@@ -528,25 +531,40 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
   if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
     // Static aberrations are non-common-path (science camera only); the DM offsets go through the WFS
     // reference, as a real-time computer applies them.
-    AoSystem system = BuildAoSystem(s.telescope.ToAoSystemSpec(s.ao.sensor, s.ao.seed));
+    AoSystemSpec spec = s.telescope.ToAoSystemSpec(s.ao.sensor, s.ao.seed);
     ClosedLoopOptions lo;
     lo.science = sampling;
     lo.psf_every_steps = s.ao.psf_every_steps;
     lo.science_static_opd_m = static_opd;
     lo.dm_gain = s.ao.dm_gain;
-    std::unique_ptr<ClosedLoop> loop = system.MakeLoop(lo);
+    lo.offset_calibration = s.ao.offset_calibration;
     std::vector<Image> offsets;
     for (const DmOffset& o : s.offsets.frames) offsets.push_back(ExposureOpd(s, o, Image(), dm.get()));
-    bool go = true;
-    const std::vector<ClosedLoopResult> results = loop->RunSubExposures(
-        offsets, s.ao.time_per_frame_s, s.ao.settling_s,
-        step ? std::function<bool(int)>([&](int) { return go = step(1); }) : std::function<bool(int)>());
-    if (!go) return {};
-    for (int i = 0; i < s.frames; ++i) {
-      raw[i] = results[i].psf;
-      raw_strehl[i] = results[i].psf_strehl;
-      if (counters) counters->loop_steps += results[i].steps + results[i].settling_steps;
+    // One continuous run over the exposures, or (antithetic) two: the atmosphere and its negation, each
+    // exposure's PSF and Strehl averaged over the pair (scene_spec.hpp, AoSpec::antithetic).
+    const int runs = s.ao.antithetic && spec.atmosphere ? 2 : 1;
+    if (tilt_gain) tilt_gain->assign(s.frames, {0.0, 0.0});
+    for (int run = 0; run < runs; ++run) {
+      if (run == 1) spec.atmosphere->antithetic = true;
+      AoSystem system = BuildAoSystem(spec);
+      std::unique_ptr<ClosedLoop> loop = system.MakeLoop(lo);
+      bool go = true;
+      const std::vector<ClosedLoopResult> results = loop->RunSubExposures(
+          offsets, s.ao.time_per_frame_s, s.ao.settling_s,
+          step ? std::function<bool(int)>([&](int) { return go = step(1); }) : std::function<bool(int)>());
+      if (!go) return {};
+      const double w = 1.0 / runs;
+      for (int i = 0; i < s.frames; ++i) {
+        if (tilt_gain) {
+          (*tilt_gain)[i][0] += w * results[i].tilt_gain[0];
+          (*tilt_gain)[i][1] += w * results[i].tilt_gain[1];
+        }
+        raw[i] = run == 0 ? Image(w * results[i].psf) : Image(raw[i] + w * results[i].psf);
+        raw_strehl[i] += w * results[i].psf_strehl;
+        if (counters) counters->loop_steps += results[i].steps + results[i].settling_steps;
+      }
     }
+    if (tilt_gain && s.ao.offset_calibration != OffsetCalibration::kOnSky) tilt_gain->clear();
   } else {
     std::unique_ptr<PsfCalculator> diffraction;
     std::unique_ptr<AnalyticAoPsfCalculator> analytic;
@@ -603,7 +621,8 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   const auto t_run = Clock::now();
   // Steps: the object, each distinct PSF, the nominal PSFs (closed loop), convolution, pixels, detector.
   const bool closed_loop = scene_.ao.mode == AoSpec::Mode::kClosedLoop;
-  const int total = 4 + distinct_count_ + (closed_loop ? 1 : 0);
+  const int loop_runs = closed_loop && scene_.ao.antithetic && scene_.telescope.atmosphere ? 2 : 1;
+  const int total = 4 + distinct_count_ * loop_runs + (closed_loop ? 1 : 0);
   ProgressReporter reporter(progress, "simulate", total, "");
   int done = 0;
   // Counts `n` steps done; false when the caller asked to stop (or its callback threw: `stop` rethrows that).
@@ -641,7 +660,8 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   bool go = true;
   sim.psfs = ComputePsfs(&sim.distinct_psf, &sim.psf_window_fraction, &sim.strehl, &c,
                          progress ? std::function<bool(int)>([&](int n) { return go = advance(n); })
-                                  : std::function<bool(int)>());
+                                  : std::function<bool(int)>(),
+                         &sim.tilt_gain);
   if (!go) {
     stop(&sim);
     return sim;

@@ -287,6 +287,9 @@ AoSpec ParseAo(const ConfigNode& n, const SceneSpec& scene) {
     a.settling_s = n.NumberOr("settling_s", a.settling_s, 0.0, 3600.0);
     a.psf_every_steps = int(n.IntegerOr("psf_every_steps", a.psf_every_steps, 1, 100000));
     a.dm_gain = n.NumberOr("dm_gain", a.dm_gain, 0.5, 2.0);
+    a.offset_calibration =
+        n.ChoiceOr("offset_calibration", "on-sky", {"on-sky", "flat"}) == "flat" ? OffsetCalibration::kFlat : OffsetCalibration::kOnSky;
+    a.antithetic = n.BoolOr("antithetic", a.antithetic);
     const double steps = a.time_per_frame_s * scene.telescope.ao->loop.rate_hz;
     if (steps < a.psf_every_steps)
       n.Fail("time_per_frame_s", ToString(a.time_per_frame_s),

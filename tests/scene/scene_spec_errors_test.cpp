@@ -436,6 +436,20 @@ TEST(SceneSpecErrorsTest, DmGainOnlyInRangeAndOnlyForTheClosedLoop) {
   EXPECT_EQ(ParseError(j), "no exception");
 }
 
+TEST(SceneSpecErrorsTest, OffsetCalibrationAndAntitheticOnlyForTheClosedLoop) {
+  Json j = BaseScene();
+  j["ao"] = {{"mode", "closed-loop"}, {"offset_calibration", "measured"}};
+  EXPECT_THAT(ParseError(j), HasSubstr("ao.offset_calibration = \"measured\"; allowed: one of on-sky, flat"));
+  j["ao"] = {{"mode", "closed-loop"}, {"antithetic", "yes"}};
+  EXPECT_THAT(ParseError(j), HasSubstr("ao.antithetic"));
+  j["ao"] = {{"mode", "analytic"}, {"antithetic", true}};  // one analytic PSF has no realisation to pair
+  EXPECT_THAT(ParseError(j), HasSubstr("antithetic"));
+  j["ao"] = {{"mode", "analytic"}, {"offset_calibration", "flat"}};
+  EXPECT_THAT(ParseError(j), HasSubstr("offset_calibration"));
+  j["ao"] = {{"mode", "closed-loop"}, {"offset_calibration", "flat"}, {"antithetic", false}};
+  EXPECT_EQ(ParseError(j), "no exception");
+}
+
 TEST(SceneSpecErrorsTest, StaticAberrationsNeedNollAtLeastTwo) {
   Json j = BaseScene();
   j["static_aberrations"] = Json::array({Json{{"noll", 1}, {"rms_nm", 50}}});

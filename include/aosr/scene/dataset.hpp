@@ -57,7 +57,7 @@
 //                                               none. Absent: the frames file's header WCS, when it has one
 //   software, noise,       no                   provenance written by WriteSimulation (the software version; the
 //   simulation                                  detector model; the scene as read, seeds, the compiled plan,
-//                                               per-exposure Strehl and PSF window fraction, stage timings); not
+//                                               per-exposure Strehl, PSF window fraction and the closed loop's WFS tilt gain, stage timings); not
 //                                               interpreted
 //
 // A measured dataset needs only a few lines, e.g.

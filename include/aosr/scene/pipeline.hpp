@@ -62,6 +62,7 @@
 #pragma once
 
 #include <cstdint>
+#include <array>
 #include <functional>
 #include <memory>
 #include <string>
@@ -131,6 +132,9 @@ struct Simulation {
   // shift is not a loss of quality; analytic: the residual's Strehl times the static OPD's); closed loop: the
   // loop's mean on-axis Strehl, which includes the offset's tilt.
   std::vector<double> strehl;
+  // Closed loop with ao.offset_calibration "on-sky" only (else empty): per exposure, the (y, x) tip/tilt gain
+  // of the wavefront sensor its offset was calibrated with (ClosedLoopResult::tilt_gain); provenance.
+  std::vector<std::array<double, 2>> tilt_gain;
   ImageStack expected_e;           // noiseless frames, electrons
   std::vector<DetectorFrame> frames;
   std::vector<StageTiming> timings;
@@ -176,7 +180,8 @@ class ScenePipeline {
   // that returns false stops it early (the PSFs returned are then empty).
   ImageStack ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
                          std::vector<double>* strehl, SimulationCounters* counters,
-                         const std::function<bool(int)>& step) const;
+                         const std::function<bool(int)>& step,
+                         std::vector<std::array<double, 2>>* tilt_gain = nullptr) const;
   void Compile();
   // The extended components summed on the HR frame, and the stars (HR-frame coordinates), flux-scaled.
   Image RenderObject(std::vector<PointSource>* stars) const;

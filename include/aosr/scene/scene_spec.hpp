@@ -119,6 +119,18 @@ struct AoSpec {
   // stroke calibration error of the simulated hardware. NominalPsfs (pipeline.hpp) does not model it: it is
   // an error the observer does not know about. Default 1.
   double dm_gain = 1.0;
+  // Closed loop only: how the DM offsets become reference slopes (ClosedLoopOptions::offset_calibration):
+  // "on-sky" (default: the tip/tilt gain measured at the operating point, the commanded shift is held) or
+  // "flat" (the flat-wavefront slopes: a diffractive SH's images then land 9 - 19 % further out than
+  // commanded, bench/results/psf_offsets.md).
+  OffsetCalibration offset_calibration = OffsetCalibration::kOnSky;
+  // Closed loop only: run the loop twice, on the atmosphere and on its negation (AtmosphereOptions::antithetic),
+  // and average each exposure's PSF and Strehl over the pair. The simulated stretch (time_per_frame_s) stands
+  // for a whole integration, which would average away the stretch's random residual tilt (the SH senses the
+  // mean gradient, the core follows the least-squares tilt: 0.03 - 0.05 lambda/D per 0.1 s that does not
+  // average within seconds, bench/results/psf_offsets.md); the tilt is odd in the atmosphere and cancels in
+  // the pair exactly, the Strehl and halo are even and stay. Twice the loop's cost. Default true.
+  bool antithetic = true;
   std::uint64_t seed = 0;  // atmosphere and WFS noise
 };
 
