@@ -142,3 +142,15 @@ def test_dm_gain_is_a_closed_loop_scene_option(demo_scene_path):
     assert "ao-loop" in s.plan()
     with pytest.raises(aosr.InvalidArgument, match=r"ao\.dm_gain = 3; allowed: a number in \[0\.5, 2\]"):
         aosr.load_scene(path, {"ao.dm_gain": 3})
+
+
+def test_offset_calibration_and_antithetic_are_closed_loop_scene_options(demo_scene_path):
+    # ao.offset_calibration and ao.antithetic (include/aosr/scene/scene_spec.hpp) reach Python through the scene,
+    # as `aosr simulate --set ao.antithetic=false` does: the plan runs the loop twice by default (the antithetic
+    # pair) and once without it; a bad value is the parser's InvalidArgument naming the field.
+    path = os.path.join(os.path.dirname(demo_scene_path), "paper-sim-r2.json")
+    assert "antithetic pair" in aosr.load_scene(path).plan()
+    assert "antithetic pair" not in aosr.load_scene(path, {"ao.antithetic": False}).plan()
+    assert "ao-loop" in aosr.load_scene(path, {"ao.offset_calibration": "flat"}).plan()
+    with pytest.raises(aosr.InvalidArgument, match=r"ao\.offset_calibration = \"probe\"; allowed: one of on-sky, flat"):
+        aosr.load_scene(path, {"ao.offset_calibration": "probe"})
