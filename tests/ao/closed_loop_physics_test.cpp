@@ -44,6 +44,22 @@ Image StaticAberration(Index n, bool high_order) {
   return w;
 }
 
+// The preset's loop: pseudo-open-loop integrator, gain 0.35, one frame of delay.
+ControllerOptions PreSetControl() {
+  ControllerOptions control;
+  control.gain = 0.35;
+  control.delay_frames = 1;
+  control.law = ControlLaw::kPseudoOpenLoop;
+  return control;
+}
+
+// K-band science PSF every 2nd frame on a 64 x 64 Nyquist grid (32 lambda/D).
+ClosedLoopOptions NyquistScience64() {
+  ClosedLoopOptions options = KBandScience(2);
+  options.science.rows = options.science.cols = 64;
+  return options;
+}
+
 const char* Name(SensorKind kind) {
   return kind == SensorKind::kIdeal ? "ideal" : kind == SensorKind::kGeometric ? "geometric" : "diffractive";
 }
@@ -231,12 +247,8 @@ TEST(ClosedLoopPhysicsTest, LongExposurePsfLandsOnTheAxisWithEverySensor) {
   // system with the preset's loop (pseudo-open-loop integrator, gain 0.35, one frame of delay), 0.05 s
   // settling then 0.05 s (noiseless) or 0.1 s (noisy) recorded, PSF every 2nd frame on a 64 x 64 Nyquist grid
   // (32 lambda/D). At r0 = 0.08 m the DM's 5 um stroke clips some frames (printed): clipping is odd too.
-  ControllerOptions control;
-  control.gain = 0.35;
-  control.delay_frames = 1;
-  control.law = ControlLaw::kPseudoOpenLoop;
-  ClosedLoopOptions options = KBandScience(2);
-  options.science.rows = options.science.cols = 64;
+  const ControllerOptions control = PreSetControl();
+  const ClosedLoopOptions options = NyquistScience64();
   const double lod_px = 2.0;  // Nyquist science pixels
   struct Case {
     SensorKind kind;
@@ -332,12 +344,8 @@ TEST(ClosedLoopPhysicsTest, OffsetsLandWhereCommandedWithOnSkyCalibration) {
   // flat reference slopes by 1.13 - 1.16 (its closed-loop tip/tilt gain is 0.85 - 0.87: it holds the offset's
   // tilt ~1/0.86 too far), the effect kFlat keeps; with kOnSky by 0.984 - 0.999. Bounds: linear sensors within
   // 0.002 of 1, kOnSky within 0.03, kFlat above 1.08. One seed here (seed 24 gave the same to 0.015).
-  ControllerOptions control;
-  control.gain = 0.35;
-  control.delay_frames = 1;
-  control.law = ControlLaw::kPseudoOpenLoop;
-  ClosedLoopOptions options = KBandScience(2);
-  options.science.rows = options.science.cols = 64;
+  const ControllerOptions control = PreSetControl();
+  const ClosedLoopOptions options = NyquistScience64();
   const double lod_px = 2.0;
   const double c_lod = 0.25;
   const double shift_rad = c_lod * 2.2e-6 / kPaperDiameter;
