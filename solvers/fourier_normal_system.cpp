@@ -41,7 +41,11 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
   b_.resize(bins * n_ * rr);
   symbol_.resize(bins * rr);
   std::vector<double> norms(bins, 0.0);
+  const int m = std::min(n_, rr);  // the smaller Gram matrix's size
   ParallelFor(lr_.rows, [&](Index uy) {
+    // Scratch of the allocation-free eigen-solver, once per row of bins.
+    std::vector<Complex> gram(std::size_t(m) * m), vectors(std::size_t(m) * m);
+    std::vector<double> values(m), work(3 * std::size_t(m) * m + 2 * m);
     for (Index ux = 0; ux < lr_.cols; ++ux) {
       const Index bin = uy * lr_.cols + ux;
       const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
@@ -50,12 +54,25 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
       for (int ky = 0; ky < r_; ++ky)
         for (int kx = 0; kx < r_; ++kx)
           symbol_[bin * rr + ky * r_ + kx] = GradientSymbol(hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
-      // σ_max(A(u))² from the smaller Gram matrix.
-      const Eigen::MatrixXcd g = n_ <= rr ? Eigen::MatrixXcd(a * a.adjoint()) : Eigen::MatrixXcd(a.adjoint() * a);
-      norms[bin] = g.size() ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly)
-                                  .eigenvalues()
-                                  .maxCoeff()
-                            : 0.0;
+      // σ_max(A(u))² from the smaller Gram matrix (AAᴴ or AᴴA, row-major), by the allocation-free
+      // Householder + QL solver (Eigen's dynamic product and solver here cost more than the rest of the
+      // constructor and the factorisation together).
+      if (m == 0) continue;
+      for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) {
+          Complex sum = 0;
+          if (n_ <= rr)
+            for (int k = 0; k < rr; ++k) sum += a(i, k) * std::conj(a(j, k));
+          else
+            for (int k = 0; k < n_; ++k) sum += std::conj(a(k, i)) * a(k, j);
+          gram[i * m + j] = sum;
+        }
+      if (bins::HermitianEigen(gram.data(), m, values.data(), vectors.data(), work.data())) {
+        norms[bin] = values[m - 1];
+      } else {  // QL did not converge (not seen): Eigen's solver
+        const Eigen::MatrixXcd g = n_ <= rr ? Eigen::MatrixXcd(a * a.adjoint()) : Eigen::MatrixXcd(a.adjoint() * a);
+        norms[bin] = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+      }
     }
   });
   model_norm_ = double(r_) * std::sqrt(std::max(0.0, *std::max_element(norms.begin(), norms.end())));
@@ -149,20 +166,58 @@ void FourierNormalSystem::SolveBin(Index bin, Complex* v, Complex* work) const {
   const int rr = r_ * r_, n = n_;
   const int slot = slot_[bin];
   if (slot < 0) {
-    // Woodbury: c = D⁻¹v, t = K⁻¹ B c, v = c − D⁻¹ Bᴴ t.
-    const Complex* b = &b_[bin * n * rr];
+    // Woodbury: c = D⁻¹v, t = K⁻¹ B c, v = c − D⁻¹ Bᴴ t. The complex products are written in real
+    // arithmetic, the same operations in the same order as std::complex's (so the same bits for finite
+    // values) without its NaN-recovery branch, and B c takes four rows at a time: four independent sums
+    // in flight instead of one dependent chain per row.
+    const double* b = reinterpret_cast<const double*>(&b_[bin * n * rr]);  // [re, im] pairs
     const double* dinv = &dinv_[bin * rr];
-    for (int k = 0; k < rr; ++k) v[k] *= dinv[k];
-    for (int i = 0; i < n; ++i) {
-      Complex s = 0;
-      for (int k = 0; k < rr; ++k) s += b[i * rr + k] * v[k];
-      work[i] = s;
+    double* vd = reinterpret_cast<double*>(v);
+    double* wd = reinterpret_cast<double*>(work);
+    for (int k = 0; k < rr; ++k) {
+      vd[2 * k] *= dinv[k];
+      vd[2 * k + 1] *= dinv[k];
+    }
+    int i = 0;
+    for (; i + 4 <= n; i += 4) {
+      const double* b0 = b + 2 * i * rr;
+      const double* b1 = b0 + 2 * rr;
+      const double* b2 = b1 + 2 * rr;
+      const double* b3 = b2 + 2 * rr;
+      double r0 = 0, i0 = 0, r1 = 0, i1 = 0, r2 = 0, i2 = 0, r3 = 0, i3 = 0;
+      for (int k = 0; k < rr; ++k) {
+        const double vr = vd[2 * k], vi = vd[2 * k + 1];
+        r0 += b0[2 * k] * vr - b0[2 * k + 1] * vi;
+        i0 += b0[2 * k] * vi + b0[2 * k + 1] * vr;
+        r1 += b1[2 * k] * vr - b1[2 * k + 1] * vi;
+        i1 += b1[2 * k] * vi + b1[2 * k + 1] * vr;
+        r2 += b2[2 * k] * vr - b2[2 * k + 1] * vi;
+        i2 += b2[2 * k] * vi + b2[2 * k + 1] * vr;
+        r3 += b3[2 * k] * vr - b3[2 * k + 1] * vi;
+        i3 += b3[2 * k] * vi + b3[2 * k + 1] * vr;
+      }
+      wd[2 * i] = r0, wd[2 * i + 1] = i0, wd[2 * i + 2] = r1, wd[2 * i + 3] = i1;
+      wd[2 * i + 4] = r2, wd[2 * i + 5] = i2, wd[2 * i + 6] = r3, wd[2 * i + 7] = i3;
+    }
+    for (; i < n; ++i) {
+      const double* bi = b + 2 * i * rr;
+      double re = 0, im = 0;
+      for (int k = 0; k < rr; ++k) {
+        re += bi[2 * k] * vd[2 * k] - bi[2 * k + 1] * vd[2 * k + 1];
+        im += bi[2 * k] * vd[2 * k + 1] + bi[2 * k + 1] * vd[2 * k];
+      }
+      wd[2 * i] = re, wd[2 * i + 1] = im;
     }
     bins::Substitute(&kfactor_[bin * n * n], n, work);
     for (int k = 0; k < rr; ++k) {
-      Complex s = 0;
-      for (int i = 0; i < n; ++i) s += std::conj(b[i * rr + k]) * work[i];
-      v[k] -= dinv[k] * s;
+      double re = 0, im = 0;  // (Bᴴ t)_k = Σ_i conj(B_ik) t_i
+      for (int j = 0; j < n; ++j) {
+        const double br = b[2 * (j * rr + k)], bim = b[2 * (j * rr + k) + 1];
+        re += br * wd[2 * j] + bim * wd[2 * j + 1];
+        im += br * wd[2 * j + 1] - bim * wd[2 * j];
+      }
+      vd[2 * k] -= dinv[k] * re;
+      vd[2 * k + 1] -= dinv[k] * im;
     }
   } else if (!dense_[slot].empty()) {
     bins::Substitute(dense_[slot].data(), rr, v);
