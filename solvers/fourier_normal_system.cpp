@@ -22,6 +22,10 @@ constexpr int kStackBins = 64;
 
 // Symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx):
 // |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 sin²(π f_y/M_y) + 4 sin²(π f_x/M_x).
+// (size − f) mod size for 0 <= f < size, the index of frequency −f, without an integer division (the per-bin
+// gathers and scatters of SolveBins do several per HR frequency).
+inline Index Mirror(Index f, Index size) { return f == 0 ? 0 : size - f; }
+
 double GradientSymbol(Shape hr, Index fy, Index fx) {
   const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
   const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
@@ -240,7 +244,7 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
   const Index half_cols = half.cols(), lr_half = lr_.cols / 2 + 1;
   auto at = [&](const ComplexImage& spectrum, Shape full, Index fy, Index fx) {
     return fx < spectrum.cols() ? spectrum(fy, fx)
-                                : std::conj(spectrum((full.rows - fy) % full.rows, full.cols - fx));
+                                : std::conj(spectrum(Mirror(fy, full.rows), full.cols - fx));
   };
   ParallelFor(lr_.rows, [&](Index uy) {
     Complex stack_v[kStackBins], stack_w[kStackBins];
@@ -252,9 +256,9 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
       x = heap.data();
       work = heap.data() + std::max(rr, n);
     }
-    const Index muy = (lr_.rows - uy) % lr_.rows;
+    const Index muy = Mirror(uy, lr_.rows);
     for (Index ux = 0; ux < lr_.cols; ++ux) {
-      const Index mux = (lr_.cols - ux) % lr_.cols;
+      const Index mux = Mirror(ux, lr_.cols);
       if (!(ux < mux || (ux == mux && uy <= muy))) continue;  // the mirror bin is solved instead
       const bool self_mirror = ux == mux && uy == muy;
       const Index bin = uy * lr_.cols + ux;
@@ -277,8 +281,8 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
         for (int k = 0; k < rr; ++k) work[k] = x[k];
         for (int ky = 0; ky < r_; ++ky)
           for (int kx = 0; kx < r_; ++kx) {
-            const Index my = (hr_.rows - (uy + ky * lr_.rows)) % hr_.rows;
-            const Index mx = (hr_.cols - (ux + kx * lr_.cols)) % hr_.cols;
+            const Index my = Mirror(uy + ky * lr_.rows, hr_.rows);
+            const Index mx = Mirror(ux + kx * lr_.cols, hr_.cols);
             const int k = ky * r_ + kx, km = int(my / lr_.rows) * r_ + int(mx / lr_.cols);
             x[k] = 0.5 * (work[k] + std::conj(work[km]));
           }
@@ -288,7 +292,7 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
           const Index fy = uy + ky * lr_.rows, fx = ux + kx * lr_.cols;
           const Complex value = x[ky * r_ + kx];
           if (fx < half_cols) (*out)(fy, fx) = value;
-          const Index my = (hr_.rows - fy) % hr_.rows, mx = (hr_.cols - fx) % hr_.cols;
+          const Index my = Mirror(fy, hr_.rows), mx = Mirror(fx, hr_.cols);
           if (mx < half_cols) (*out)(my, mx) = std::conj(value);
         }
       if (ax) {
