@@ -44,12 +44,7 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
   sqrt_s_ = std::sqrt(double(rr) * data_weight);
   b_.resize(bins * n_ * rr);
   symbol_.resize(bins * rr);
-  std::vector<double> norms(bins, 0.0);
-  const int m = std::min(n_, rr);  // the smaller Gram matrix's size
   ParallelFor(lr_.rows, [&](Index uy) {
-    // Scratch of the allocation-free eigen-solver, once per row of bins.
-    std::vector<Complex> gram(std::size_t(m) * m), vectors(std::size_t(m) * m);
-    std::vector<double> values(m), work(3 * std::size_t(m) * m + 2 * m);
     for (Index ux = 0; ux < lr_.cols; ++ux) {
       const Index bin = uy * lr_.cols + ux;
       const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
@@ -58,28 +53,46 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
       for (int ky = 0; ky < r_; ++ky)
         for (int kx = 0; kx < r_; ++kx)
           symbol_[bin * rr + ky * r_ + kx] = GradientSymbol(hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
-      // σ_max(A(u))² from the smaller Gram matrix (AAᴴ or AᴴA, row-major), by the allocation-free
-      // Householder + QL solver (Eigen's dynamic product and solver here cost more than the rest of the
-      // constructor and the factorisation together).
-      if (m == 0) continue;
-      for (int i = 0; i < m; ++i)
-        for (int j = 0; j < m; ++j) {
-          Complex sum = 0;
-          if (n_ <= rr)
-            for (int k = 0; k < rr; ++k) sum += a(i, k) * std::conj(a(j, k));
-          else
-            for (int k = 0; k < n_; ++k) sum += std::conj(a(k, i)) * a(k, j);
-          gram[i * m + j] = sum;
-        }
-      if (bins::HermitianEigen(gram.data(), m, values.data(), vectors.data(), work.data())) {
-        norms[bin] = values[m - 1];
-      } else {  // QL did not converge (not seen): Eigen's solver
-        const Eigen::MatrixXcd g = n_ <= rr ? Eigen::MatrixXcd(a * a.adjoint()) : Eigen::MatrixXcd(a.adjoint() * a);
-        norms[bin] = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
-      }
     }
   });
-  model_norm_ = double(r_) * std::sqrt(std::max(0.0, *std::max_element(norms.begin(), norms.end())));
+}
+
+double FourierNormalSystem::ModelNorm() const {
+  std::call_once(model_norm_once_, [this] {
+    // σ_max(A(u))² = λ_max(B Bᴴ) / s (B = √s A(u)) from the smaller Gram matrix (BBᴴ or BᴴB, row-major), by
+    // the allocation-free Householder + QL solver, bins in parallel.
+    const int rr = r_ * r_, m = std::min(n_, rr);
+    const Index bins = lr_.size();
+    std::vector<double> norms(bins, 0.0);
+    if (m > 0)
+      ParallelFor(lr_.rows, [&](Index uy) {
+        std::vector<Complex> gram(std::size_t(m) * m), vectors(std::size_t(m) * m);
+        std::vector<double> values(m), work(3 * std::size_t(m) * m + 2 * m);
+        for (Index ux = 0; ux < lr_.cols; ++ux) {
+          const Index bin = uy * lr_.cols + ux;
+          const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> b(
+              &b_[bin * n_ * rr], n_, rr);
+          for (int i = 0; i < m; ++i)
+            for (int j = 0; j < m; ++j) {
+              Complex sum = 0;
+              if (n_ <= rr)
+                for (int k = 0; k < rr; ++k) sum += b(i, k) * std::conj(b(j, k));
+              else
+                for (int k = 0; k < n_; ++k) sum += std::conj(b(k, i)) * b(k, j);
+              gram[i * m + j] = sum;
+            }
+          if (bins::HermitianEigen(gram.data(), m, values.data(), vectors.data(), work.data())) {
+            norms[bin] = values[m - 1];
+          } else {  // QL did not converge (not seen): Eigen's solver
+            const Eigen::MatrixXcd g = n_ <= rr ? Eigen::MatrixXcd(b * b.adjoint()) : Eigen::MatrixXcd(b.adjoint() * b);
+            norms[bin] = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+          }
+        }
+      });
+    const double largest = norms.empty() ? 0.0 : *std::max_element(norms.begin(), norms.end());
+    model_norm_ = double(r_) * std::sqrt(std::max(0.0, largest) / (sqrt_s_ * sqrt_s_));
+  });
+  return model_norm_;
 }
 
 void FourierNormalSystem::Factorize(double gradient_weight, double identity_weight) {

@@ -163,7 +163,7 @@ Complex MultiFrameModel::PixelTransfer(Index fy, Index fx) const { return box_y_
 Complex MultiFrameModel::Otf(int i, Index fy, Index fx) const {
   const ComplexImage& h = otfs_[i];
   if (fx < h.cols()) return h(fy, fx);
-  return std::conj(h((hr_.rows - fy) % hr_.rows, hr_.cols - fx));
+  return std::conj(h(fy == 0 ? 0 : hr_.rows - fy, hr_.cols - fx));  // (−fy) mod rows without a division
 }
 
 Eigen::MatrixXcd MultiFrameModel::AliasedSystem(Index uy, Index ux) const {

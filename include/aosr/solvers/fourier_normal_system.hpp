@@ -30,6 +30,7 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <mutex>
 #include <vector>
 
 #include "aosr/core/forward_model.hpp"
@@ -63,8 +64,9 @@ class FourierNormalSystem {
   Index woodbury_bins() const { return woodbury_bins_; }
   Index bins() const { return lr_.size(); }
   // ||A||₂, the largest singular value of the stacked model (for unit data weight): max over bins of
-  // r·σ_max(A(u)).
-  double ModelNorm() const { return model_norm_; }
+  // r·σ_max(A(u)). Computed on the first call (an eigenvalue problem per bin; thread-safe), since only the
+  // split data term needs it.
+  double ModelNorm() const;
 
  private:
   void SolveBins(const ComplexImage& half, const std::vector<ComplexImage>* v, ComplexImage* out,
@@ -74,7 +76,8 @@ class FourierNormalSystem {
   Shape hr_, lr_;
   int r_ = 1, n_ = 0;
   double sqrt_s_ = 1;  // √(r² w)
-  double model_norm_ = 0;
+  mutable std::once_flag model_norm_once_;
+  mutable double model_norm_ = 0;
   bool factorized_ = false;
   Index singular_bins_ = 0, woodbury_bins_ = 0;
   std::vector<Complex> b_;       // per bin, N x r² row-major: √(r² w) A(u)
