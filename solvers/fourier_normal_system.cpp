@@ -20,16 +20,20 @@ constexpr double kWoodburyAmplification = 1e6;
 // Largest r² whose per-bin scratch lives on the stack.
 constexpr int kStackBins = 64;
 
-// Symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx):
-// |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 sin²(π f_y/M_y) + 4 sin²(π f_x/M_x).
 // (size − f) mod size for 0 <= f < size, the index of frequency −f, without an integer division (the per-bin
 // gathers and scatters of SolveBins do several per HR frequency).
 inline Index Mirror(Index f, Index size) { return f == 0 ? 0 : size - f; }
 
-double GradientSymbol(Shape hr, Index fy, Index fx) {
-  const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
-  const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
-  return 4.0 * (sy * sy + sx * sx);
+// The symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx) is
+// |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 (sin²(π f_y/M_y) + sin²(π f_x/M_x)); this is one
+// axis's table of sin²(π f/M), f = 0 .. M − 1.
+std::vector<double> SineSquares(Index size) {
+  std::vector<double> t(size);
+  for (Index f = 0; f < size; ++f) {
+    const double s = std::sin(M_PI * double(f) / double(size));
+    t[f] = s * s;
+  }
+  return t;
 }
 
 }  // namespace
@@ -44,6 +48,7 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
   sqrt_s_ = std::sqrt(double(rr) * data_weight);
   b_.resize(bins * n_ * rr);
   symbol_.resize(bins * rr);
+  const std::vector<double> sy2 = SineSquares(hr_.rows), sx2 = SineSquares(hr_.cols);
   ParallelFor(lr_.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr_.cols; ++ux) {
       const Index bin = uy * lr_.cols + ux;
@@ -52,7 +57,7 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
         for (int k = 0; k < rr; ++k) b_[(bin * n_ + i) * rr + k] = sqrt_s_ * a(i, k);
       for (int ky = 0; ky < r_; ++ky)
         for (int kx = 0; kx < r_; ++kx)
-          symbol_[bin * rr + ky * r_ + kx] = GradientSymbol(hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
+          symbol_[bin * rr + ky * r_ + kx] = 4.0 * (sy2[uy + ky * lr_.rows] + sx2[ux + kx * lr_.cols]);
     }
   });
 }
@@ -120,14 +125,21 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
       }
       for (int e = 0; e < n * rr; ++e) frob += std::norm(b[e]);
       if (!(n < rr && dmin > 0 && frob <= kWoodburyAmplification * dmin)) continue;
-      // K = I + B D⁻¹ Bᴴ (N x N, Hermitian positive definite: ≥ I).
+      // K = I + B D⁻¹ Bᴴ (N x N, Hermitian positive definite: ≥ I). The products (B_ik D⁻¹_k) conj(B_jk) in
+      // real arithmetic: std::complex's operations in its order, without its NaN-recovery branch.
       Complex* kf = &kfactor_[bin * n * n];
+      const double* bd = reinterpret_cast<const double*>(b);
       for (int i = 0; i < n; ++i)
         for (int j = 0; j <= i; ++j) {
-          Complex s = i == j ? 1.0 : 0.0;
-          for (int k = 0; k < rr; ++k) s += b[i * rr + k] * dinv[k] * std::conj(b[j * rr + k]);
-          kf[i * n + j] = s;
-          kf[j * n + i] = std::conj(s);
+          double re = i == j ? 1.0 : 0.0, im = 0.0;
+          for (int k = 0; k < rr; ++k) {
+            const double tr = bd[2 * (i * rr + k)] * dinv[k], ti = bd[2 * (i * rr + k) + 1] * dinv[k];
+            const double cr = bd[2 * (j * rr + k)], ci = bd[2 * (j * rr + k) + 1];
+            re += tr * cr + ti * ci;
+            im += ti * cr - tr * ci;
+          }
+          kf[i * n + j] = Complex(re, im);
+          kf[j * n + i] = Complex(re, -im);
         }
       woodbury[bin] = bins::CholeskyInPlace(kf, n, 1e-12);
     }
