@@ -30,7 +30,9 @@
 //     (r² w A(u)ᴴA(u) + ρ P(u) + ρ_v I) X(f_·) = B(f_·),   B = DFT of the right-hand side,
 //
 // solved exactly by fourier_normal_system.hpp (Woodbury N x N form where N < r², factorised once per value of
-// ρ), so an iteration costs two HR FFTs, m² small solves and a few pixel-wise passes.
+// ρ), so an iteration costs two HR FFTs, m² small solves and one pixel-wise pass: the z- and v-updates with
+// their duals, the next right-hand side (AᵀWy included) and every residual and stopping sum are formed in a
+// single sweep over the image (total_variation.cpp), the array traffic that bounds this memory-bound step.
 // With masked or varying weights (the normal case for measured and photon-noise data) the default splits the
 // data term off (x_update kFourierSplit): ω = Ax is a further ADMM variable with a fixed penalty ρ_ω (the mean
 // positive weight) and scaled dual t, so the x-update keeps the Fourier-exact system above at weight ρ_ω and
@@ -102,8 +104,8 @@ struct TotalVariationOptions {
   // order 1 with a few percent of noise, the regime of the tests.
   double mu = 1e-2;
 
-  // Constrain x >= 0 (flux cannot be negative). Adds the v = x splitting; costs one extra pass per
-  // iteration. Off by default, like every other reconstructor in aosr.
+  // Constrain x >= 0 (flux cannot be negative). Adds the v = x splitting; its two arrays join the
+  // iteration's pixel pass. Off by default, like every other reconstructor in aosr.
   bool positivity = false;
 
   // Initial ADMM penalty ρ > 0 in the units of the data curvature (weight x frame²/object²), or 0
