@@ -363,16 +363,30 @@ Vector StackedWeights(const ReconstructionProblem& problem) {
 }
 
 // ρ₀ = tr(AᵀWA) / tr(∇ᵀ∇). With periodic convolution every row of A_i has the same norm, ||A_iᵀ e||² for
-// an LR delta e, so tr(A_iᵀ W_i A_i) = (Σ_p w_i[p]) ||A_iᵀ e||²; tr(∇ᵀ∇) = 4n (periodic differences).
+// an LR delta e, so tr(A_iᵀ W_i A_i) = (Σ_p w_i[p]) ||A_iᵀ e||²; tr(∇ᵀ∇) = 4n (periodic differences). By
+// Parseval ||A_iᵀ e||² = (1/n) Σ_f |B(f) H_i(f)|² over the full HR spectrum (B the pixel transfer, H_i the
+// OTF; core/forward_model.hpp): a sum over the stored half spectrum, each column but 0 (and C/2 for even C)
+// counted twice by Hermitian symmetry, instead of an HR convolution per frame.
 double AutomaticRho(const ReconstructionProblem& problem) {
   const MultiFrameModel& model = *problem.model;
-  const Shape lr = model.lr_shape();
-  Vector delta = Vector::Zero(lr.size());
-  delta[0] = 1.0;
+  const Shape hr = model.hr_shape();
+  const Index half = hr.cols / 2 + 1;
+  Image b2(hr.rows, half);  // |B|² times the column's multiplicity
+  for (Index fy = 0; fy < hr.rows; ++fy)
+    for (Index fx = 0; fx < half; ++fx) {
+      const Complex b = model.PixelTransfer(fy, fx);
+      b2(fy, fx) = (b.real() * b.real() + b.imag() * b.imag()) * (fx == 0 || 2 * fx == hr.cols ? 1.0 : 2.0);
+    }
+  const Index count = b2.size();
   double trace = 0;
-  for (int i = 0; i < model.frames(); ++i)
-    trace += problem.Weight(i).sum() * model.FrameOperator(i)->ApplyAdjoint(delta).squaredNorm();
-  const double rho = trace / (4.0 * double(model.hr_shape().size()));
+  for (int i = 0; i < model.frames(); ++i) {
+    const double* w = b2.data();
+    const Complex* h = model.otf(i).data();
+    double sum = 0;
+    for (Index p = 0; p < count; ++p) sum += w[p] * (h[p].real() * h[p].real() + h[p].imag() * h[p].imag());
+    trace += problem.Weight(i).sum() * (sum / double(hr.size()));
+  }
+  const double rho = trace / (4.0 * double(hr.size()));
   return rho > 0 && std::isfinite(rho) ? rho : 1.0;
 }
 

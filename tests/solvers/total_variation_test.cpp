@@ -424,6 +424,36 @@ TEST(TotalVariationTest, ProgressCallbackReturningFalseCancelsAfterThatIteration
   }
 }
 
+// The automatic ρ₀ = tr(AᵀWA) / tr(∇ᵀ∇), which the solver sums over the OTFs' half spectra (Parseval), is the
+// trace ratio computed with the operators themselves: Σ_i (Σ_p w_i[p]) ||A_iᵀ e||² / (4n) for an LR delta e.
+// Even and odd HR widths (the half spectrum's last column is its own mirror only for even widths), varying
+// weights.
+TEST(TotalVariationTest, AutomaticRhoIsTheTraceRatioOfTheOperators) {
+  for (const Shape hr : {Shape{30, 42}, Shape{30, 45}}) {
+    const auto model = RasterModel(hr, 3, {{0, 0}, {0.4, 1.3}, {1.7, 0.2}}, 1.2);
+    ReconstructionProblem p = NoisyProblem(model, tv_test::Blocks(hr), 0.05, 5);
+    std::mt19937_64 rng(6);
+    std::uniform_real_distribution<double> weight(0.5, 2.0);
+    p.weights.clear();
+    for (const Image& f : p.frames) {
+      Image w(f.rows(), f.cols());
+      for (Index q = 0; q < w.size(); ++q) w.data()[q] = weight(rng);
+      p.weights.push_back(w);
+    }
+    Vector delta = Vector::Zero(model->lr_shape().size());
+    delta[0] = 1.0;
+    double trace = 0;
+    for (int i = 0; i < model->frames(); ++i)
+      trace += p.weights[i].sum() * model->FrameOperator(i)->ApplyAdjoint(delta).squaredNorm();
+    const double expected = trace / (4.0 * double(hr.size()));
+    TotalVariationOptions o;
+    o.max_iterations = 1;
+    TotalVariationSummary s;
+    TotalVariationAdmm(p, o, &s);
+    EXPECT_NEAR(s.initial_rho, expected, 1e-12 * expected) << ToString(hr);
+  }
+}
+
 // The callback cannot change the maths: a callback that always continues gives the same bits as none.
 TEST(TotalVariationTest, ProgressCallbackLeavesTheResultBitIdentical) {
   for (TotalVariationXUpdate path :
