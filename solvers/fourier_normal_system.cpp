@@ -24,6 +24,15 @@ constexpr int kStackBins = 64;
 // gathers and scatters of SolveBins do several per HR frequency).
 inline Index Mirror(Index f, Index size) { return f == 0 ? 0 : size - f; }
 
+// The LR bins come in mirror pairs u, −u whose systems are conjugate, and only the first of each pair (in
+// the order ux, then uy) is ever formed, factorised and solved (SolveBins). Returns 2 for such a bin, 1 for
+// a bin that is its own mirror, 0 for a bin solved through its mirror.
+inline int MirrorMultiplicity(Shape lr, Index uy, Index ux) {
+  const Index muy = Mirror(uy, lr.rows), mux = Mirror(ux, lr.cols);
+  if (ux == mux && uy == muy) return 1;
+  return ux < mux || (ux == mux && uy < muy) ? 2 : 0;
+}
+
 // The symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx) is
 // |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 (sin²(π f_y/M_y) + sin²(π f_x/M_x)); this is one
 // axis's table of sin²(π f/M), f = 0 .. M − 1.
@@ -51,6 +60,7 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
   const std::vector<double> sy2 = SineSquares(hr_.rows), sx2 = SineSquares(hr_.cols);
   ParallelFor(lr_.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr_.cols; ++ux) {
+      if (!MirrorMultiplicity(lr_, uy, ux)) continue;  // never read (b_ and symbol_ stay 0 there)
       const Index bin = uy * lr_.cols + ux;
       const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
       for (int i = 0; i < n_; ++i)
@@ -74,6 +84,7 @@ double FourierNormalSystem::ModelNorm() const {
         std::vector<Complex> gram(std::size_t(m) * m), vectors(std::size_t(m) * m);
         std::vector<double> values(m), work(3 * std::size_t(m) * m + 2 * m);
         for (Index ux = 0; ux < lr_.cols; ++ux) {
+          if (!MirrorMultiplicity(lr_, uy, ux)) continue;  // a mirror bin has the same singular values
           const Index bin = uy * lr_.cols + ux;
           const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> b(
               &b_[bin * n_ * rr], n_, rr);
@@ -114,6 +125,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
   std::vector<char> woodbury(bins, 0);
   ParallelFor(lr_.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr_.cols; ++ux) {
+      if (!MirrorMultiplicity(lr_, uy, ux)) continue;
       const Index bin = uy * lr_.cols + ux;
       const Complex* b = &b_[bin * n * rr];
       double* dinv = &dinv_[bin * rr];
@@ -145,13 +157,16 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
     }
   });
   // Pass 2 (serial: few bins, and the slots are numbered in bin order): the dense r² x r² factorisations.
+  // The counts include the mirror bins, which share their twin's form.
   dense_.clear();
   pseudo_.clear();
   singular_bins_ = 0;
   woodbury_bins_ = 0;
   for (Index bin = 0; bin < bins; ++bin) {
+    const int multiplicity = MirrorMultiplicity(lr_, bin / lr_.cols, bin % lr_.cols);
+    if (!multiplicity) continue;
     if (woodbury[bin]) {
-      ++woodbury_bins_;
+      woodbury_bins_ += multiplicity;
       continue;
     }
     const Complex* b = &b_[bin * n * rr];
@@ -176,7 +191,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
       pseudo_.emplace_back();
       continue;
     }
-    ++singular_bins_;
+    singular_bins_ += multiplicity;
     const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> gm(
         g.data(), rr, rr);
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd> eig{Eigen::MatrixXcd(gm)};
@@ -284,8 +299,9 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
     const Index muy = Mirror(uy, lr_.rows);
     for (Index ux = 0; ux < lr_.cols; ++ux) {
       const Index mux = Mirror(ux, lr_.cols);
-      if (!(ux < mux || (ux == mux && uy <= muy))) continue;  // the mirror bin is solved instead
-      const bool self_mirror = ux == mux && uy == muy;
+      const int multiplicity = MirrorMultiplicity(lr_, uy, ux);
+      if (!multiplicity) continue;  // the mirror bin is solved instead
+      const bool self_mirror = multiplicity == 1;
       const Index bin = uy * lr_.cols + ux;
       for (int ky = 0; ky < r_; ++ky)
         for (int kx = 0; kx < r_; ++kx) x[ky * r_ + kx] = at(half, hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
