@@ -49,7 +49,8 @@
 // Convergence in practice (measured, 64x64 HR, r = 2 and 3, μ near its PSNR-best value): 300–400
 // iterations to the default ε_rel = 1e-4, 1500–2000 to 1e-6, ADMM's usual slow linear tail. Small μ with
 // noise-free data, or μ far above the noise level, converge more slowly (thousands to 1e-5). Time per
-// iteration on one core: 0.16 ms (64x64 HR), 0.7 ms (128x128), 7 ms (256x256) for the exact update.
+// iteration on one core of the 2-core development machine (reconstruct_bench's TV rows, N = 4, CPU time):
+// about 1 ms at 256² (r = 2), 4 ms at 512² (r = 4), 20 ms at 1024² (r = 8) for the exact update.
 //
 // Stopping rule (Boyd §3.3.1), with K = [∇; I] (the I row only with positivity), ζ = (z, v); with the split
 // data block its residuals join, scaled by ρ_ω/ρ into the gradient block's units, and its part of the dual
