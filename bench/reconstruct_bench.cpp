@@ -33,7 +33,8 @@
 // Usage: build/bench/reconstruct_bench [--quick] [--scene NAME] [--frames N] [--methods LIST] [--out FILE]
 //   --quick   small grids and short sweeps (~1 minute): a smoke run
 //   --scene   only the configurations of that scene file (e.g. paper-sim-r8)
-//   --frames  only the configurations with N frames (e.g. 4)
+//   --frames  only the configurations that set N frames (e.g. 4; crowded-stars keeps its scene's own N and is
+//             left out)
 //   --methods only these methods, comma-separated names of ToString(ReconstructionMethod) (e.g. tv or
 //             tikhonov,map); the Tikhonov rows stay out unless named (TV and MAP still run their own pilot),
 //             OpenCV BTV-L1 is `opencv-btvl1`. Each row also prints its process CPU time on stderr.
