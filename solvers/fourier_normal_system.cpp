@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <new>
 #include <string>
 
 #include "aosr/core/error.hpp"
@@ -55,16 +57,19 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
   const Index bins = lr_.size();
   // F(AᵀA x) = r² A(u)ᴴA(u) X(u) per bin (Parseval for the unnormalised DFTs): the data block is BᴴB.
   sqrt_s_ = std::sqrt(double(rr) * data_weight);
-  b_.resize(bins * n_ * rr);
+  // Uninitialised storage: only the solved bins are written (constructed in place), in parallel, so the
+  // array is neither zero-filled first nor page-faulted in on one thread (64 MiB at r = 8, N = 4, 1024²).
+  b_.reset(static_cast<Complex*>(std::malloc(sizeof(Complex) * std::size_t(bins * n_ * rr) + 1)));
+  if (!b_) throw std::bad_alloc();
   symbol_.resize(bins * rr);
   const std::vector<double> sy2 = SineSquares(hr_.rows), sx2 = SineSquares(hr_.cols);
   ParallelFor(lr_.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr_.cols; ++ux) {
-      if (!MirrorMultiplicity(lr_, uy, ux)) continue;  // never read (b_ and symbol_ stay 0 there)
+      if (!MirrorMultiplicity(lr_, uy, ux)) continue;  // never read (b_ unwritten, symbol_ 0 there)
       const Index bin = uy * lr_.cols + ux;
       const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
       for (int i = 0; i < n_; ++i)
-        for (int k = 0; k < rr; ++k) b_[(bin * n_ + i) * rr + k] = sqrt_s_ * a(i, k);
+        for (int k = 0; k < rr; ++k) new (&b_[(bin * n_ + i) * rr + k]) Complex(sqrt_s_ * a(i, k));
       for (int ky = 0; ky < r_; ++ky)
         for (int kx = 0; kx < r_; ++kx)
           symbol_[bin * rr + ky * r_ + kx] = 4.0 * (sy2[uy + ky * lr_.rows] + sx2[ux + kx * lr_.cols]);

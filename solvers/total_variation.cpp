@@ -336,6 +336,25 @@ PassSums IterationPass(const PassArrays& a, PassBuffers* buffers) {
   return sums;
 }
 
+// z = ∇x (y then x parts, the periodic forward differences of core/operators.hpp's Gradient, the same
+// subtractions) and u = 0, in parallel over the pass's row blocks (the first write of these arrays).
+void InitialSplitting(Shape hr, const double* x, double* z, double* u) {
+  const Index R = hr.rows, C = hr.cols, n = hr.size();
+  const Index per = PassBlockRows(hr), blocks = (R + per - 1) / per;
+  ParallelFor(blocks, [&](Index b) {
+    for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y) {
+      const Index row = y * C, below = (y + 1 < R ? y + 1 : 0) * C;
+      for (Index c = 0; c < C; ++c) {
+        const Index p = row + c;
+        z[p] = x[below + c] - x[p];
+        z[n + p] = x[row + (c + 1 < C ? c + 1 : 0)] - x[p];
+        u[p] = 0.0;
+        u[n + p] = 0.0;
+      }
+    }
+  });
+}
+
 // The right-hand side alone (v, s unchanged), with its norm: before the first iteration and after a ρ change.
 double RhsPass(const PassArrays& a, PassBuffers* buffers) {
   const Index R = a.hr.rows;
@@ -609,8 +628,9 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   const OperatorPtr& a = model.Operator();
   const Vector weights = StackedWeights(problem);
   const Vector y = model.Flatten(problem.CleanFrames());
-  const Vector aty = a->ApplyAdjoint(weights.cwiseProduct(y));
-  const OperatorPtr grad = Gradient(hr, Boundary::kPeriodic);
+  Vector aty = a->ApplyAdjoint(weights.cwiseProduct(y));
+  // Squared norms of the data-sized vectors must exist in double precision, or no residual is meaningful.
+  const bool aty_finite = std::isfinite(aty.squaredNorm());
 
   // State: x, z = ∇x (+ u), v = x (+ s). Start consistent with x, duals at zero. x and x_prev swap their
   // buffers every iteration (the x-update writes the new x over the one before the last).
@@ -620,16 +640,17 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   s.initial_rho = rho;
   std::unique_ptr<XUpdate> x_update;
   if (path == TotalVariationXUpdate::kFourier)
-    x_update = std::make_unique<FourierXUpdate>(model, weights[0], aty, &s);
+    x_update = std::make_unique<FourierXUpdate>(model, weights[0], std::move(aty), &s);
   else if (path == TotalVariationXUpdate::kFourierSplit)
     x_update = std::make_unique<SplitXUpdate>(problem, weights, y, AsVector(x), rho, options.positivity);
   else
-    x_update = std::make_unique<CgXUpdate>(problem, weights, aty, options, &s);
+    x_update = std::make_unique<CgXUpdate>(problem, weights, std::move(aty), options, &s);
 
   const bool pos = options.positivity;
   x_update->Prepare(rho, pos ? rho : 0.0);
 
-  Vector z = grad->Apply(AsVector(x)), u = Vector::Zero(2 * n);
+  Vector z(2 * n), u(2 * n);
+  InitialSplitting(hr, x.data(), z.data(), u.data());
   Vector v, sv;
   if (pos) {
     v = AsVector(x).cwiseMax(0.0);
@@ -669,7 +690,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   s.termination = Termination::kMaxIterations;
   int still_iterations = 0;  // consecutive iterations in which x did not move beyond rounding
   // Squared norms of the data-sized vectors must exist in double precision, or no residual is meaningful.
-  bool failed = !std::isfinite(aty.squaredNorm());
+  bool failed = !aty_finite;
   if (failed)
     s.message = "the data are too large for double precision (||AᵀWy||² overflows); rescale the frames";
   for (int k = 0; !failed && k < options.max_iterations; ++k) {

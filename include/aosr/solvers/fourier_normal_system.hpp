@@ -30,6 +30,8 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cstdlib>
+#include <memory>
 #include <mutex>
 #include <vector>
 
@@ -80,7 +82,11 @@ class FourierNormalSystem {
   mutable double model_norm_ = 0;
   bool factorized_ = false;
   Index singular_bins_ = 0, woodbury_bins_ = 0;
-  std::vector<Complex> b_;       // per bin, N x r² row-major: √(r² w) A(u)
+  struct FreeDeleter {
+    void operator()(Complex* p) const { std::free(p); }
+  };
+  // Per bin, N x r² row-major: √(r² w) A(u); written only for the bins SolveBins solves (see the .cpp).
+  std::unique_ptr<Complex[], FreeDeleter> b_;
   std::vector<double> symbol_;   // per bin, r² values of P(u)
   std::vector<double> dinv_;     // per bin, r² values of D(u)⁻¹ (Woodbury bins)
   std::vector<Complex> kfactor_;  // per bin, N x N Cholesky of K (row-major, 1/L_ii on the diagonal)
