@@ -30,14 +30,20 @@
 // (Fourier shift), rescale to e⁻ per HR pixel (÷ scale ÷ r²) and score it on the same crop (at least the
 // 7 px it drops). Integer scale only: it runs at every r here.
 //
-// Usage: build/bench/reconstruct_bench [--quick] [--scene NAME] [--out FILE]
+// Usage: build/bench/reconstruct_bench [--quick] [--scene NAME] [--frames N] [--methods LIST] [--out FILE]
 //   --quick   small grids and short sweeps (~1 minute): a smoke run
 //   --scene   only the configurations of that scene file (e.g. paper-sim-r8)
+//   --frames  only the configurations that set N frames (e.g. 4; crowded-stars keeps its scene's own N and is
+//             left out)
+//   --methods only these methods, comma-separated names of ToString(ReconstructionMethod) (e.g. tv or
+//             tikhonov,map); the Tikhonov rows stay out unless named (TV and MAP still run their own pilot),
+//             OpenCV BTV-L1 is `opencv-btvl1`. Each row also prints its process CPU time on stderr.
 //   --out     also write the Markdown table to FILE (e.g. bench/results/reconstruct.md) and, next to it, the
 //             picture FILE's stem + ".png" (e.g. bench/results/reconstruct.png): per configuration, PSNR and
 //             SSIM against wall time (log axis), one curve per method over its iteration caps (io/plot.hpp,
 //             the plot `aosr tradeoff` draws)
 #include <fftw3.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -82,10 +88,23 @@ using aosr::Index;
 
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// CPU seconds of the whole process (all threads) so far: on a shared machine, less disturbed than wall time.
+double ProcessCpuSeconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+
+// The --methods filter: empty runs everything.
+std::vector<std::string> g_methods;
+bool Wanted(const std::string& method) {
+  return g_methods.empty() || std::find(g_methods.begin(), g_methods.end(), method) != g_methods.end();
+}
+
 struct Config {
   std::string scene;  // file name in data/scenes
   int frame_px = 0;   // 0: the scene's
-  int frames = 0;     // 0: the scene's
+  int frames = 0;     // 0: the scene's (the --frames filter then matches nothing but 0)
   std::vector<int> caps;  // iteration caps for tv and map
 };
 
@@ -260,7 +279,9 @@ void RunConfig(const Config& c, bool quick, std::vector<Row>* rows, std::vector<
       o.map.max_iterations = cap;
     }
     const std::uint64_t f0 = aosr::FftExecutionCount();
+    const double cpu0 = ProcessCpuSeconds();
     const aosr::Reconstruction rec = aosr::Reconstruct(q, o);
+    const double cpu = ProcessCpuSeconds() - cpu0;
     aosr::SetDefaultThreads(1);
     Row row;
     row.ffts = aosr::FftExecutionCount() - f0;
@@ -288,32 +309,41 @@ void RunConfig(const Config& c, bool quick, std::vector<Row>* rows, std::vector<
     row.ssim = score.ssim;
     rows->push_back(row);
     last_regularisation = rec.regularisation;
-    std::fprintf(stderr, "  %-17s cap %4d: %6.2f dB  SSIM %.3f  %8.3f s  %7llu FFTs  floor %.3f s  (%s, %d it)\n",
-                 row.method.c_str(), cap, row.psnr, row.ssim, row.seconds, (unsigned long long)row.ffts, row.floor,
-                 row.termination.c_str(), row.iterations);
+    std::fprintf(stderr,
+                 "  %-17s cap %4d: %6.2f dB  SSIM %.3f  %8.3f s (CPU %.3f s)  %7llu FFTs  floor %.3f s  x%.1f  "
+                 "(%s, %d it)\n",
+                 row.method.c_str(), cap, row.psnr, row.ssim, row.seconds, cpu, (unsigned long long)row.ffts,
+                 row.floor, row.floor > 0 ? row.seconds / row.floor : 0.0, row.termination.c_str(), row.iterations);
     return rec.image;
   };
   const auto add = [&](aosr::ReconstructionMethod m, int cap, double fixed_lambda = 0) {
     return run(m, cap, fixed_lambda, p, 1, "", nullptr);
   };
   using M = aosr::ReconstructionMethod;
-  for (M m : {M::kShiftAddMean, M::kShiftAddMedian, M::kDrizzle}) add(m, 0);
-  const Image tikhonov_1 = add(M::kTikhonov, 0);
-  const double gcv_lambda = last_regularisation;
-  add(M::kTikhonov, 0, gcv_lambda);  // the same λ without the GCV search: what the solve itself costs
+  const auto wanted = [](M m) { return Wanted(aosr::ToString(m)); };
+  for (M m : {M::kShiftAddMean, M::kShiftAddMedian, M::kDrizzle})
+    if (wanted(m)) add(m, 0);
+  Image tikhonov_1;
+  if (wanted(M::kTikhonov)) {
+    tikhonov_1 = add(M::kTikhonov, 0);
+    const double gcv_lambda = last_regularisation;
+    add(M::kTikhonov, 0, gcv_lambda);  // the same λ without the GCV search: what the solve itself costs
+  }
   Image tv_100;
-  for (int cap : c.caps) {
-    Image x = add(M::kTotalVariation, cap);
-    if (cap == 100) tv_100 = x;
-  }
+  if (wanted(M::kTotalVariation))
+    for (int cap : c.caps) {
+      Image x = add(M::kTotalVariation, cap);
+      if (cap == 100) tv_100 = x;
+    }
   Image map_30;
-  for (int cap : c.caps) {
-    Image x = add(M::kMap, cap);
-    if (cap == 30) map_30 = x;
-  }
+  if (wanted(M::kMap))
+    for (int cap : c.caps) {
+      Image x = add(M::kMap, cap);
+      if (cap == 30) map_30 = x;
+    }
   // Two threads (the per-bin loops and the frames' FFTs in parallel): the speed-up, and the same bytes.
   if (hr >= 512 || quick) {
-    run(M::kTikhonov, 0, 0, p, 2, " (2 threads)", &tikhonov_1);
+    if (tikhonov_1.size()) run(M::kTikhonov, 0, 0, p, 2, " (2 threads)", &tikhonov_1);
     if (tv_100.size()) run(M::kTotalVariation, 100, 0, p, 2, " (2 threads)", &tv_100);
     if (map_30.size()) run(M::kMap, 30, 0, p, 2, " (2 threads)", &map_30);
   }
@@ -323,12 +353,14 @@ void RunConfig(const Config& c, bool quick, std::vector<Row>* rows, std::vector<
     aosr::DatasetProblemOptions uo;
     uo.weights = aosr::DatasetWeights::kMask;
     const aosr::DatasetProblem uniform = aosr::ProblemFromDataset(d, uo);
-    run(M::kTikhonov, 0, 0, uniform.problem, 1, " (uniform weights)", nullptr);
-    for (int cap : c.caps) run(M::kTotalVariation, cap, 0, uniform.problem, 1, " (uniform weights)", nullptr);
+    if (wanted(M::kTikhonov)) run(M::kTikhonov, 0, 0, uniform.problem, 1, " (uniform weights)", nullptr);
+    if (wanted(M::kTotalVariation))
+      for (int cap : c.caps) run(M::kTotalVariation, cap, 0, uniform.problem, 1, " (uniform weights)", nullptr);
   }
   log->back() += "; peak RSS after this configuration " + Fmt("%.0f", aosr::PeakResidentBytes() / 1048576.0) + " MiB";
 #ifdef AOSR_HAVE_OPENCV_SUPERRES
   // 10, 30, 100 iterations (the 100-iteration run only up to HR 256: at 1024² it takes ~1.5 min and gains nothing).
+  if (Wanted("opencv-btvl1"))
   for (int it : quick ? std::vector<int>{10} : hr <= 256 ? std::vector<int>{10, 30, 100} : std::vector<int>{10, 30}) {
     Row row;
     row.scene = name;
@@ -411,6 +443,7 @@ void WritePlot(const std::string& path, const std::vector<Row>& rows) {
 int main(int argc, char** argv) {
   bool quick = false;
   std::string out_file, only;
+  int frames_only = 0;
   std::string command = "build/bench/reconstruct_bench";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -420,11 +453,21 @@ int main(int argc, char** argv) {
     } else if (a == "--scene" && i + 1 < argc) {
       only = argv[++i];
       command += std::string(" ") + only;
+    } else if (a == "--frames" && i + 1 < argc) {
+      frames_only = std::atoi(argv[++i]);
+      command += " " + std::to_string(frames_only);
+    } else if (a == "--methods" && i + 1 < argc) {
+      const std::string list = argv[++i];
+      command += " " + list;
+      std::stringstream ss(list);
+      for (std::string m; std::getline(ss, m, ',');)
+        if (!m.empty()) g_methods.push_back(m);
     } else if (a == "--out" && i + 1 < argc) {
       out_file = argv[++i];
       command += " " + out_file;
     } else {
-      std::fprintf(stderr, "usage: reconstruct_bench [--quick] [--scene NAME] [--out FILE]\n");
+      std::fprintf(stderr,
+                   "usage: reconstruct_bench [--quick] [--scene NAME] [--frames N] [--methods LIST] [--out FILE]\n");
       return 2;
     }
   }
@@ -446,7 +489,8 @@ int main(int argc, char** argv) {
   std::vector<std::string> log;
   const auto t0 = Clock::now();
   for (const Config& c : configs)
-    if (only.empty() || c.scene == only || c.scene == only + ".json") RunConfig(c, quick, &rows, &log);
+    if ((only.empty() || c.scene == only || c.scene == only + ".json") && (frames_only == 0 || c.frames == frames_only))
+      RunConfig(c, quick, &rows, &log);
   const double total = Since(t0);
 
   std::ostringstream md;

@@ -31,18 +31,32 @@ inline bool CholeskyInPlace(Complex* g, int n, double pivot_floor) {
 
 // Solves L Lᴴ x = b in place (v: b in, x out) for a factor from CholeskyInPlace. RR > 0 fixes the size at
 // compile time (the common sizes unroll); 0 means `n` at run time.
+// The complex products are written in real arithmetic: the same operations in the same order as
+// std::complex's (the same bits for finite values), without its NaN-recovery branch in the inner loops.
 template <int RR>
 inline void CholeskySubstitution(const Complex* l, int n, Complex* v) {
   const int size = RR > 0 ? RR : n;
+  const double* ld = reinterpret_cast<const double*>(l);  // [re, im] pairs
+  double* vd = reinterpret_cast<double*>(v);
   for (int i = 0; i < size; ++i) {  // L w = b
-    Complex s = v[i];
-    for (int j = 0; j < i; ++j) s -= l[i * size + j] * v[j];
-    v[i] = s * l[i * size + i].real();
+    double re = vd[2 * i], im = vd[2 * i + 1];
+    for (int j = 0; j < i; ++j) {
+      const double lr = ld[2 * (i * size + j)], li = ld[2 * (i * size + j) + 1];
+      re -= lr * vd[2 * j] - li * vd[2 * j + 1];
+      im -= lr * vd[2 * j + 1] + li * vd[2 * j];
+    }
+    const double d = ld[2 * (i * size + i)];
+    vd[2 * i] = re * d, vd[2 * i + 1] = im * d;
   }
   for (int i = size - 1; i >= 0; --i) {  // Lᴴ x = w
-    Complex s = v[i];
-    for (int j = i + 1; j < size; ++j) s -= std::conj(l[j * size + i]) * v[j];
-    v[i] = s * l[i * size + i].real();
+    double re = vd[2 * i], im = vd[2 * i + 1];
+    for (int j = i + 1; j < size; ++j) {
+      const double lr = ld[2 * (j * size + i)], li = ld[2 * (j * size + i) + 1];  // conj(L_ji)
+      re -= lr * vd[2 * j] + li * vd[2 * j + 1];
+      im -= lr * vd[2 * j + 1] - li * vd[2 * j];
+    }
+    const double d = ld[2 * (i * size + i)];
+    vd[2 * i] = re * d, vd[2 * i + 1] = im * d;
   }
 }
 

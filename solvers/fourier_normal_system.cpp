@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <new>
 #include <string>
 
 #include "aosr/core/error.hpp"
@@ -20,12 +22,29 @@ constexpr double kWoodburyAmplification = 1e6;
 // Largest r² whose per-bin scratch lives on the stack.
 constexpr int kStackBins = 64;
 
-// Symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx):
-// |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 sin²(π f_y/M_y) + 4 sin²(π f_x/M_x).
-double GradientSymbol(Shape hr, Index fy, Index fx) {
-  const double sy = std::sin(M_PI * double(fy) / double(hr.rows));
-  const double sx = std::sin(M_PI * double(fx) / double(hr.cols));
-  return 4.0 * (sy * sy + sx * sx);
+// (size − f) mod size for 0 <= f < size, the index of frequency −f, without an integer division (the per-bin
+// gathers and scatters of SolveBins do several per HR frequency).
+inline Index Mirror(Index f, Index size) { return f == 0 ? 0 : size - f; }
+
+// The LR bins come in mirror pairs u, −u whose systems are conjugate, and only the first of each pair (in
+// the order ux, then uy) is ever formed, factorised and solved (SolveBins). Returns 2 for such a bin, 1 for
+// a bin that is its own mirror, 0 for a bin solved through its mirror.
+inline int MirrorMultiplicity(Shape lr, Index uy, Index ux) {
+  const Index muy = Mirror(uy, lr.rows), mux = Mirror(ux, lr.cols);
+  if (ux == mux && uy == muy) return 1;
+  return ux < mux || (ux == mux && uy < muy) ? 2 : 0;
+}
+
+// The symbol of ∇ᵀ∇ for periodic forward differences at full-spectrum HR bin (fy, fx) is
+// |e^{2πi f_y/M_y} − 1|² + |e^{2πi f_x/M_x} − 1|² = 4 (sin²(π f_y/M_y) + sin²(π f_x/M_x)); this is one
+// axis's table of sin²(π f/M), f = 0 .. M − 1.
+std::vector<double> SineSquares(Index size) {
+  std::vector<double> t(size);
+  for (Index f = 0; f < size; ++f) {
+    const double s = std::sin(M_PI * double(f) / double(size));
+    t[f] = s * s;
+  }
+  return t;
 }
 
 }  // namespace
@@ -38,27 +57,63 @@ FourierNormalSystem::FourierNormalSystem(const MultiFrameModel& model, double da
   const Index bins = lr_.size();
   // F(AᵀA x) = r² A(u)ᴴA(u) X(u) per bin (Parseval for the unnormalised DFTs): the data block is BᴴB.
   sqrt_s_ = std::sqrt(double(rr) * data_weight);
-  b_.resize(bins * n_ * rr);
+  // Uninitialised storage: only the solved bins are written (constructed in place), in parallel, so the
+  // array is neither zero-filled first nor page-faulted in on one thread (64 MiB at r = 8, N = 4, 1024²).
+  b_.reset(static_cast<Complex*>(std::malloc(sizeof(Complex) * std::size_t(bins * n_ * rr) + 1)));
+  if (!b_) throw std::bad_alloc();
   symbol_.resize(bins * rr);
-  std::vector<double> norms(bins, 0.0);
+  const std::vector<double> sy2 = SineSquares(hr_.rows), sx2 = SineSquares(hr_.cols);
   ParallelFor(lr_.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr_.cols; ++ux) {
+      if (!MirrorMultiplicity(lr_, uy, ux)) continue;  // never read (b_ unwritten, symbol_ 0 there)
       const Index bin = uy * lr_.cols + ux;
       const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
       for (int i = 0; i < n_; ++i)
-        for (int k = 0; k < rr; ++k) b_[(bin * n_ + i) * rr + k] = sqrt_s_ * a(i, k);
+        for (int k = 0; k < rr; ++k) new (&b_[(bin * n_ + i) * rr + k]) Complex(sqrt_s_ * a(i, k));
       for (int ky = 0; ky < r_; ++ky)
         for (int kx = 0; kx < r_; ++kx)
-          symbol_[bin * rr + ky * r_ + kx] = GradientSymbol(hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
-      // σ_max(A(u))² from the smaller Gram matrix.
-      const Eigen::MatrixXcd g = n_ <= rr ? Eigen::MatrixXcd(a * a.adjoint()) : Eigen::MatrixXcd(a.adjoint() * a);
-      norms[bin] = g.size() ? Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly)
-                                  .eigenvalues()
-                                  .maxCoeff()
-                            : 0.0;
+          symbol_[bin * rr + ky * r_ + kx] = 4.0 * (sy2[uy + ky * lr_.rows] + sx2[ux + kx * lr_.cols]);
     }
   });
-  model_norm_ = double(r_) * std::sqrt(std::max(0.0, *std::max_element(norms.begin(), norms.end())));
+}
+
+double FourierNormalSystem::ModelNorm() const {
+  std::call_once(model_norm_once_, [this] {
+    // σ_max(A(u))² = λ_max(B Bᴴ) / s (B = √s A(u)) from the smaller Gram matrix (BBᴴ or BᴴB, row-major), by
+    // the allocation-free Householder + QL solver, bins in parallel.
+    const int rr = r_ * r_, m = std::min(n_, rr);
+    const Index bins = lr_.size();
+    std::vector<double> norms(bins, 0.0);
+    if (m > 0)
+      ParallelFor(lr_.rows, [&](Index uy) {
+        std::vector<Complex> gram(std::size_t(m) * m), vectors(std::size_t(m) * m);
+        std::vector<double> values(m), work(3 * std::size_t(m) * m + 2 * m);
+        for (Index ux = 0; ux < lr_.cols; ++ux) {
+          if (!MirrorMultiplicity(lr_, uy, ux)) continue;  // a mirror bin has the same singular values
+          const Index bin = uy * lr_.cols + ux;
+          const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> b(
+              &b_[bin * n_ * rr], n_, rr);
+          for (int i = 0; i < m; ++i)
+            for (int j = 0; j < m; ++j) {
+              Complex sum = 0;
+              if (n_ <= rr)
+                for (int k = 0; k < rr; ++k) sum += b(i, k) * std::conj(b(j, k));
+              else
+                for (int k = 0; k < n_; ++k) sum += std::conj(b(k, i)) * b(k, j);
+              gram[i * m + j] = sum;
+            }
+          if (bins::HermitianEigen(gram.data(), m, values.data(), vectors.data(), work.data())) {
+            norms[bin] = values[m - 1];
+          } else {  // QL did not converge (not seen): Eigen's solver
+            const Eigen::MatrixXcd g = n_ <= rr ? Eigen::MatrixXcd(b * b.adjoint()) : Eigen::MatrixXcd(b.adjoint() * b);
+            norms[bin] = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(g, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+          }
+        }
+      });
+    const double largest = norms.empty() ? 0.0 : *std::max_element(norms.begin(), norms.end());
+    model_norm_ = double(r_) * std::sqrt(std::max(0.0, largest) / (sqrt_s_ * sqrt_s_));
+  });
+  return model_norm_;
 }
 
 void FourierNormalSystem::Factorize(double gradient_weight, double identity_weight) {
@@ -75,6 +130,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
   std::vector<char> woodbury(bins, 0);
   ParallelFor(lr_.rows, [&](Index uy) {
     for (Index ux = 0; ux < lr_.cols; ++ux) {
+      if (!MirrorMultiplicity(lr_, uy, ux)) continue;
       const Index bin = uy * lr_.cols + ux;
       const Complex* b = &b_[bin * n * rr];
       double* dinv = &dinv_[bin * rr];
@@ -86,26 +142,36 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
       }
       for (int e = 0; e < n * rr; ++e) frob += std::norm(b[e]);
       if (!(n < rr && dmin > 0 && frob <= kWoodburyAmplification * dmin)) continue;
-      // K = I + B D⁻¹ Bᴴ (N x N, Hermitian positive definite: ≥ I).
+      // K = I + B D⁻¹ Bᴴ (N x N, Hermitian positive definite: ≥ I). The products (B_ik D⁻¹_k) conj(B_jk) in
+      // real arithmetic: std::complex's operations in its order, without its NaN-recovery branch.
       Complex* kf = &kfactor_[bin * n * n];
+      const double* bd = reinterpret_cast<const double*>(b);
       for (int i = 0; i < n; ++i)
         for (int j = 0; j <= i; ++j) {
-          Complex s = i == j ? 1.0 : 0.0;
-          for (int k = 0; k < rr; ++k) s += b[i * rr + k] * dinv[k] * std::conj(b[j * rr + k]);
-          kf[i * n + j] = s;
-          kf[j * n + i] = std::conj(s);
+          double re = i == j ? 1.0 : 0.0, im = 0.0;
+          for (int k = 0; k < rr; ++k) {
+            const double tr = bd[2 * (i * rr + k)] * dinv[k], ti = bd[2 * (i * rr + k) + 1] * dinv[k];
+            const double cr = bd[2 * (j * rr + k)], ci = bd[2 * (j * rr + k) + 1];
+            re += tr * cr + ti * ci;
+            im += ti * cr - tr * ci;
+          }
+          kf[i * n + j] = Complex(re, im);
+          kf[j * n + i] = Complex(re, -im);
         }
       woodbury[bin] = bins::CholeskyInPlace(kf, n, 1e-12);
     }
   });
   // Pass 2 (serial: few bins, and the slots are numbered in bin order): the dense r² x r² factorisations.
+  // The counts include the mirror bins, which share their twin's form.
   dense_.clear();
   pseudo_.clear();
   singular_bins_ = 0;
   woodbury_bins_ = 0;
   for (Index bin = 0; bin < bins; ++bin) {
+    const int multiplicity = MirrorMultiplicity(lr_, bin / lr_.cols, bin % lr_.cols);
+    if (!multiplicity) continue;
     if (woodbury[bin]) {
-      ++woodbury_bins_;
+      woodbury_bins_ += multiplicity;
       continue;
     }
     const Complex* b = &b_[bin * n * rr];
@@ -130,7 +196,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
       pseudo_.emplace_back();
       continue;
     }
-    ++singular_bins_;
+    singular_bins_ += multiplicity;
     const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> gm(
         g.data(), rr, rr);
     const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd> eig{Eigen::MatrixXcd(gm)};
@@ -149,20 +215,58 @@ void FourierNormalSystem::SolveBin(Index bin, Complex* v, Complex* work) const {
   const int rr = r_ * r_, n = n_;
   const int slot = slot_[bin];
   if (slot < 0) {
-    // Woodbury: c = D⁻¹v, t = K⁻¹ B c, v = c − D⁻¹ Bᴴ t.
-    const Complex* b = &b_[bin * n * rr];
+    // Woodbury: c = D⁻¹v, t = K⁻¹ B c, v = c − D⁻¹ Bᴴ t. The complex products are written in real
+    // arithmetic, the same operations in the same order as std::complex's (so the same bits for finite
+    // values) without its NaN-recovery branch, and B c takes four rows at a time: four independent sums
+    // in flight instead of one dependent chain per row.
+    const double* b = reinterpret_cast<const double*>(&b_[bin * n * rr]);  // [re, im] pairs
     const double* dinv = &dinv_[bin * rr];
-    for (int k = 0; k < rr; ++k) v[k] *= dinv[k];
-    for (int i = 0; i < n; ++i) {
-      Complex s = 0;
-      for (int k = 0; k < rr; ++k) s += b[i * rr + k] * v[k];
-      work[i] = s;
+    double* vd = reinterpret_cast<double*>(v);
+    double* wd = reinterpret_cast<double*>(work);
+    for (int k = 0; k < rr; ++k) {
+      vd[2 * k] *= dinv[k];
+      vd[2 * k + 1] *= dinv[k];
+    }
+    int i = 0;
+    for (; i + 4 <= n; i += 4) {
+      const double* b0 = b + 2 * i * rr;
+      const double* b1 = b0 + 2 * rr;
+      const double* b2 = b1 + 2 * rr;
+      const double* b3 = b2 + 2 * rr;
+      double r0 = 0, i0 = 0, r1 = 0, i1 = 0, r2 = 0, i2 = 0, r3 = 0, i3 = 0;
+      for (int k = 0; k < rr; ++k) {
+        const double vr = vd[2 * k], vi = vd[2 * k + 1];
+        r0 += b0[2 * k] * vr - b0[2 * k + 1] * vi;
+        i0 += b0[2 * k] * vi + b0[2 * k + 1] * vr;
+        r1 += b1[2 * k] * vr - b1[2 * k + 1] * vi;
+        i1 += b1[2 * k] * vi + b1[2 * k + 1] * vr;
+        r2 += b2[2 * k] * vr - b2[2 * k + 1] * vi;
+        i2 += b2[2 * k] * vi + b2[2 * k + 1] * vr;
+        r3 += b3[2 * k] * vr - b3[2 * k + 1] * vi;
+        i3 += b3[2 * k] * vi + b3[2 * k + 1] * vr;
+      }
+      wd[2 * i] = r0, wd[2 * i + 1] = i0, wd[2 * i + 2] = r1, wd[2 * i + 3] = i1;
+      wd[2 * i + 4] = r2, wd[2 * i + 5] = i2, wd[2 * i + 6] = r3, wd[2 * i + 7] = i3;
+    }
+    for (; i < n; ++i) {
+      const double* bi = b + 2 * i * rr;
+      double re = 0, im = 0;
+      for (int k = 0; k < rr; ++k) {
+        re += bi[2 * k] * vd[2 * k] - bi[2 * k + 1] * vd[2 * k + 1];
+        im += bi[2 * k] * vd[2 * k + 1] + bi[2 * k + 1] * vd[2 * k];
+      }
+      wd[2 * i] = re, wd[2 * i + 1] = im;
     }
     bins::Substitute(&kfactor_[bin * n * n], n, work);
     for (int k = 0; k < rr; ++k) {
-      Complex s = 0;
-      for (int i = 0; i < n; ++i) s += std::conj(b[i * rr + k]) * work[i];
-      v[k] -= dinv[k] * s;
+      double re = 0, im = 0;  // (Bᴴ t)_k = Σ_i conj(B_ik) t_i
+      for (int j = 0; j < n; ++j) {
+        const double br = b[2 * (j * rr + k)], bim = b[2 * (j * rr + k) + 1];
+        re += br * wd[2 * j] + bim * wd[2 * j + 1];
+        im += br * wd[2 * j + 1] - bim * wd[2 * j];
+      }
+      vd[2 * k] -= dinv[k] * re;
+      vd[2 * k + 1] -= dinv[k] * im;
     }
   } else if (!dense_[slot].empty()) {
     bins::Substitute(dense_[slot].data(), rr, v);
@@ -185,7 +289,7 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
   const Index half_cols = half.cols(), lr_half = lr_.cols / 2 + 1;
   auto at = [&](const ComplexImage& spectrum, Shape full, Index fy, Index fx) {
     return fx < spectrum.cols() ? spectrum(fy, fx)
-                                : std::conj(spectrum((full.rows - fy) % full.rows, full.cols - fx));
+                                : std::conj(spectrum(Mirror(fy, full.rows), full.cols - fx));
   };
   ParallelFor(lr_.rows, [&](Index uy) {
     Complex stack_v[kStackBins], stack_w[kStackBins];
@@ -197,11 +301,12 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
       x = heap.data();
       work = heap.data() + std::max(rr, n);
     }
-    const Index muy = (lr_.rows - uy) % lr_.rows;
+    const Index muy = Mirror(uy, lr_.rows);
     for (Index ux = 0; ux < lr_.cols; ++ux) {
-      const Index mux = (lr_.cols - ux) % lr_.cols;
-      if (!(ux < mux || (ux == mux && uy <= muy))) continue;  // the mirror bin is solved instead
-      const bool self_mirror = ux == mux && uy == muy;
+      const Index mux = Mirror(ux, lr_.cols);
+      const int multiplicity = MirrorMultiplicity(lr_, uy, ux);
+      if (!multiplicity) continue;  // the mirror bin is solved instead
+      const bool self_mirror = multiplicity == 1;
       const Index bin = uy * lr_.cols + ux;
       for (int ky = 0; ky < r_; ++ky)
         for (int kx = 0; kx < r_; ++kx) x[ky * r_ + kx] = at(half, hr_, uy + ky * lr_.rows, ux + kx * lr_.cols);
@@ -222,8 +327,8 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
         for (int k = 0; k < rr; ++k) work[k] = x[k];
         for (int ky = 0; ky < r_; ++ky)
           for (int kx = 0; kx < r_; ++kx) {
-            const Index my = (hr_.rows - (uy + ky * lr_.rows)) % hr_.rows;
-            const Index mx = (hr_.cols - (ux + kx * lr_.cols)) % hr_.cols;
+            const Index my = Mirror(uy + ky * lr_.rows, hr_.rows);
+            const Index mx = Mirror(ux + kx * lr_.cols, hr_.cols);
             const int k = ky * r_ + kx, km = int(my / lr_.rows) * r_ + int(mx / lr_.cols);
             x[k] = 0.5 * (work[k] + std::conj(work[km]));
           }
@@ -233,7 +338,7 @@ void FourierNormalSystem::SolveBins(const ComplexImage& half, const std::vector<
           const Index fy = uy + ky * lr_.rows, fx = ux + kx * lr_.cols;
           const Complex value = x[ky * r_ + kx];
           if (fx < half_cols) (*out)(fy, fx) = value;
-          const Index my = (hr_.rows - fy) % hr_.rows, mx = (hr_.cols - fx) % hr_.cols;
+          const Index my = Mirror(fy, hr_.rows), mx = Mirror(fx, hr_.cols);
           if (mx < half_cols) (*out)(my, mx) = std::conj(value);
         }
       if (ax) {

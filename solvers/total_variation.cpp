@@ -98,155 +98,279 @@ namespace {
 
 constexpr const char* kFunction = "TotalVariationAdmm";
 
-// The pixel-wise parts of an ADMM iteration, fused so that each array is read once per iteration (they are
-// memory-bound: at 1024² an array pass costs about as much as the small per-bin solves). ∇ is the periodic
-// forward difference of core/operators.hpp written out: (∇x)_y[p] = x[p + row] − x[p], (∇x)_x[p] =
-// x[p + 1] − x[p] (wrapping), and its adjoint gathers (∇ᵀq)[p] = q_y[p − row] − q_y[p] + q_x[p − 1] − q_x[p].
-struct ZPassSums {
-  double primal2 = 0, kx2 = 0, zeta2 = 0;
-};
-
-// Both passes run over a fixed partition of the rows into blocks (a function of the shape only), in
-// parallel; each block's sums are added in block order afterwards, so the result does not depend on the
-// thread count. Inside a row the loop is a SIMD loop (`omp simd`, compiled with -fopenmp-simd: no OpenMP
-// runtime): its sums are kept per SIMD lane and added at the end of the row, a fixed order for a given
-// build. The wrap-around column (periodic boundary) is done apart, so the main loop has no branch.
+// The pixel-wise parts of an ADMM iteration, fused into one pass over the image (they are memory-bound: at
+// 512² one sweep of the state costs about as much as the per-bin solves, so the number of full-image
+// sweeps is what sets their time). ∇ is the periodic forward difference of core/operators.hpp written out:
+// (∇x)_y[p] = x[p + row] − x[p], (∇x)_x[p] = x[p + 1] − x[p] (wrapping), and its adjoint gathers
+// (∇ᵀq)[p] = q_y[p − row] − q_y[p] + q_x[p − 1] − q_x[p].
+//
+// One iteration's pass, from the new x:
+//   z-update   g = ∇x; ĝ = α g + (1 − α) z; z ← shrink_t(ĝ + u); u ← u + ĝ − z; dz = z_new − z_old
+//   v-update   (positivity) v̂ = α x + (1 − α) v; v ← max(v̂ + s, 0); s ← s + v̂ − v; dv = v_new − v_old
+//   rhs        the next x-update's right-hand side [c +] ρ∇ᵀ(z − u) [+ ρ(v − s)] (c: the x-update's
+//              constant part, AᵀWy for the Fourier path, so that its solve reads one array)
+//   sums       ||∇x − z||², ||∇x||², ||z||² (and the v block's), ||∇ᵀdz [+ dv]||² (dual residual),
+//              ||∇ᵀu [+ s]||² (dual tolerance), ||x − x_prev||², ||x||², Σ 0·x (NaN iff x is not finite)
+//              and ||ρ∇ᵀ(z − u) [+ ρ(v − s)]||² (the right-hand side's finiteness)
+// The adjoint of row y needs the new z, u and dz of rows y − 1 and y, so a row's rhs is formed right after
+// its z-update while both rows are in cache, and dz lives only in a two-row ring (never a full array). Rows
+// go in fixed blocks of about kPassBlockPixels pixels (a function of the shape only), in parallel; the first
+// row of each block needs the previous block's last row, so it is done in a second, short parallel pass
+// once every block is through (dz of each block's first and last rows are kept for it). Each block's sums
+// are added in block order afterwards, so the result does not depend on the thread count. Inside a row the
+// loop is a SIMD loop (`omp simd`, compiled with -fopenmp-simd: no OpenMP runtime): its sums are kept per
+// SIMD lane and added at the end of the row, a fixed order for a given build. The wrap-around column
+// (periodic boundary) is done apart, so the main loop has no branch. The arithmetic of z, u, v, s and the
+// right-hand side is that of the separate steps, operation for operation: the iterates do not change.
 constexpr Index kPassBlockPixels = 16384;
 
 Index PassBlockRows(Shape hr) { return std::max<Index>(1, kPassBlockPixels / std::max<Index>(hr.cols, 1)); }
 
-// From x: g = ∇x; ĝ = α g + (1 − α) z; z ← shrink_t(ĝ + u); u ← u + ĝ − z; dz = z_new − z_old. Returns
-// ||g − z||², ||g||², ||z||².
-ZPassSums ZUpdate(Shape hr, const Vector& x, double alpha, double t, Vector* z, Vector* u, Vector* dz) {
-  const Index R = hr.rows, C = hr.cols, n = hr.size();
-  const double* xs = x.data();
-  double* zy = z->data();
-  double* zx = z->data() + n;
-  double* uy = u->data();
-  double* ux = u->data() + n;
-  double* dzy = dz->data();
-  double* dzx = dz->data() + n;
-  const Index per = PassBlockRows(hr), blocks = (R + per - 1) / per;
-  std::vector<ZPassSums> partial(blocks);
-  ParallelFor(blocks, [&](Index b) {
-    double primal2 = 0, kx2 = 0, zeta2 = 0;
-    // One pixel p with its forward neighbours at `below` (next row) and `right` (next column); returns its
-    // terms of the three sums (a value, so that the SIMD loop's per-lane sums stay private).
-    auto pixel = [&](Index p, Index below, Index right) {
-      const double gy = xs[below] - xs[p], gx = xs[right] - xs[p];
-      const double hy = alpha * gy + (1 - alpha) * zy[p], hx = alpha * gx + (1 - alpha) * zx[p];
-      const double ty = hy + uy[p], tx = hx + ux[p];
-      const double norm = std::sqrt(ty * ty + tx * tx);
-      const double f = norm > t ? 1.0 - t / norm : 0.0;
-      const double ny = f * ty, nx = f * tx;
-      uy[p] += hy - ny;
-      ux[p] += hx - nx;
-      dzy[p] = ny - zy[p];
-      dzx[p] = nx - zx[p];
-      zy[p] = ny;
-      zx[p] = nx;
-      return ZPassSums{(gy - ny) * (gy - ny) + (gx - nx) * (gx - nx), gy * gy + gx * gx, ny * ny + nx * nx};
-    };
-    for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y) {
-      const Index row = y * C, down = (y + 1 < R ? y + 1 : 0) * C - row;
-#pragma omp simd reduction(+ : primal2, kx2, zeta2)
-      for (Index p = row; p < row + C - 1; ++p) {
-        const ZPassSums q = pixel(p, p + down, p + 1);
-        primal2 += q.primal2;
-        kx2 += q.kx2;
-        zeta2 += q.zeta2;
-      }
-      const Index last = row + C - 1;
-      const ZPassSums q = pixel(last, last + down, row);
-      primal2 += q.primal2;
-      kx2 += q.kx2;
-      zeta2 += q.zeta2;
-    }
-    partial[b] = {primal2, kx2, zeta2};
-  });
-  ZPassSums sums;
-  for (const ZPassSums& p : partial) {
-    sums.primal2 += p.primal2;
-    sums.kx2 += p.kx2;
-    sums.zeta2 += p.zeta2;
+struct PassSums {
+  double primal2 = 0, kx2 = 0, zeta2 = 0;        // the z block
+  double v_primal2 = 0, v_kx2 = 0, v_zeta2 = 0;  // the v block (positivity)
+  double dual2 = 0, ktu2 = 0;
+  double change2 = 0, x2 = 0, x_probe = 0;
+  double rhs2 = 0;
+  void Add(const PassSums& o) {
+    primal2 += o.primal2, kx2 += o.kx2, zeta2 += o.zeta2;
+    v_primal2 += o.v_primal2, v_kx2 += o.v_kx2, v_zeta2 += o.v_zeta2;
+    dual2 += o.dual2, ktu2 += o.ktu2;
+    change2 += o.change2, x2 += o.x2, x_probe += o.x_probe;
+    rhs2 += o.rhs2;
   }
+};
+
+// The arrays of a pass. z, u hold the y then the x components (2n each); v, s are null without positivity;
+// offset (the rhs's constant part) may be null; x_prev is null in a pass that only forms the rhs.
+struct PassArrays {
+  Shape hr;
+  const double* x = nullptr;
+  const double* x_prev = nullptr;
+  double* z = nullptr;
+  double* u = nullptr;
+  double* v = nullptr;
+  double* s = nullptr;
+  const double* offset = nullptr;
+  double* rhs = nullptr;
+  double alpha = 1, t = 0, rho = 1;
+};
+
+// The z-update of row y (and the x sums); dz of the row into dzy[0..C), dzx[0..C).
+void ZRow(const PassArrays& a, Index y, double* dzy, double* dzx, PassSums* sums) {
+  const Index R = a.hr.rows, C = a.hr.cols, n = a.hr.size();
+  const double* xs = a.x;
+  const double* xp = a.x_prev;
+  double* zy = a.z;
+  double* zx = a.z + n;
+  double* uy = a.u;
+  double* ux = a.u + n;
+  const double alpha = a.alpha, t = a.t;
+  const Index row = y * C, down = (y + 1 < R ? y + 1 : 0) * C - row;
+  double primal2 = 0, kx2 = 0, zeta2 = 0, change2 = 0, x2 = 0, probe = 0;
+  // One pixel p with its forward neighbours at `below` (next row) and `right` (next column); returns its
+  // terms of the sums (a value, so that the SIMD loop's per-lane sums stay private).
+  struct Terms {
+    double primal2, kx2, zeta2, change2, x2, probe;
+  };
+  auto pixel = [&](Index p, Index below, Index right) {
+    const double gy = xs[below] - xs[p], gx = xs[right] - xs[p];
+    const double hy = alpha * gy + (1 - alpha) * zy[p], hx = alpha * gx + (1 - alpha) * zx[p];
+    const double ty = hy + uy[p], tx = hx + ux[p];
+    const double norm = std::sqrt(ty * ty + tx * tx);
+    // f = norm > t ? 1 − t/norm : 0, written without a branch so that the loop vectorises (GCC does not
+    // if-convert arithmetic that may trap): 1 − t/norm > 0 exactly when norm > t (division rounds
+    // monotonically), and std::max(0.0, ·) returns 0 for the NaN of t = norm = 0.
+    const double f = std::max(0.0, 1.0 - t / norm);
+    const double ny = f * ty, nx = f * tx;
+    uy[p] += hy - ny;
+    ux[p] += hx - nx;
+    dzy[p - row] = ny - zy[p];
+    dzx[p - row] = nx - zx[p];
+    zy[p] = ny;
+    zx[p] = nx;
+    const double dx = xs[p] - xp[p];
+    return Terms{(gy - ny) * (gy - ny) + (gx - nx) * (gx - nx), gy * gy + gx * gx, ny * ny + nx * nx, dx * dx,
+                 xs[p] * xs[p], xs[p] * 0.0};
+  };
+#pragma omp simd reduction(+ : primal2, kx2, zeta2, change2, x2, probe)
+  for (Index p = row; p < row + C - 1; ++p) {
+    const Terms q = pixel(p, p + down, p + 1);
+    primal2 += q.primal2;
+    kx2 += q.kx2;
+    zeta2 += q.zeta2;
+    change2 += q.change2;
+    x2 += q.x2;
+    probe += q.probe;
+  }
+  const Index last = row + C - 1;
+  const Terms q = pixel(last, last + down, row);
+  sums->primal2 += primal2 + q.primal2;
+  sums->kx2 += kx2 + q.kx2;
+  sums->zeta2 += zeta2 + q.zeta2;
+  sums->change2 += change2 + q.change2;
+  sums->x2 += x2 + q.x2;
+  sums->x_probe += probe + q.probe;
+}
+
+// Row y of the right-hand side [c +] ρ∇ᵀ(z − u) [+ ρ(v − s)] with its sums, after the v-update of the row
+// (kPos). kDual: with the dual sums, from dz of rows y (dzy, dzx) and y − 1 (dzy_up); without, the rhs and
+// its norm only (after a ρ change, or before the first iteration).
+template <bool kPos, bool kOffset, bool kDual>
+void AdjointRow(const PassArrays& a, Index y, const double* dzy, const double* dzx, const double* dzy_up,
+                PassSums* sums) {
+  const Index R = a.hr.rows, C = a.hr.cols, n = a.hr.size();
+  const double* zy = a.z;
+  const double* zx = a.z + n;
+  const double* uy = a.u;
+  const double* ux = a.u + n;
+  const double* xs = a.x;
+  double* vs = a.v;
+  double* ss = a.s;
+  const double* off = a.offset;
+  double* out = a.rhs;
+  const double rho = a.rho, alpha = a.alpha;
+  const Index row = y * C, up = (y > 0 ? y - 1 : R - 1) * C - row;
+  double dual2 = 0, ktu2 = 0, rhs2 = 0, vp2 = 0, vk2 = 0, vz2 = 0;
+  struct Terms {
+    double dual2, ktu2, rhs2, vp2, vk2, vz2;
+  };
+  // One pixel p with its backward neighbours at p + up (previous row) and `left` (previous column).
+  auto pixel = [&](Index p, Index left) {
+    const Index c = p - row, cl = left - row;
+    const double tz = (zy[p + up] - zy[p]) + (zx[left] - zx[p]);
+    const double tu = (uy[p + up] - uy[p]) + (ux[left] - ux[p]);
+    double d = 0, k = tu, r = rho * (tz - tu);
+    if (kDual) d = (dzy_up[c] - dzy[c]) + (dzx[cl] - dzx[c]);
+    Terms q{0, 0, 0, 0, 0, 0};
+    if (kPos) {
+      double dv = 0;
+      if (kDual) {
+        const double vhat = alpha * xs[p] + (1 - alpha) * vs[p];
+        const double vn = std::max(vhat + ss[p], 0.0);
+        ss[p] += vhat - vn;
+        dv = vn - vs[p];
+        vs[p] = vn;
+        q.vp2 = (xs[p] - vn) * (xs[p] - vn);
+        q.vk2 = xs[p] * xs[p];
+        q.vz2 = vn * vn;
+      }
+      r += rho * (vs[p] - ss[p]);
+      d += dv;
+      k += ss[p];
+    }
+    out[p] = kOffset ? off[p] + r : r;
+    q.dual2 = d * d;
+    q.ktu2 = k * k;
+    q.rhs2 = r * r;
+    return q;
+  };
+  const Terms first = pixel(row, row + C - 1);
+#pragma omp simd reduction(+ : dual2, ktu2, rhs2, vp2, vk2, vz2)
+  for (Index p = row + 1; p < row + C; ++p) {
+    const Terms q = pixel(p, p - 1);
+    dual2 += q.dual2;
+    ktu2 += q.ktu2;
+    rhs2 += q.rhs2;
+    vp2 += q.vp2;
+    vk2 += q.vk2;
+    vz2 += q.vz2;
+  }
+  sums->dual2 += first.dual2 + dual2;
+  sums->ktu2 += first.ktu2 + ktu2;
+  sums->rhs2 += first.rhs2 + rhs2;
+  sums->v_primal2 += first.vp2 + vp2;
+  sums->v_kx2 += first.vk2 + vk2;
+  sums->v_zeta2 += first.vz2 + vz2;
+}
+
+template <bool kDual>
+using AdjointRowFn = void (*)(const PassArrays&, Index, const double*, const double*, const double*, PassSums*);
+
+template <bool kDual>
+AdjointRowFn<kDual> PickAdjointRow(const PassArrays& a) {
+  if (a.v) return a.offset ? AdjointRow<true, true, kDual> : AdjointRow<true, false, kDual>;
+  return a.offset ? AdjointRow<false, true, kDual> : AdjointRow<false, false, kDual>;
+}
+
+// Reusable buffers of the pass: per block the dz of its first row and a two-row ring (y and x parts each).
+struct PassBuffers {
+  std::vector<double> dz;
+  std::vector<PassSums> partial;
+};
+
+// The whole iteration's pass (above). x_prev, z, u (and v, s) must be set.
+PassSums IterationPass(const PassArrays& a, PassBuffers* buffers) {
+  const Index R = a.hr.rows, C = a.hr.cols;
+  const Index per = PassBlockRows(a.hr), blocks = (R + per - 1) / per;
+  buffers->dz.resize(std::size_t(blocks) * 6 * C);
+  buffers->partial.assign(2 * blocks, PassSums{});
+  double* dz = buffers->dz.data();
+  PassSums* partial = buffers->partial.data();
+  const AdjointRowFn<true> adjoint = PickAdjointRow<true>(a);
+  // Block b's dz rows: slot 0 its first row, slots 1 and 2 the ring of the rows after it; a slot is
+  // 2C values (y then x parts).
+  const auto slot = [&](Index b, Index y) {
+    const Index k = y == b * per ? 0 : 1 + ((y - b * per) & 1);
+    return dz + (b * 6 + 2 * k) * C;
+  };
+  ParallelFor(blocks, [&](Index b) {
+    PassSums s;
+    for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y) {
+      double* cur = slot(b, y);
+      ZRow(a, y, cur, cur + C, &s);
+      if (y > b * per) adjoint(a, y, cur, cur + C, slot(b, y - 1), &s);
+    }
+    partial[b] = s;
+  });
+  ParallelFor(blocks, [&](Index b) {
+    const Index y = b * per, pb = (b + blocks - 1) % blocks;
+    const Index last = std::min(R, (pb + 1) * per) - 1;  // the previous block's last row (wrapping)
+    PassSums s;
+    double* cur = slot(b, y);
+    adjoint(a, y, cur, cur + C, slot(pb, last), &s);
+    partial[blocks + b] = s;
+  });
+  PassSums sums;
+  for (Index b = 0; b < 2 * blocks; ++b) sums.Add(partial[b]);
   return sums;
 }
 
-struct AdjointPassSums {
-  double dual2 = 0, ktu2 = 0;
-};
-
-// The three ∇ᵀ products of an iteration in one gather pass: rhs = ρ∇ᵀ(z − u) [+ ρ(v − s)] (the next
-// x-update's right-hand side), and the norms ||∇ᵀdz [+ dv]||² (dual residual) and ||∇ᵀu [+ s]||² (dual
-// tolerance). The bracketed terms only with positivity (v, s, dv non-null). Blocks and SIMD as ZUpdate.
-AdjointPassSums AdjointPass(Shape hr, double rho, const Vector& z, const Vector& u, const Vector& dz,
-                            const Vector* v, const Vector* sv, const Vector* dv, Vector* rhs) {
+// z = ∇x (y then x parts, the periodic forward differences of core/operators.hpp's Gradient, the same
+// subtractions) and u = 0, in parallel over the pass's row blocks (the first write of these arrays).
+void InitialSplitting(Shape hr, const double* x, double* z, double* u) {
   const Index R = hr.rows, C = hr.cols, n = hr.size();
-  const double* zy = z.data();
-  const double* zx = z.data() + n;
-  const double* uy = u.data();
-  const double* ux = u.data() + n;
-  const double* dzy = dz.data();
-  const double* dzx = dz.data() + n;
-  const double* vs = v ? v->data() : nullptr;
-  const double* ss = v ? sv->data() : nullptr;
-  const double* dvs = v ? dv->data() : nullptr;
-  double* out = rhs->data();
   const Index per = PassBlockRows(hr), blocks = (R + per - 1) / per;
-  std::vector<AdjointPassSums> partial(blocks);
   ParallelFor(blocks, [&](Index b) {
-    double dual2 = 0, ktu2 = 0;
-    // One pixel p with its backward neighbours at p − dy (previous row) and p − dx (previous column).
-    auto pixel = [&](Index p, Index up, Index left, bool pos) {
-      const double tz = (zy[up] - zy[p]) + (zx[left] - zx[p]);
-      const double tu = (uy[up] - uy[p]) + (ux[left] - ux[p]);
-      double d = (dzy[up] - dzy[p]) + (dzx[left] - dzx[p]);
-      double k = tu;
-      double r = rho * (tz - tu);
-      if (pos) {
-        r += rho * (vs[p] - ss[p]);
-        d += dvs[p];
-        k += ss[p];
-      }
-      out[p] = r;
-      dual2 += d * d;
-      ktu2 += k * k;
-    };
     for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y) {
-      const Index row = y * C, up = (y > 0 ? y - 1 : R - 1) * C - row;
-      pixel(row, row + up, row + C - 1, vs != nullptr);
-      if (vs) {
-#pragma omp simd reduction(+ : dual2, ktu2)
-        for (Index p = row + 1; p < row + C; ++p) {
-          const double tz = (zy[p + up] - zy[p]) + (zx[p - 1] - zx[p]);
-          const double tu = (uy[p + up] - uy[p]) + (ux[p - 1] - ux[p]);
-          const double d = (dzy[p + up] - dzy[p]) + (dzx[p - 1] - dzx[p]) + dvs[p];
-          const double k = tu + ss[p];
-          out[p] = rho * (tz - tu) + rho * (vs[p] - ss[p]);
-          dual2 += d * d;
-          ktu2 += k * k;
-        }
-      } else {
-#pragma omp simd reduction(+ : dual2, ktu2)
-        for (Index p = row + 1; p < row + C; ++p) {
-          const double tz = (zy[p + up] - zy[p]) + (zx[p - 1] - zx[p]);
-          const double tu = (uy[p + up] - uy[p]) + (ux[p - 1] - ux[p]);
-          const double d = (dzy[p + up] - dzy[p]) + (dzx[p - 1] - dzx[p]);
-          out[p] = rho * (tz - tu);
-          dual2 += d * d;
-          ktu2 += tu * tu;
-        }
+      const Index row = y * C, below = (y + 1 < R ? y + 1 : 0) * C;
+      for (Index c = 0; c < C; ++c) {
+        const Index p = row + c;
+        z[p] = x[below + c] - x[p];
+        z[n + p] = x[row + (c + 1 < C ? c + 1 : 0)] - x[p];
+        u[p] = 0.0;
+        u[n + p] = 0.0;
       }
     }
-    partial[b] = {dual2, ktu2};
   });
-  AdjointPassSums sums;
-  for (const AdjointPassSums& p : partial) {
-    sums.dual2 += p.dual2;
-    sums.ktu2 += p.ktu2;
-  }
-  return sums;
+}
+
+// The right-hand side alone (v, s unchanged), with its norm: before the first iteration and after a ρ change.
+double RhsPass(const PassArrays& a, PassBuffers* buffers) {
+  const Index R = a.hr.rows;
+  const Index per = PassBlockRows(a.hr), blocks = (R + per - 1) / per;
+  buffers->partial.assign(blocks, PassSums{});
+  PassSums* partial = buffers->partial.data();
+  const AdjointRowFn<false> adjoint = PickAdjointRow<false>(a);
+  ParallelFor(blocks, [&](Index b) {
+    PassSums s;
+    for (Index y = b * per, y_end = std::min(R, y + per); y < y_end; ++y)
+      adjoint(a, y, nullptr, nullptr, nullptr, &s);
+    partial[b] = s;
+  });
+  double rhs2 = 0;
+  for (Index b = 0; b < blocks; ++b) rhs2 += partial[b].rhs2;
+  return rhs2;
 }
 
 // The weights of all frames stacked like MultiFrameModel::Flatten (ones when the problem has none).
@@ -258,16 +382,30 @@ Vector StackedWeights(const ReconstructionProblem& problem) {
 }
 
 // ρ₀ = tr(AᵀWA) / tr(∇ᵀ∇). With periodic convolution every row of A_i has the same norm, ||A_iᵀ e||² for
-// an LR delta e, so tr(A_iᵀ W_i A_i) = (Σ_p w_i[p]) ||A_iᵀ e||²; tr(∇ᵀ∇) = 4n (periodic differences).
+// an LR delta e, so tr(A_iᵀ W_i A_i) = (Σ_p w_i[p]) ||A_iᵀ e||²; tr(∇ᵀ∇) = 4n (periodic differences). By
+// Parseval ||A_iᵀ e||² = (1/n) Σ_f |B(f) H_i(f)|² over the full HR spectrum (B the pixel transfer, H_i the
+// OTF; core/forward_model.hpp): a sum over the stored half spectrum, each column but 0 (and C/2 for even C)
+// counted twice by Hermitian symmetry, instead of an HR convolution per frame.
 double AutomaticRho(const ReconstructionProblem& problem) {
   const MultiFrameModel& model = *problem.model;
-  const Shape lr = model.lr_shape();
-  Vector delta = Vector::Zero(lr.size());
-  delta[0] = 1.0;
+  const Shape hr = model.hr_shape();
+  const Index half = hr.cols / 2 + 1;
+  Image b2(hr.rows, half);  // |B|² times the column's multiplicity
+  for (Index fy = 0; fy < hr.rows; ++fy)
+    for (Index fx = 0; fx < half; ++fx) {
+      const Complex b = model.PixelTransfer(fy, fx);
+      b2(fy, fx) = (b.real() * b.real() + b.imag() * b.imag()) * (fx == 0 || 2 * fx == hr.cols ? 1.0 : 2.0);
+    }
+  const Index count = b2.size();
   double trace = 0;
-  for (int i = 0; i < model.frames(); ++i)
-    trace += problem.Weight(i).sum() * model.FrameOperator(i)->ApplyAdjoint(delta).squaredNorm();
-  const double rho = trace / (4.0 * double(model.hr_shape().size()));
+  for (int i = 0; i < model.frames(); ++i) {
+    const double* w = b2.data();
+    const Complex* h = model.otf(i).data();
+    double sum = 0;
+    for (Index p = 0; p < count; ++p) sum += w[p] * (h[p].real() * h[p].real() + h[p].imag() * h[p].imag());
+    trace += problem.Weight(i).sum() * (sum / double(hr.size()));
+  }
+  const double rho = trace / (4.0 * double(hr.size()));
   return rho > 0 && std::isfinite(rho) ? rho : 1.0;
 }
 
@@ -279,8 +417,12 @@ class XUpdate {
   virtual ~XUpdate() = default;
   // The system for a new ρ (ρ_v = ρ with positivity, else 0).
   virtual void Prepare(double rho, double rho_v) = 0;
-  // x from prior_rhs = ρ∇ᵀ(z − u) + ρ_v(v − s); false if it failed (x is then overwritten by the caller).
-  virtual bool Solve(const Vector& prior_rhs, Vector* x) = 0;
+  // The constant part c of the right-hand side that the caller's pixel pass adds to the prior part, so that
+  // Solve reads one array (null: none).
+  virtual const double* RhsOffset() const { return nullptr; }
+  // x from rhs = [c +] ρ∇ᵀ(z − u) + ρ_v(v − s) (HR shape; c as RhsOffset), x_prev the previous iterate; x
+  // is HR-shaped and is overwritten. False if it failed (x is then overwritten by the caller).
+  virtual bool Solve(const Image& rhs, const Image& x_prev, Image* x) = 0;
   // After the x-update: the split data block's own updates with relaxation α (nothing otherwise).
   virtual void UpdateSplit(double /*alpha*/) {}
   // ρ changed by `factor`: scaled duals shrink by it (the unscaled ones are unchanged).
@@ -298,16 +440,15 @@ class XUpdate {
 class FourierXUpdate final : public XUpdate {
  public:
   FourierXUpdate(const MultiFrameModel& model, double w, Vector aty, TotalVariationSummary* s)
-      : system_(model, w), aty_(std::move(aty)), hr_(model.hr_shape()), summary_(s) {}
+      : system_(model, w), aty_(std::move(aty)), summary_(s) {}
   void Prepare(double rho, double rho_v) override {
     system_.Factorize(rho, rho_v);
     summary_->singular_bins = std::max(summary_->singular_bins, system_.singular_bins());
   }
-  bool Solve(const Vector& prior_rhs, Vector* x) override {
-    rhs_.resize(hr_.rows, hr_.cols);
-    AsVector(rhs_) = aty_ + prior_rhs;
-    system_.SolveInto(rhs_, &x_, &workspace_);
-    *x = AsVector(x_);
+  const double* RhsOffset() const override { return aty_.data(); }
+  // rhs already holds w Aᵀy + ρ∇ᵀ(z − u) [+ ρ_v(v − s)]: the solve reads it and writes x, nothing else.
+  bool Solve(const Image& rhs, const Image& /*x_prev*/, Image* x) override {
+    system_.SolveInto(rhs, x, &workspace_);
     return true;
   }
   std::string Report() const override {
@@ -318,10 +459,8 @@ class FourierXUpdate final : public XUpdate {
  private:
   FourierNormalSystem system_;
   Vector aty_;
-  Shape hr_;
   TotalVariationSummary* summary_;
-  Image rhs_, x_;  // reused every iteration, as is the workspace
-  FourierNormalSystem::Workspace workspace_;
+  FourierNormalSystem::Workspace workspace_;  // reused every iteration
 };
 
 // Any weights: matrix-free CG on (AᵀWA + ρ∇ᵀ∇ + ρ_v I), warm-started from the previous x.
@@ -342,8 +481,10 @@ class CgXUpdate final : public XUpdate {
     if (rho_v > 0) parts.push_back(Scale(rho_v, Identity(n_)));
     normal_ = Sum(parts);
   }
-  bool Solve(const Vector& prior_rhs, Vector* x) override {
-    const SolverSummary cg = ConjugateGradient(*normal_, Vector(aty_ + prior_rhs), x, cg_);
+  bool Solve(const Image& rhs, const Image& x_prev, Image* x) override {
+    Vector xv = AsVector(x_prev);  // warm start
+    const SolverSummary cg = ConjugateGradient(*normal_, Vector(aty_ + AsVector(rhs)), &xv, cg_);
+    AsVector(*x) = xv;
     summary_->cg_iterations += cg.iterations;
     if (cg.termination == Termination::kMaxIterations) ++summary_->cg_unconverged;
     return cg.termination != Termination::kFailed;
@@ -385,43 +526,54 @@ class SplitXUpdate final : public XUpdate {
     system_->Factorize(1.0, positivity ? 1.0 : 0.0);
     ax_ = model_.Operator()->Apply(x0);
     omega_ = ax_;
-    omega_prev_ = omega_;
     t_ = Vector::Zero(ax_.size());
   }
   void Prepare(double rho, double /*rho_v*/) override { rho_ = rho; }
-  bool Solve(const Vector& prior_rhs, Vector* x) override {
+  bool Solve(const Image& rhs, const Image& /*x_prev*/, Image* x) override {
     const Shape lr = model_.lr_shape();
     const Index frames = model_.frames();
     rhs_.resize(hr_.rows, hr_.cols);
-    AsVector(rhs_) = prior_rhs / rho_;
+    rhs_ = rhs / rho_;
     v_.resize(frames);
     for (Index i = 0; i < frames; ++i) {
       v_[i].resize(lr.rows, lr.cols);
       AsVector(v_[i]) = omega_.segment(i * lr.size(), lr.size()) - t_.segment(i * lr.size(), lr.size());
     }
-    system_->SolveWithDataInto(rhs_, v_, &x_, &ax_frames_, &workspace_);
-    *x = AsVector(x_);
+    system_->SolveWithDataInto(rhs_, v_, x, &ax_frames_, &workspace_);
     for (Index i = 0; i < frames; ++i) ax_.segment(i * lr.size(), lr.size()) = AsVector(ax_frames_[i]);
     return true;
   }
   void UpdateSplit(double alpha) override {
-    omega_prev_ = omega_;
     const double c = rho_ * kappa_;
-    // One fused pass per pixel: â = α Ax + (1 − α) ω_prev, ω = (W∘y + c(â + t)) / (W + c), t += â − ω.
-    for (Index p = 0, count = omega_.size(); p < count; ++p) {
-      const double ahat = alpha * ax_[p] + (1 - alpha) * omega_prev_[p];
-      const double w = (wy_[p] + c * (ahat + t_[p])) / (weights_[p] + c);
-      t_[p] += ahat - w;
-      omega_[p] = w;
+    // One fused pass per pixel: â = α Ax + (1 − α) ω_prev, ω = (W∘y + c(â + t)) / (W + c), t += â − ω, with
+    // the sums of SplitResiduals: ||Ax − ω||², ||Ax||², ||ω||², ||ω − ω_prev||².
+    const double* ax = ax_.data();
+    const double* wy = wy_.data();
+    const double* weights = weights_.data();
+    double* omega = omega_.data();
+    double* t = t_.data();
+    double primal2 = 0, kx2 = 0, zeta2 = 0, domega2 = 0;
+#pragma omp simd reduction(+ : primal2, kx2, zeta2, domega2)
+    for (Index p = 0; p < omega_.size(); ++p) {
+      const double prev = omega[p];
+      const double ahat = alpha * ax[p] + (1 - alpha) * prev;
+      const double w = (wy[p] + c * (ahat + t[p])) / (weights[p] + c);
+      t[p] += ahat - w;
+      omega[p] = w;
+      primal2 += (ax[p] - w) * (ax[p] - w);
+      kx2 += ax[p] * ax[p];
+      zeta2 += w * w;
+      domega2 += (w - prev) * (w - prev);
     }
+    primal2_ = primal2, kx2_ = kx2, zeta2_ = zeta2, domega2_ = domega2;
   }
   void RescaleDual(double factor) override { t_ /= factor; }
   Split SplitResiduals(double rho) const override {
     Split s;
-    s.primal2 = kappa_ * (ax_ - omega_).squaredNorm();
-    s.kx2 = kappa_ * ax_.squaredNorm();
-    s.zeta2 = kappa_ * omega_.squaredNorm();
-    s.dual = rho * kappa_ * system_->ModelNorm() * (omega_ - omega_prev_).norm();
+    s.primal2 = kappa_ * primal2_;
+    s.kx2 = kappa_ * kx2_;
+    s.zeta2 = kappa_ * zeta2_;
+    s.dual = rho * kappa_ * system_->ModelNorm() * std::sqrt(domega2_);
     return s;
   }
   std::string Report() const override {
@@ -435,8 +587,9 @@ class SplitXUpdate final : public XUpdate {
   Shape hr_;
   double kappa_ = 1, rho_ = 1;
   std::unique_ptr<FourierNormalSystem> system_;
-  Vector ax_, omega_, omega_prev_, t_;
-  Image rhs_, x_;  // reused every iteration, as are these frames and the workspace
+  Vector ax_, omega_, t_;
+  double primal2_ = 0, kx2_ = 0, zeta2_ = 0, domega2_ = 0;  // the sums of the last UpdateSplit
+  Image rhs_;  // reused every iteration, as are these frames and the workspace
   ImageStack v_, ax_frames_;
   FourierNormalSystem::Workspace workspace_;
 };
@@ -475,43 +628,58 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   const OperatorPtr& a = model.Operator();
   const Vector weights = StackedWeights(problem);
   const Vector y = model.Flatten(problem.CleanFrames());
-  const Vector aty = a->ApplyAdjoint(weights.cwiseProduct(y));
-  const OperatorPtr grad = Gradient(hr, Boundary::kPeriodic);
+  Vector aty = a->ApplyAdjoint(weights.cwiseProduct(y));
+  // Squared norms of the data-sized vectors must exist in double precision, or no residual is meaningful.
+  const bool aty_finite = std::isfinite(aty.squaredNorm());
 
-  // State: x, z = ∇x (+ u), v = x (+ s). Start consistent with x, duals at zero.
-  Vector x = initial ? Vector(AsVector(*initial)) : Vector(Vector::Zero(n));
+  // State: x, z = ∇x (+ u), v = x (+ s). Start consistent with x, duals at zero. x and x_prev swap their
+  // buffers every iteration (the x-update writes the new x over the one before the last).
+  Image x = initial ? *initial : Image(Image::Zero(hr.rows, hr.cols));
+  Image x_prev(hr.rows, hr.cols);
   double rho = options.rho > 0 ? options.rho : AutomaticRho(problem);
   s.initial_rho = rho;
   std::unique_ptr<XUpdate> x_update;
   if (path == TotalVariationXUpdate::kFourier)
-    x_update = std::make_unique<FourierXUpdate>(model, weights[0], aty, &s);
+    x_update = std::make_unique<FourierXUpdate>(model, weights[0], std::move(aty), &s);
   else if (path == TotalVariationXUpdate::kFourierSplit)
-    x_update = std::make_unique<SplitXUpdate>(problem, weights, y, x, rho, options.positivity);
+    x_update = std::make_unique<SplitXUpdate>(problem, weights, y, AsVector(x), rho, options.positivity);
   else
-    x_update = std::make_unique<CgXUpdate>(problem, weights, aty, options, &s);
+    x_update = std::make_unique<CgXUpdate>(problem, weights, std::move(aty), options, &s);
 
   const bool pos = options.positivity;
   x_update->Prepare(rho, pos ? rho : 0.0);
 
-  Vector gx = grad->Apply(x);
-  Vector z = gx, u = Vector::Zero(2 * n);
+  Vector z(2 * n), u(2 * n);
+  InitialSplitting(hr, x.data(), z.data(), u.data());
   Vector v, sv;
   if (pos) {
-    v = x.cwiseMax(0.0);
+    v = AsVector(x).cwiseMax(0.0);
     sv = Vector::Zero(n);
   }
   const double alpha = options.relaxation;
   const double sqrt_p = std::sqrt(double((pos ? 3 : 2) * n)), sqrt_n = std::sqrt(double(n));
-  // Work vectors, allocated once. rhs holds the next x-update's right-hand side ρ∇ᵀ(z − u) [+ ρ(v − s)].
-  Vector rhs(n), x_prev(n), dz = Vector::Zero(2 * n), dv = Vector::Zero(pos ? n : 0);
+  // rhs holds the next x-update's right-hand side [c +] ρ∇ᵀ(z − u) [+ ρ(v − s)] (c: RhsOffset), formed by
+  // the pixel passes; rhs2 is the squared norm of its ρ-part.
+  Image rhs(hr.rows, hr.cols);
+  PassBuffers buffers;
+  PassArrays arrays;
+  arrays.hr = hr;
+  arrays.z = z.data();
+  arrays.u = u.data();
+  arrays.v = pos ? v.data() : nullptr;
+  arrays.s = pos ? sv.data() : nullptr;
+  arrays.offset = x_update->RhsOffset();
+  arrays.rhs = rhs.data();
+  arrays.alpha = alpha;
   const auto prepare_rhs = [&] {
-    return AdjointPass(hr, rho, z, u, dz, pos ? &v : nullptr, pos ? &sv : nullptr, pos ? &dv : nullptr, &rhs);
+    arrays.rho = rho;
+    return RhsPass(arrays, &buffers);
   };
-  prepare_rhs();
+  double rhs2 = prepare_rhs();
 
-  auto objective = [&](const Vector& xx) {
-    const Vector r = a->Apply(xx) - y;
-    return 0.5 * weights.dot(r.cwiseAbs2()) + options.mu * IsotropicTotalVariation(AsImage(xx, hr));
+  auto objective = [&](const Image& xx) {
+    const Vector r = a->Apply(AsVector(xx)) - y;
+    return 0.5 * weights.dot(r.cwiseAbs2()) + options.mu * IsotropicTotalVariation(xx);
   };
 
   ProgressReporter reporter(options.progress, "tv", options.max_iterations, "primal/tol");
@@ -522,59 +690,57 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   s.termination = Termination::kMaxIterations;
   int still_iterations = 0;  // consecutive iterations in which x did not move beyond rounding
   // Squared norms of the data-sized vectors must exist in double precision, or no residual is meaningful.
-  bool failed = !std::isfinite(aty.squaredNorm());
+  bool failed = !aty_finite;
   if (failed)
     s.message = "the data are too large for double precision (||AᵀWy||² overflows); rescale the frames";
   for (int k = 0; !failed && k < options.max_iterations; ++k) {
-    // x-update: the data term's system with right-hand side ρ∇ᵀ(z − u) + ρ_v(v − s) (in rhs).
-    x_prev = x;
-    if (!std::isfinite(rhs.squaredNorm())) {
+    // x-update: the data term's system with right-hand side [c +] ρ∇ᵀ(z − u) + ρ_v(v − s) (in rhs).
+    if (!std::isfinite(rhs2)) {
       failed = true;
       s.message = "x-update right-hand side overflows double precision at iteration " +
                   std::to_string(k + 1) + "; returned the last finite iterate";
       break;
     }
-    if (!x_update->Solve(rhs, &x)) x.setConstant(std::numeric_limits<double>::quiet_NaN());
-    if (!x.allFinite()) {
-      x = x_prev;
+    x.swap(x_prev);  // O(1): x_prev is now the last iterate, x's buffer is overwritten
+    if (!x_update->Solve(rhs, x_prev, &x)) x.setConstant(std::numeric_limits<double>::quiet_NaN());
+
+    // One pass: z-update (relaxed) with its dual update, v likewise with positivity, the next right-hand
+    // side and every sum below (IterationPass). Its x_probe is NaN iff x is not finite; then z, u (and v,
+    // s) are garbage, but the loop ends here with the last finite iterate.
+    arrays.x = x.data();
+    arrays.x_prev = x_prev.data();
+    arrays.t = options.mu / rho;
+    arrays.rho = rho;
+    const PassSums ps = IterationPass(arrays, &buffers);
+    if (!std::isfinite(ps.x_probe)) {
+      x.swap(x_prev);
       failed = true;
       s.message = "non-finite x-update at iteration " + std::to_string(k + 1) + " (rho " + ToString(rho) +
                   "); returned the last finite iterate";
       break;
     }
-
-    // z-update (relaxed) with its dual update; v likewise with positivity; the split data block.
-    const ZPassSums zs = ZUpdate(hr, x, alpha, options.mu / rho, &z, &u, &dz);
-    double primal2 = zs.primal2, kx2 = zs.kx2, zeta2 = zs.zeta2;
+    rhs2 = ps.rhs2;
+    double primal2 = ps.primal2, kx2 = ps.kx2, zeta2 = ps.zeta2;
     if (pos) {
-      for (Index p = 0; p < n; ++p) {
-        const double vhat = alpha * x[p] + (1 - alpha) * v[p];
-        const double vn = std::max(vhat + sv[p], 0.0);
-        sv[p] += vhat - vn;
-        dv[p] = vn - v[p];
-        v[p] = vn;
-        primal2 += (x[p] - vn) * (x[p] - vn);
-        kx2 += x[p] * x[p];
-        zeta2 += vn * vn;
-      }
+      primal2 += ps.v_primal2;
+      kx2 += ps.v_kx2;
+      zeta2 += ps.v_zeta2;
     }
     x_update->UpdateSplit(alpha);
 
     // Residuals and tolerances (Boyd §3.3.1; the split block's dual part is bounded, so the rule never
     // stops early. Its ε_dual keeps the scale ρ||∇ᵀu + s||: with the data split off, the full Kᵀ(ρu) tends
-    // to 0 at the optimum and would make the relative tolerance vanish.) The same pass prepares the next
-    // right-hand side.
+    // to 0 at the optimum and would make the relative tolerance vanish.)
     const XUpdate::Split split = x_update->SplitResiduals(rho);
     primal2 += split.primal2;
     kx2 += split.kx2;
     zeta2 += split.zeta2;
-    const AdjointPassSums as = prepare_rhs();
     const double primal = std::sqrt(primal2);
-    const double dual_res = rho * std::sqrt(as.dual2) + split.dual;
+    const double dual_res = rho * std::sqrt(ps.dual2) + split.dual;
     const double eps_pri =
         sqrt_p * options.absolute_tolerance + options.relative_tolerance * std::sqrt(std::max(kx2, zeta2));
     const double eps_dual =
-        sqrt_n * options.absolute_tolerance + options.relative_tolerance * rho * std::sqrt(as.ktu2);
+        sqrt_n * options.absolute_tolerance + options.relative_tolerance * rho * std::sqrt(ps.ktu2);
     s.iterations = k + 1;
     s.primal_residual = primal;
     s.dual_residual = dual_res;
@@ -586,17 +752,17 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
       s.history_primal_tolerance.push_back(eps_pri);
       s.history_dual_tolerance.push_back(eps_dual);
       s.history_rho.push_back(rho);
-      s.history_cost.push_back(objective(pos ? Vector(x.cwiseMax(0.0)) : x));
+      s.history_cost.push_back(objective(pos ? Image(x.cwiseMax(0.0)) : x));
     }
     if (!std::isfinite(primal) || !std::isfinite(dual_res)) {
-      x = x_prev;
+      x.swap(x_prev);
       failed = true;
       s.message = "non-finite ADMM residuals at iteration " + std::to_string(k + 1) +
                   "; returned the last finite iterate";
       break;
     }
     bool done = false;
-    const double change = (x - x_prev).norm(), x_norm = x.norm();
+    const double change = std::sqrt(ps.change2), x_norm = std::sqrt(ps.x2);
     if (primal <= eps_pri && dual_res <= eps_dual) {
       s.termination = Termination::kConverged;
       s.message = "primal and dual residuals within tolerance";
@@ -640,7 +806,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
         x_update->RescaleDual(factor);
         ++s.rho_updates;
         x_update->Prepare(rho, pos ? rho : 0.0);
-        prepare_rhs();  // the right-hand side for the new ρ and rescaled duals
+        rhs2 = prepare_rhs();  // the right-hand side for the new ρ and rescaled duals
       }
     }
   }
@@ -649,8 +815,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   reporter.RethrowIfThrown();
   s.final_rho = rho;
 
-  Image out = ToImage(x, hr);
-  if (pos) out = out.cwiseMax(0.0);
+  Image out = pos ? Image(x.cwiseMax(0.0)) : std::move(x);
   if (!AllFinite(out)) throw NumericalError("TotalVariationAdmm: the estimate is not finite");  // unreachable
   s.data_misfit = WeightedDataMisfit(problem, out, &s.frame_residual_rms);
   s.total_variation = IsotropicTotalVariation(out);

@@ -163,7 +163,7 @@ Complex MultiFrameModel::PixelTransfer(Index fy, Index fx) const { return box_y_
 Complex MultiFrameModel::Otf(int i, Index fy, Index fx) const {
   const ComplexImage& h = otfs_[i];
   if (fx < h.cols()) return h(fy, fx);
-  return std::conj(h((hr_.rows - fy) % hr_.rows, hr_.cols - fx));
+  return std::conj(h(fy == 0 ? 0 : hr_.rows - fy, hr_.cols - fx));  // (−fy) mod rows without a division
 }
 
 Eigen::MatrixXcd MultiFrameModel::AliasedSystem(Index uy, Index ux) const {
@@ -171,11 +171,18 @@ Eigen::MatrixXcd MultiFrameModel::AliasedSystem(Index uy, Index ux) const {
   const int n = frames();
   Eigen::MatrixXcd a(n, r_ * r_);
   const double inv = 1.0 / (r_ * r_);
+  const Index half_cols = hr_.cols / 2 + 1;
   for (int ky = 0; ky < r_; ++ky)
     for (int kx = 0; kx < r_; ++kx) {
       const Index fy = uy + ky * lr.rows, fx = ux + kx * lr.cols;
       const Complex b = PixelTransfer(fy, fx) * inv;
-      for (int i = 0; i < n; ++i) a(i, ky * r_ + kx) = b * Otf(i, fy, fx);
+      // Otf(i, fy, fx) for every frame: the stored half spectrum, or the conjugate of its mirror.
+      if (fx < half_cols) {
+        for (int i = 0; i < n; ++i) a(i, ky * r_ + kx) = b * otfs_[i](fy, fx);
+      } else {
+        const Index my = fy == 0 ? 0 : hr_.rows - fy, mx = hr_.cols - fx;
+        for (int i = 0; i < n; ++i) a(i, ky * r_ + kx) = b * std::conj(otfs_[i](my, mx));
+      }
     }
   return a;
 }

@@ -13,7 +13,9 @@
 #include <vector>
 
 #include "aosr/core/operators.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
+#include "aosr/solvers/fourier_normal_system.hpp"
 #include "aosr/solvers/tikhonov.hpp"
 #include "support/testing.hpp"
 #include "total_variation_fixture.hpp"
@@ -422,6 +424,36 @@ TEST(TotalVariationTest, ProgressCallbackReturningFalseCancelsAfterThatIteration
   }
 }
 
+// The automatic ρ₀ = tr(AᵀWA) / tr(∇ᵀ∇), which the solver sums over the OTFs' half spectra (Parseval), is the
+// trace ratio computed with the operators themselves: Σ_i (Σ_p w_i[p]) ||A_iᵀ e||² / (4n) for an LR delta e.
+// Even and odd HR widths (the half spectrum's last column is its own mirror only for even widths), varying
+// weights.
+TEST(TotalVariationTest, AutomaticRhoIsTheTraceRatioOfTheOperators) {
+  for (const Shape hr : {Shape{30, 42}, Shape{30, 45}}) {
+    const auto model = RasterModel(hr, 3, {{0, 0}, {0.4, 1.3}, {1.7, 0.2}}, 1.2);
+    ReconstructionProblem p = NoisyProblem(model, tv_test::Blocks(hr), 0.05, 5);
+    std::mt19937_64 rng(6);
+    std::uniform_real_distribution<double> weight(0.5, 2.0);
+    p.weights.clear();
+    for (const Image& f : p.frames) {
+      Image w(f.rows(), f.cols());
+      for (Index q = 0; q < w.size(); ++q) w.data()[q] = weight(rng);
+      p.weights.push_back(w);
+    }
+    Vector delta = Vector::Zero(model->lr_shape().size());
+    delta[0] = 1.0;
+    double trace = 0;
+    for (int i = 0; i < model->frames(); ++i)
+      trace += p.weights[i].sum() * model->FrameOperator(i)->ApplyAdjoint(delta).squaredNorm();
+    const double expected = trace / (4.0 * double(hr.size()));
+    TotalVariationOptions o;
+    o.max_iterations = 1;
+    TotalVariationSummary s;
+    TotalVariationAdmm(p, o, &s);
+    EXPECT_NEAR(s.initial_rho, expected, 1e-12 * expected) << ToString(hr);
+  }
+}
+
 // The callback cannot change the maths: a callback that always continues gives the same bits as none.
 TEST(TotalVariationTest, ProgressCallbackLeavesTheResultBitIdentical) {
   for (TotalVariationXUpdate path :
@@ -441,6 +473,135 @@ TEST(TotalVariationTest, ProgressCallbackLeavesTheResultBitIdentical) {
     EXPECT_EQ(s0.termination, s1.termination);
     EXPECT_EQ(s0.final_cost, s1.final_cost);
     EXPECT_EQ(s0.message, s1.message);
+  }
+}
+
+// The ADMM iteration written plainly with the core operators (∇ and ∇ᵀ from core/operators.hpp, one step
+// per line, every array whole), on the Fourier path at a fixed ρ: the reference for the solver's fused pixel
+// pass (total_variation.cpp), which forms the same iterates row by row in blocks. 200 x 192 HR has three
+// row blocks, the last one short, so the block seams and the periodic wrap are both crossed.
+struct ReferenceAdmm {
+  Image x;
+  double primal = 0, dual = 0;
+};
+ReferenceAdmm PlainAdmm(const ReconstructionProblem& p, const Image& x0, double mu, double rho, double alpha,
+                        bool positivity, int iterations) {
+  const MultiFrameModel& model = *p.model;
+  const Shape hr = model.hr_shape();
+  const Index n = hr.size();
+  const OperatorPtr grad = Gradient(hr, Boundary::kPeriodic);
+  const Vector aty = model.Operator()->ApplyAdjoint(model.Flatten(p.frames));
+  FourierNormalSystem system(model, 1.0);
+  system.Factorize(rho, positivity ? rho : 0.0);
+  // The solver's start: z = ∇x₀, v = max(x₀, 0), duals 0.
+  Vector x = AsVector(x0), z = grad->Apply(x), u = Vector::Zero(2 * n), v = x.cwiseMax(0.0), s = Vector::Zero(n);
+  ReferenceAdmm out;
+  for (int k = 0; k < iterations; ++k) {
+    Vector rhs = aty + rho * grad->ApplyAdjoint(z - u);
+    if (positivity) rhs += rho * (v - s);
+    x = AsVector(system.Solve(ToImage(rhs, hr)));
+    const Vector g = grad->Apply(x);
+    const Vector g_hat = alpha * g + (1 - alpha) * z;
+    const Vector w = g_hat + u;
+    Vector z_new(2 * n);
+    for (Index q = 0; q < n; ++q) {
+      const double norm = std::hypot(w[q], w[n + q]);
+      const double f = norm > mu / rho ? 1.0 - mu / rho / norm : 0.0;
+      z_new[q] = f * w[q];
+      z_new[n + q] = f * w[n + q];
+    }
+    u += g_hat - z_new;
+    double primal2 = (g - z_new).squaredNorm();
+    Vector kt_dz = grad->ApplyAdjoint(z_new - z);
+    z = z_new;
+    if (positivity) {
+      const Vector v_hat = alpha * x + (1 - alpha) * v;
+      const Vector v_new = (v_hat + s).cwiseMax(0.0);
+      s += v_hat - v_new;
+      primal2 += (x - v_new).squaredNorm();
+      kt_dz += v_new - v;
+      v = v_new;
+    }
+    out.primal = std::sqrt(primal2);
+    out.dual = rho * kt_dz.norm();
+  }
+  out.x = ToImage(x, hr);
+  if (positivity) out.x = out.x.cwiseMax(0.0);
+  return out;
+}
+
+ReconstructionProblem ThreeBlockProblem() {
+  const Shape hr{200, 192};
+  return NoisyProblem(RasterModel(hr, 2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}, 1.0), tv_test::Blocks(hr), 0.05, 17);
+}
+
+TEST(TotalVariationTest, FusedPixelPassMatchesThePlainIteration) {
+  const ReconstructionProblem p = ThreeBlockProblem();
+  for (const bool positivity : {false, true}) {
+    TotalVariationOptions o;
+    o.mu = 0.02;
+    o.rho = 0.05;
+    o.adaptive_rho = false;
+    o.relaxation = 1.6;
+    o.positivity = positivity;
+    o.x_update = TotalVariationXUpdate::kFourier;
+    o.max_iterations = 12;
+    o.absolute_tolerance = 0;
+    o.relative_tolerance = 1e-12;  // no early stop
+    TotalVariationSummary s;
+    const Image x0 = 0.9 * tv_test::Blocks(p.model->hr_shape()) + 0.05 * test::RandomImage(p.model->hr_shape(), 8, true);
+    const Image x = TotalVariationAdmm(p, o, &s, &x0);
+    const ReferenceAdmm ref = PlainAdmm(p, x0, o.mu, o.rho, o.relaxation, positivity, o.max_iterations);
+    ASSERT_EQ(s.iterations, o.max_iterations) << s.BriefReport();
+    EXPECT_LT(RelativeDifference(x, ref.x), 1e-12) << "positivity " << positivity;
+    EXPECT_NEAR(s.primal_residual, ref.primal, 1e-10 * ref.primal) << "positivity " << positivity;
+    EXPECT_NEAR(s.dual_residual, ref.dual, 1e-10 * ref.dual) << "positivity " << positivity;
+  }
+}
+
+// The pixel passes run in fixed row blocks and the per-bin solves per bin, so the thread count is not in the
+// result: images, residual histories and costs are the same bits on 1, 2 and 3 threads, on every x-update
+// path (three row blocks, the last one short; positivity on the Fourier path, a masked pixel on the split).
+TEST(TotalVariationTest, ResultIsBitIdenticalOnOneTwoAndThreeThreads) {
+  ReconstructionProblem masked = ThreeBlockProblem();
+  masked.weights = ImageStack(masked.frames.size(), Image::Ones(100, 96));
+  masked.weights[1](7, 11) = 0.0;
+  struct Case {
+    const char* name;
+    const ReconstructionProblem* problem;
+    TotalVariationXUpdate path;
+    bool positivity;
+  };
+  const ReconstructionProblem uniform = ThreeBlockProblem();
+  const std::vector<Case> cases = {{"fourier", &uniform, TotalVariationXUpdate::kFourier, false},
+                                   {"fourier+positivity", &uniform, TotalVariationXUpdate::kFourier, true},
+                                   {"split", &masked, TotalVariationXUpdate::kFourierSplit, false},
+                                   {"cg", &uniform, TotalVariationXUpdate::kConjugateGradient, false}};
+  const int saved = DefaultThreads();
+  for (const Case& c : cases) {
+    TotalVariationOptions o;
+    o.mu = 0.02;
+    o.x_update = c.path;
+    o.positivity = c.positivity;
+    o.max_iterations = c.path == TotalVariationXUpdate::kConjugateGradient ? 8 : 40;
+    o.record_history = true;
+    std::vector<Image> images;
+    std::vector<TotalVariationSummary> summaries;
+    for (int threads : {1, 2, 3}) {
+      SetDefaultThreads(threads);
+      TotalVariationSummary s;
+      images.push_back(TotalVariationAdmm(*c.problem, o, &s));
+      summaries.push_back(s);
+    }
+    SetDefaultThreads(saved);
+    for (int k = 1; k < 3; ++k) {
+      EXPECT_TRUE((images[k] == images[0]).all()) << c.name << ", thread case " << k;
+      EXPECT_EQ(summaries[k].iterations, summaries[0].iterations) << c.name;
+      EXPECT_EQ(summaries[k].history_primal, summaries[0].history_primal) << c.name;
+      EXPECT_EQ(summaries[k].history_dual, summaries[0].history_dual) << c.name;
+      EXPECT_EQ(summaries[k].history_rho, summaries[0].history_rho) << c.name;
+      EXPECT_EQ(summaries[k].final_cost, summaries[0].final_cost) << c.name;
+    }
   }
 }
 

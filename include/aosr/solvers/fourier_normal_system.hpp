@@ -30,6 +30,9 @@
 #pragma once
 
 #include <Eigen/Dense>
+#include <cstdlib>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 #include "aosr/core/forward_model.hpp"
@@ -63,8 +66,9 @@ class FourierNormalSystem {
   Index woodbury_bins() const { return woodbury_bins_; }
   Index bins() const { return lr_.size(); }
   // ||A||₂, the largest singular value of the stacked model (for unit data weight): max over bins of
-  // r·σ_max(A(u)).
-  double ModelNorm() const { return model_norm_; }
+  // r·σ_max(A(u)). Computed on the first call (an eigenvalue problem per bin; thread-safe), since only the
+  // split data term needs it.
+  double ModelNorm() const;
 
  private:
   void SolveBins(const ComplexImage& half, const std::vector<ComplexImage>* v, ComplexImage* out,
@@ -74,10 +78,15 @@ class FourierNormalSystem {
   Shape hr_, lr_;
   int r_ = 1, n_ = 0;
   double sqrt_s_ = 1;  // √(r² w)
-  double model_norm_ = 0;
+  mutable std::once_flag model_norm_once_;
+  mutable double model_norm_ = 0;
   bool factorized_ = false;
   Index singular_bins_ = 0, woodbury_bins_ = 0;
-  std::vector<Complex> b_;       // per bin, N x r² row-major: √(r² w) A(u)
+  struct FreeDeleter {
+    void operator()(Complex* p) const { std::free(p); }
+  };
+  // Per bin, N x r² row-major: √(r² w) A(u); written only for the bins SolveBins solves (see the .cpp).
+  std::unique_ptr<Complex[], FreeDeleter> b_;
   std::vector<double> symbol_;   // per bin, r² values of P(u)
   std::vector<double> dinv_;     // per bin, r² values of D(u)⁻¹ (Woodbury bins)
   std::vector<Complex> kfactor_;  // per bin, N x N Cholesky of K (row-major, 1/L_ii on the diagonal)

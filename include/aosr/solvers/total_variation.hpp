@@ -30,7 +30,9 @@
 //     (r² w A(u)ᴴA(u) + ρ P(u) + ρ_v I) X(f_·) = B(f_·),   B = DFT of the right-hand side,
 //
 // solved exactly by fourier_normal_system.hpp (Woodbury N x N form where N < r², factorised once per value of
-// ρ), so an iteration costs two HR FFTs, m² small solves and a few pixel-wise passes.
+// ρ), so an iteration costs two HR FFTs, m² small solves and one pixel-wise pass: the z- and v-updates with
+// their duals, the next right-hand side (AᵀWy included) and every residual and stopping sum are formed in a
+// single sweep over the image (total_variation.cpp), the array traffic that bounds this memory-bound step.
 // With masked or varying weights (the normal case for measured and photon-noise data) the default splits the
 // data term off (x_update kFourierSplit): ω = Ax is a further ADMM variable with a fixed penalty ρ_ω (the mean
 // positive weight) and scaled dual t, so the x-update keeps the Fourier-exact system above at weight ρ_ω and
@@ -47,7 +49,8 @@
 // Convergence in practice (measured, 64x64 HR, r = 2 and 3, μ near its PSNR-best value): 300–400
 // iterations to the default ε_rel = 1e-4, 1500–2000 to 1e-6, ADMM's usual slow linear tail. Small μ with
 // noise-free data, or μ far above the noise level, converge more slowly (thousands to 1e-5). Time per
-// iteration on one core: 0.16 ms (64x64 HR), 0.7 ms (128x128), 7 ms (256x256) for the exact update.
+// iteration on one core of the 2-core development machine (reconstruct_bench's TV rows, N = 4, CPU time):
+// about 1 ms at 256² (r = 2), 4 ms at 512² (r = 4), 20 ms at 1024² (r = 8) for the exact update.
 //
 // Stopping rule (Boyd §3.3.1), with K = [∇; I] (the I row only with positivity), ζ = (z, v); with the split
 // data block its residuals join, scaled by ρ_ω/ρ into the gradient block's units, and its part of the dual
@@ -102,8 +105,8 @@ struct TotalVariationOptions {
   // order 1 with a few percent of noise, the regime of the tests.
   double mu = 1e-2;
 
-  // Constrain x >= 0 (flux cannot be negative). Adds the v = x splitting; costs one extra pass per
-  // iteration. Off by default, like every other reconstructor in aosr.
+  // Constrain x >= 0 (flux cannot be negative). Adds the v = x splitting; its two arrays join the
+  // iteration's pixel pass. Off by default, like every other reconstructor in aosr.
   bool positivity = false;
 
   // Initial ADMM penalty ρ > 0 in the units of the data curvature (weight x frame²/object²), or 0
