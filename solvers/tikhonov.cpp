@@ -521,6 +521,25 @@ void FourierSystem::GatherRun(Index uy, Index ux0, int count, std::size_t stride
     for (int f = 0; f < n; ++f) {
       const Complex* h = &model_.otf(f)(fy, 0);
       const Complex* hm = &model_.otf(f)(my, 0);
+      {
+        // Prefetch the stretches the next (frame, alias row) reads: short strided streams the hardware prefetcher
+        // picks up too late (the reads below were most of this function's time).
+        const int nf = f + 1 < n ? f + 1 : 0;
+        const Index nfy = f + 1 < n ? fy : fy + lr.rows;
+        if (nfy < hr.rows) {
+          const Index nmy = (hr.rows - nfy) % hr.rows;
+          const Complex* nh = &model_.otf(nf)(nfy, 0);
+          const Complex* nhm = &model_.otf(nf)(nmy, 0);
+          for (int kx = 0; kx < r; ++kx) {
+            const Index fx0 = ux0 + kx * lr.cols;
+            for (int k = 0; k < count; k += 4) {
+              const Index fx = fx0 + k;
+              __builtin_prefetch(fx < half ? static_cast<const void*>(nh + fx)
+                                           : static_cast<const void*>(nhm + (hr.cols - fx)));
+            }
+          }
+        }
+      }
       for (int kx = 0; kx < r; ++kx) {
         const Index fx0 = ux0 + kx * lr.cols;
         const Complex* bk = b + kx * count;
@@ -594,6 +613,14 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, Image prior_symbol, d
   });
   for (Index i = 0; i < nb_; ++i)
     if (!prior_positive_[i]) zero_prior_bins_.push_back(i);
+  canonical_.resize(nb_);
+  for (Index uy = 0; uy < lr.rows; ++uy) {
+    const Index muy = (lr.rows - uy) % lr.rows;
+    for (Index ux = 0; ux < lr.cols; ++ux) {
+      const Index mux = (lr.cols - ux) % lr.cols;
+      canonical_[uy * lr.cols + ux] = ux < mux || (ux == mux && uy <= muy);
+    }
+  }
 }
 
 void FourierSystem::NoteNorms(Index i, BinPtr d, FloorNorms* fn) const {
@@ -989,11 +1016,7 @@ Index FourierSystem::MirrorBin(Index bin) const {
   return ((lr.rows - uy) % lr.rows) * lr.cols + (lr.cols - ux) % lr.cols;
 }
 
-bool FourierSystem::CanonicalBin(Index bin) const {
-  const Shape lr = model_.lr_shape();
-  const Index m = MirrorBin(bin), ux = bin % lr.cols, mux = m % lr.cols;
-  return ux < mux || (ux == mux && bin / lr.cols <= m / lr.cols);
-}
+bool FourierSystem::CanonicalBin(Index bin) const { return canonical_[bin] != 0; }
 
 void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp, BinData* d) const {
   // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's range, so
@@ -1012,6 +1035,13 @@ void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp, BinData* d) const {
 }
 
 void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, BinPtr bd, std::vector<double>* scratch) const {
+  DecomposeWhitened(n_, bd.a, bd.pinv, &y_[i * n_], &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max], &sp->q[i],
+                    &sp->perp[i], scratch);
+}
+
+void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out,
+                                      double* c_out, int* q_out, double* perp_out,
+                                      std::vector<double>* scratch) const {
   // B = A P^(-1/2) (N x r², column-major), and the data Y. The singular values of B and the projections of Y on
   // its left singular vectors come from the eigen-decomposition of the q x q Gram matrix M = B Bᴴ, which is
   // exact for the large ones but holds each eigenvalue only to ~ q ε ||M|| absolutely: the small s² (aliases
@@ -1025,10 +1055,7 @@ void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, BinPtr bd, std::vec
   // to at most ε² ||B||²_F (below the rounding of any factorisation of B) are dropped first. Where N > r² the
   // Householder QR B = Q [R; 0] comes first: the Gram matrix is then R Rᴴ and ||Y||² − ||UᴴY||² is the sum of
   // squares of the trailing entries of QᴴY (no cancellation).
-  const int n = n_, rr = rr_;
-  const Complex* a = bd.a;
-  const double* pinv = bd.pinv;
-  const Complex* y = &y_[i * n];
+  const int rr = rr_;
   const int qn = std::min(n, rr);
   // Scratch (doubles): B 2·n·rr, Y 2n, M 2qn², U 2qn², d qn, eigen work 3qn² + 2qn, W 2·rr·qn, M_S 2qn², R 2qn²,
   // rotated 2·n·qn, v 2n, norms rr, keep rr.
@@ -1115,10 +1142,8 @@ void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, BinPtr bd, std::vec
     }
     for (int f = kept; f < n; ++f) perp += Norm2(yv[f]);
   }
-  double* s2_out = &sp->s2[i * sp->q_max];
-  double* c_out = &sp->c[i * sp->q_max];
-  sp->q[i] = q;
-  sp->perp[i] = perp;
+  *q_out = q;
+  *perp_out = perp;
   if (q == 0) return;
   // M = Bw Bwᴴ (q x q), Bw(p, c) = bw[c n + p], its small eigenvalues refined on Bw.
   if (!RefinedGramEigen(bw, q, kept, n, d, u, m, rot, w, tmp, ework))
@@ -1138,6 +1163,7 @@ void FourierSystem::MakeSpectral() const {
   sp->c.assign(nb_ * sp->q_max, 0.0);
   sp->perp.assign(nb_, 0.0);
   sp->q.assign(nb_, 0);
+  sp->zeros.assign(nb_, 0);
   sp->weight.assign(nb_, 0);
   for (Index i = 0; i < nb_; ++i) {
     if (!prior_positive_[i]) {
@@ -1166,6 +1192,61 @@ void FourierSystem::MakeSpectral() const {
                       DecomposeBinEigen(i, sp.get(), d, &scratch);
                     });
     if (note_norms) FinishFloor(norms);
+    // The bins whose prior vanishes at aliases Z, where the data see that null space (EnsureZeroPriorRanks): x_Z
+    // is fitted without penalty, so with Q_Z from the QR of A(u)_Z the objective is ||Π(Y − A_R x_R)||² +
+    // w ||P_R^½ x_R||² on the complement Π = I − Q_Z Q_Zᴴ (N − z dimensions), a Tikhonov problem with a positive
+    // prior: the same decomposition on the N − z reflected rows, with N − tr H = Σ w/(s² + w) + (N − z − q).
+    // The others stay direct (solved at each λ).
+    EnsureZeroPriorRanks();
+    std::vector<Index> direct;
+    BinData d;
+    std::vector<double> scratch;
+    std::vector<Complex> reduced, yr;
+    for (Index i : sp->direct) {
+      if (!seen_[i]) {
+        direct.push_back(i);
+        continue;
+      }
+      if (!CanonicalBin(i)) continue;  // counted twice through its canonical mirror
+      Gather(i, &d);
+      std::vector<Complex>& a = d.a;
+      std::vector<Complex> y(y_.begin() + i * n_, y_.begin() + (i + 1) * n_);
+      int z = 0;
+      for (int c = 0; c < rr_ && z < n_; ++c) {
+        if (d.p[c] > 0) continue;
+        // Householder on rows z .. N-1 of column c, applied to every column and to Y.
+        Complex* x = &a[std::size_t(c) * n_ + z];
+        const int len = n_ - z;
+        double alpha2 = 0;
+        for (int t = 0; t < len; ++t) alpha2 += Norm2(x[t]);
+        const double alpha = std::sqrt(alpha2), a0 = std::sqrt(Norm2(x[0]));
+        if (alpha > 0) {
+          const Complex phase = a0 > 0 ? x[0] / a0 : Complex(1.0);
+          std::vector<Complex> v(x, x + len);
+          v[0] += phase * alpha;
+          const double scale = 1.0 / (alpha * (alpha + a0));
+          const auto reflect = [&](Complex* col) {
+            Complex dot = 0;
+            for (int t = 0; t < len; ++t) dot += ConjMul(v[t], col[t]);
+            dot *= scale;
+            for (int t = 0; t < len; ++t) col[t] -= Mul(v[t], dot);
+          };
+          for (int k = 0; k < rr_; ++k) reflect(&a[std::size_t(k) * n_ + z]);
+          reflect(&y[z]);
+        }
+        ++z;
+      }
+      const int nr = n_ - z;
+      reduced.assign(std::size_t(nr) * rr_, Complex(0));
+      for (int k = 0; k < rr_; ++k)
+        for (int t = 0; t < nr; ++t) reduced[std::size_t(k) * nr + t] = a[std::size_t(k) * n_ + z + t];
+      yr.assign(y.begin() + z, y.end());
+      DecomposeWhitened(nr, reduced.data(), d.pinv.data(), yr.data(), &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max],
+                        &sp->q[i], &sp->perp[i], &scratch);
+      sp->zeros[i] = z;
+      sp->weight[i] = MirrorBin(i) == i ? 1 : 2;
+    }
+    sp->direct = std::move(direct);
   }
   for (Index i = 0; i < nb_; ++i) {
     const int weight = sp->weight[i];
@@ -1176,7 +1257,7 @@ void FourierSystem::MakeSpectral() const {
       sp->term_weight.push_back(weight);
     }
     sp->fixed_residual += weight * sp->perp[i];
-    sp->fixed_dof += weight * double(n_ - sp->q[i]);
+    sp->fixed_dof += weight * double(n_ - sp->zeros[i] - sp->q[i]);
   }
   spectral_ = std::move(sp);
 }
@@ -1237,7 +1318,7 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prio
         const int q = sp.q[i];
         const double* s2 = &sp.s2[i * sp.q_max];
         const double* c = &sp.c[i * sp.q_max];
-        double res = sp.perp[i], dof = double(n - q), prior = 0, dprior = 0;
+        double res = sp.perp[i], dof = double(n - sp.zeros[i] - q), prior = 0, dprior = 0;
         for (int k = 0; k < q; ++k) {
           // w / (s² + w), 1 where both vanish (an unseen direction keeps all its data in the residual).
           const double d = s2[k] + w;

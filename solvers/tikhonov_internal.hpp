@@ -50,8 +50,9 @@ class FourierSystem {
   // B(u) = A(u) P(u)^(-1/2) = U diag(s) Vᴴ and c = |Uᴴ Y(u)|², w = λ/r²,
   //   ||Y − A X||² = Σ_k (w / (s_k² + w))² c_k + ||(I − UUᴴ) Y||²,   N − tr H = Σ_k w / (s_k² + w) + (N − q),
   // q = min(N, r²): O(q) per bin and λ instead of a solve, so a λ rule may evaluate as often as it likes
-  // (tikhonov.hpp, "λ rules"). Bins whose prior vanishes somewhere (the DC bin of the gradient and Laplacian
-  // priors) are solved directly at each λ.
+  // (tikhonov.hpp, "λ rules"). Bins whose prior vanishes at aliases Z (the DC bin of the gradient and Laplacian
+  // priors) are reduced to the complement of A(u)_Z's range where the data see that null space (MakeSpectral), with
+  // N − tr H = Σ_k w/(s_k² + w) + (N − z − q); only where they do not are they solved directly at each λ.
   // want_prior adds η = ||Γx||² = (1/(m² r²)) Σ_u Σ_k s_k² c_k/(s_k² + w)² and its derivative by λ,
   // dη/dλ = −(2/(m² r⁴)) Σ_u Σ_k s_k² c_k/(s_k² + w)³ (direct bins: −2 Re (Px)ᴴ G⁻¹ (Px) per bin).
   Fit EvaluateSpectral(double lambda, bool want_prior = false) const;
@@ -160,8 +161,9 @@ class FourierSystem {
     std::vector<double> c;      // |u_kᴴ Y|², likewise
     std::vector<double> perp;   // ||(I − UUᴴ) Y||² per bin
     std::vector<int> q;         // values used per bin
+    std::vector<int> zeros;     // z: aliases of a zero of the prior reduced away (MakeSpectral), else 0
     std::vector<char> weight;   // 2 for one bin of a mirror pair (the other copies it), 1 if self-mirror, else 0
-    std::vector<Index> direct;  // bins with a zero of the prior (solved at each λ)
+    std::vector<Index> direct;  // bins with a zero of the prior the data do not see (solved at each λ)
     // The same values as one stream of terms (the counted bins' q values in bin order) for the λ loop:
     // s², weight·c and weight; and the λ-independent parts Σ weight·perp and Σ weight·(N − q).
     std::vector<double> term_s2, term_wc, term_weight;
@@ -170,6 +172,10 @@ class FourierSystem {
   void MakeSpectral() const;
   void DecomposeBinSvd(Index bin, Spectral* sp, BinData* d) const;
   void DecomposeBinEigen(Index bin, Spectral* sp, BinPtr d, std::vector<double>* scratch) const;
+  // DecomposeBinEigen's decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s²,
+  // |uᴴY|², the count q and the part of Y outside the range.
+  void DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out, double* c_out,
+                         int* q_out, double* perp_out, std::vector<double>* scratch) const;
   SpectralMethod spectral_method_ = SpectralMethod::kEigen;
   // The bin of −u (LR frequencies), and whether `bin` is the one of its pair {u, −u} that is computed (the
   // other is its conjugate: real frames, real PSFs, an even prior).
@@ -185,6 +191,7 @@ class FourierSystem {
   Index nb_ = 0;                    // LR bins
   std::vector<Complex> y_;          // Y(u): bin i at i·N
   std::vector<char> prior_positive_;
+  std::vector<char> canonical_;     // CanonicalBin, per bin
   std::vector<Index> zero_prior_bins_;  // bins whose prior vanishes at some alias
   // Lazily made (lazy_mutex_): the floor and λ₀; the ranks (-1 until made).
   mutable std::mutex lazy_mutex_;
