@@ -271,8 +271,15 @@ bool AllFiniteParallel(const Image& x) {
   const Index blocks = (x.rows() + kRows - 1) / kRows;
   std::vector<char> ok(blocks, 1);
   ParallelFor(blocks, [&](Index b) {
-    const Index r0 = b * kRows, rows = std::min(kRows, x.rows() - r0);
-    ok[b] = x.middleRows(r0, rows).isFinite().all();
+    // v·0 is 0 for finite v and NaN otherwise; the sum (four lanes) is NaN iff some value is not finite.
+    const Index r0 = b * kRows, count = std::min(kRows, x.rows() - r0) * x.cols();
+    const double* v = x.data() + r0 * x.cols();
+    double lane[4] = {0, 0, 0, 0};
+    Index k = 0;
+    for (; k + 4 <= count; k += 4)
+      for (int l = 0; l < 4; ++l) lane[l] += v[k + l] * 0.0;
+    for (; k < count; ++k) lane[0] += v[k] * 0.0;
+    ok[b] = (lane[0] + lane[1]) + (lane[2] + lane[3]) == 0.0;
   });
   return std::all_of(ok.begin(), ok.end(), [](char c) { return c != 0; });
 }
@@ -507,6 +514,11 @@ void FourierSystem::GatherRun(Index uy, Index ux0, int count, std::size_t stride
   for (int ky = 0; ky < r; ++ky) {
     const Index fy = uy + ky * lr.rows, my = (hr.rows - fy) % hr.rows;
     const double* sym = &prior_symbol_(fy, 0);
+    if (ky + 1 < r) {  // the next alias row's prior stretches (a stream of its own, prefetched as the OTFs' below)
+      const double* next = &prior_symbol_(fy + lr.rows, 0);
+      for (int kx = 0; kx < r; ++kx)
+        for (int k = 0; k < count; k += 8) __builtin_prefetch(next + ux0 + kx * lr.cols + k);
+    }
     for (int kx = 0; kx < r; ++kx) {
       const int c = ky * r + kx;
       const Index fx0 = ux0 + kx * lr.cols;
