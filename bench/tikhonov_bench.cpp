@@ -7,15 +7,16 @@
 // paper scenes) and the phases of ReconstructTikhonov are timed one by one through the library's internal
 // engine (solvers/tikhonov_internal.hpp):
 //   prior      PriorSymbolImage: |Γ̂|² on the HR spectrum
-//   system     FourierSystem's constructor: the per-bin systems A(u), prior, ranks (no data)
+//   system     FourierSystem's constructor (the bins whose prior vanishes, the mirror-pair flags: A(u) is gathered
+//              from the OTFs by each pass, and the rank floor, λ₀ and ranks are made on first use)
 //   data       SetData: N LR FFTs and the per-bin data vectors
-//   spectral   the λ search's per-bin decomposition (the first EvaluateSpectral)
+//   spectral   the λ search's per-bin decomposition (the first EvaluateSpectral; with the floor and λ₀)
 //   search     the rest of the GCV search (sums over the decomposition, one pass per λ tried)
 //   solve      Solve at the chosen λ (per-bin solves + one c2r HR FFT)
 //   summary    FinishSummary (data misfit through the forward model; the prior norm comes from the solve)
 // and end to end: ReconstructTikhonov with λ fixed (at GCV's λ) and with the GCV search, each the minimum of
 // `--repeats` runs (default 5; the machine is shared), on 1 thread and on 2 threads, with the images compared
-// bit for bit. floor = FFTs executed x one out-of-place r2c FFTW transform of the HR grid (FFTW_MEASURE, minimum
+// bit for bit, and the 2-thread speed-up in wall time (1- and 2-thread runs alternated, the ratio of the minima). floor = FFTs executed x one out-of-place r2c FFTW transform of the HR grid (FFTW_MEASURE, minimum
 // of 15 batches), the same unit as bench/results/reconstruct.md. One-thread times (and the floor) are process CPU
 // time, two-thread times wall time: the machine is shared.
 //
