@@ -25,7 +25,10 @@
 //    *Singular bins.* Where G(u) is singular (λ = 0 and A(u) rank deficient, or a prior null space the
 //    data do not see) the minimum-norm solution of the stacked system [A; √w P^½] is returned (SVD, with
 //    singular values below rank_tolerance × the largest of all bins dropped) and the summary counts the HR
-//    frequencies the data leave unconstrained: they are reported, not filled.
+//    frequencies the data leave unconstrained: they are reported, not filled (at λ = 0 always, otherwise on
+//    request: TikhonovOptions::count_unconstrained). At λ > 0 a bin whose prior vanishes at some aliases is
+//    solved by (2) when the data see those aliases (their columns of A(u) have full column rank against that
+//    floor), else by the minimum-norm path.
 //
 // 2. Conjugate gradients (anything that breaks periodicity: non-uniform weights, masked pixels, zero-padded
 //    boundaries). Solves the normal equations of (1),
@@ -101,9 +104,11 @@
 //   kGcv          generalised cross-validation (Golub, Heath & Wahba 1979, Technometrics 21, 215): minimises
 //                 GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)²; needs no noise level. Each value is a sum over
 //                 the singular values of the whitened bins B(u) = A(u) P(u)^(−½) (one decomposition per bin for
-//                 the whole search, then O(min(N, r²)) per bin and λ; the decomposition is the eigen-decomposition
-//                 of the small Gram matrix B Bᴴ with its small eigenvalues refined on B itself, as accurate as an
-//                 SVD of B: tested against one to 1e-10 in the GCV curve), so the search is a log grid (gcv_decades x
+//                 the whole search, then O(min(N, r²)) per bin and λ; a bin whose prior vanishes at z aliases the
+//                 data see is first reduced to the N − z dimensions outside those aliases' columns; the
+//                 decomposition is the eigen-decomposition of the small Gram matrix B Bᴴ with its small
+//                 eigenvalues refined on B itself, as accurate as an SVD of B: tested against one to 1e-10 in
+//                 the GCV curve), so the search is a log grid (gcv_decades x
 //                 gcv_steps_per_decade) to find the basin and a golden-section search on log λ between the
 //                 best point's neighbours to 1e-4 decades: a continuous minimiser, not a grid point. Needs a
 //                 Fourier-exact problem (uniform weights, periodic boundary: tr H exactly, per bin; a CG
