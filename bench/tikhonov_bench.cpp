@@ -7,22 +7,26 @@
 // paper scenes) and the phases of ReconstructTikhonov are timed one by one through the library's internal
 // engine (solvers/tikhonov_internal.hpp):
 //   prior      PriorSymbolImage: |Γ̂|² on the HR spectrum
-//   system     FourierSystem's constructor: the per-bin systems A(u), prior, ranks (no data)
+//   system     FourierSystem's constructor (the bins whose prior vanishes, the mirror-pair flags: A(u) is gathered
+//              from the OTFs by each pass, and the rank floor, λ₀ and ranks are made on first use)
 //   data       SetData: N LR FFTs and the per-bin data vectors
-//   spectral   the λ search's per-bin decomposition (the first EvaluateSpectral)
+//   spectral   the λ search's per-bin decomposition (the first EvaluateSpectral; with the floor and λ₀)
 //   search     the rest of the GCV search (sums over the decomposition, one pass per λ tried)
 //   solve      Solve at the chosen λ (per-bin solves + one c2r HR FFT)
-//   summary    FinishSummary (data misfit through the forward model, prior norm)
+//   summary    FinishSummary (data misfit through the forward model; the prior norm comes from the solve)
 // and end to end: ReconstructTikhonov with λ fixed (at GCV's λ) and with the GCV search, each the minimum of
 // `--repeats` runs (default 5; the machine is shared), on 1 thread and on 2 threads, with the images compared
-// bit for bit. floor = FFTs executed x one out-of-place r2c FFTW transform of the HR grid (FFTW_MEASURE, minimum
+// bit for bit, and the 2-thread speed-up in wall time (1- and 2-thread runs alternated, the ratio of the minima). floor = FFTs executed x one out-of-place r2c FFTW transform of the HR grid (FFTW_MEASURE, minimum
 // of 15 batches), the same unit as bench/results/reconstruct.md. One-thread times (and the floor) are process CPU
 // time, two-thread times wall time: the machine is shared.
 //
 // With --weighted the dataset's own weights are kept (the CG path, with GCV chosen on the unweighted frames by
 // Reconstruct); only the end-to-end rows are timed then.
 //
-// Usage: build/bench/tikhonov_bench [--scene NAME] [--frames N,...] [--repeats K] [--weighted]
+// With --profile K only the end-to-end runs are made, K times each (λ fixed, then GCV) on one thread, and nothing
+// is timed: a workload for `perf record -g`.
+//
+// Usage: build/bench/tikhonov_bench [--scene NAME] [--frames N,...] [--repeats K] [--weighted] [--profile K]
 //   default: demo, paper-sim-r2, paper-sim-r4, paper-sim-r8 at N = 2, 4, 8, 16 (r8: 2, 4, 8).
 #include <fftw3.h>
 #include <unistd.h>
@@ -97,7 +101,7 @@ double MinTime(int repeats, F&& f, bool wall = false) {
   return best;
 }
 
-void Run(const std::string& scene, int frames, int repeats, bool weighted) {
+void Run(const std::string& scene, int frames, int repeats, bool weighted, int profile) {
   const std::string path = (fs::path(aosr::DataDirectory()) / "scenes" / scene).string();
   nlohmann::json j = aosr::ReadJsonFile(path);
   j["frames"] = frames;
@@ -126,6 +130,11 @@ void Run(const std::string& scene, int frames, int repeats, bool weighted) {
   aosr::ReconstructOptions rf = ro;
   rf.tikhonov.lambda_rule = aosr::TikhonovLambdaRule::kFixed;
   rf.tikhonov.lambda = lambda;
+  if (profile > 0) {  // --profile K: only the end-to-end runs, K each on one thread, for `perf record`
+    for (int k = 0; k < profile; ++k) aosr::Reconstruct(p, rf);
+    for (int k = 0; k < profile; ++k) aosr::Reconstruct(p, ro);
+    return;
+  }
 
   auto end_to_end = [&](const aosr::ReconstructOptions& o, int threads, Image* image, std::uint64_t* ffts) {
     aosr::SetDefaultThreads(threads);
@@ -142,11 +151,27 @@ void Run(const std::string& scene, int frames, int repeats, bool weighted) {
   const double t_fixed2 = end_to_end(rf, 2, &fixed2, &dummy);
   const double t_gcv2 = end_to_end(ro, 2, &gcv2, &dummy);
   const bool same = (fixed1 == fixed2).all() && (gcv1 == gcv2).all();
+  // The 2-thread speed-up in wall time: 1-thread and 2-thread runs alternated (the load moves between them
+  // less than between two series), the ratio of the minima.
+  auto speedup = [&](const aosr::ReconstructOptions& o) {
+    double one = 1e300, two = 1e300;
+    for (int k = 0; k < repeats; ++k)
+      for (int threads : {1, 2}) {
+        aosr::SetDefaultThreads(threads);
+        const auto t0 = Clock::now();
+        aosr::Reconstruct(p, o);
+        (threads == 1 ? one : two) = std::min(threads == 1 ? one : two, Since(t0));
+      }
+    aosr::SetDefaultThreads(1);
+    return one / two;
+  };
+  const double speedup_fixed = speedup(rf), speedup_gcv = speedup(ro);
 
-  std::printf("| %s | %lld | %d | %d | %s | %.2f | %.2f | %.1f | %.2f | %.2f | %.1f | %.2f / %.2f | %s |", scene.c_str(),
-              (long long)hr.rows, r, frames, weighted ? "weighted (CG)" : "uniform", fft_s * 1e3,
+  std::printf("| %s | %lld | %d | %d | %s | %.2f | %.2f | %.1f | %.2f | %.2f | %.1f | %.2f / %.2f | %.2f / %.2f | %s |",
+              scene.c_str(), (long long)hr.rows, r, frames, weighted ? "weighted (CG)" : "uniform", fft_s * 1e3,
               t_fixed * 1e3, t_fixed / (double(ffts_fixed) * fft_s), double(ffts_fixed), t_gcv * 1e3,
-              t_gcv / (double(ffts_gcv) * fft_s), t_fixed2 * 1e3, t_gcv2 * 1e3, same ? "yes" : "NO");
+              t_gcv / (double(ffts_gcv) * fft_s), t_fixed2 * 1e3, t_gcv2 * 1e3, speedup_fixed, speedup_gcv,
+              same ? "yes" : "NO");
   if (weighted) {
     std::printf(" | | | | | | | |\n");
     std::fflush(stdout);
@@ -169,9 +194,10 @@ void Run(const std::string& scene, int frames, int repeats, bool weighted) {
   int evaluations = 0;
   const double t_search = MinTime(repeats, [&] { ti::GcvSearch(*sys, gcv, &score, &evaluations); });
   Image x;
-  const double t_solve = MinTime(repeats, [&] { x = sys->Solve(lambda); });
+  ti::FourierSystem::Fit fit;
+  const double t_solve = MinTime(repeats, [&] { x = sys->Solve(lambda, &fit); });
   aosr::TikhonovSummary summary;
-  const double t_summary = MinTime(repeats, [&] { ti::FinishSummary(p, x, lambda, gcv, &summary); });
+  const double t_summary = MinTime(repeats, [&] { ti::FinishSummary(p, x, lambda, gcv, &summary, &fit.prior2); });
   const double unit = double(ffts_fixed) * fft_s;
   std::printf(" %.2f | %.2f | %.2f | %.2f | %.2f (%d) | %.2f | %.2f |\n", t_prior / unit, t_system / unit,
               t_data / unit, t_spectral / unit, t_search / unit, evaluations, t_solve / unit, t_summary / unit);
@@ -185,6 +211,7 @@ int main(int argc, char** argv) {
   std::vector<int> frames;
   int repeats = 5;
   bool weighted = false;
+  int profile = 0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--scene" && i + 1 < argc) {
@@ -196,22 +223,24 @@ int main(int argc, char** argv) {
       for (std::string t; std::getline(ss, t, ',');) frames.push_back(std::stoi(t));
     } else if (a == "--repeats" && i + 1 < argc) {
       repeats = std::max(1, std::stoi(argv[++i]));
+    } else if (a == "--profile" && i + 1 < argc) {
+      profile = std::max(1, std::stoi(argv[++i]));
     } else if (a == "--weighted") {
       weighted = true;
     } else {
-      std::fprintf(stderr, "usage: tikhonov_bench [--scene NAME] [--frames N,...] [--repeats K] [--weighted]\n");
+      std::fprintf(stderr, "usage: tikhonov_bench [--scene NAME] [--frames N,...] [--repeats K] [--weighted] [--profile K]\n");
       return 2;
     }
   }
   if (scenes.empty()) scenes = {"demo.json", "paper-sim-r2.json", "paper-sim-r4.json", "paper-sim-r8.json"};
   std::printf(
       "| scene | HR | r | N | weights | one HR r2c [ms] | λ fixed [ms] | ×floor | FFTs | GCV [ms] | ×floor | 2 threads "
-      "fixed / GCV [ms] | bit-identical | prior | system | data | spectral | search (λs) | solve | summary |\n"
-      "|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|\n");
+      "fixed / GCV [ms] | 2 threads ÷ 1 (wall) fixed / GCV | bit-identical | prior | system | data | spectral | search (λs) | solve | summary |\n"
+      "|---|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const std::string& s : scenes) {
     std::vector<int> ns = frames;
     if (ns.empty()) ns = s.find("r8") != std::string::npos ? std::vector<int>{2, 4, 8} : std::vector<int>{2, 4, 8, 16};
-    for (int n : ns) Run(s, n, repeats, weighted);
+    for (int n : ns) Run(s, n, repeats, weighted, profile);
   }
   std::printf("\nPhase columns (prior .. summary) in units of the λ-fixed run's FFT floor (FFTs x one HR r2c).\n");
   return 0;

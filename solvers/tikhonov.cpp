@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <mutex>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
@@ -230,15 +231,17 @@ Image PriorSymbolImage(const TikhonovOptions& options, Shape hr) {
       sx2[fx] = s * s;
     }
     const bool laplacian = options.prior == TikhonovPrior::kLaplacian;
-    for (Index fy = 0; fy < hr.rows; ++fy)
+    ParallelFor(hr.rows, [&](Index fy) {
       for (Index fx = 0; fx < hr.cols; ++fx) {
         const double g = 4.0 * (sy2[fy] + sx2[fx]);
         p(fy, fx) = laplacian ? g * g : g;
       }
+    });
     return p;
   }
-  for (Index fy = 0; fy < hr.rows; ++fy)
+  ParallelFor(hr.rows, [&](Index fy) {
     for (Index fx = 0; fx < hr.cols; ++fx) p(fy, fx) = TikhonovPriorSymbol(options, hr, fy, fx);
+  });
   return p;
 }
 
@@ -249,13 +252,36 @@ using bins::Norm2;
 // Bins per parallel task of the per-bin passes: a fixed partition, so every task writes the same bins whatever
 // the thread count.
 constexpr Index kBinBlock = 512;
+// Bins per run of FourierSystem::GatherRun (at most).
+constexpr int kGatherRun = 64;
 
-template <class F>
+// f(i, &scratch) for every bin i, one Scratch per block (FourierSystem's gathered bins).
+template <class Scratch, class F>
 void ForBinBlocks(Index bins, const F& f) {
   ParallelFor((bins + kBinBlock - 1) / kBinBlock, [&](Index block) {
+    Scratch scratch;
     const Index end = std::min(bins, (block + 1) * kBinBlock);
-    for (Index i = block * kBinBlock; i < end; ++i) f(i);
+    for (Index i = block * kBinBlock; i < end; ++i) f(i, &scratch);
   });
+}
+
+// AllFinite on fixed row blocks in parallel (the answer does not depend on the partition).
+bool AllFiniteParallel(const Image& x) {
+  constexpr Index kRows = 64;
+  const Index blocks = (x.rows() + kRows - 1) / kRows;
+  std::vector<char> ok(blocks, 1);
+  ParallelFor(blocks, [&](Index b) {
+    // v·0 is 0 for finite v and NaN otherwise; the sum (four lanes) is NaN iff some value is not finite.
+    const Index r0 = b * kRows, count = std::min(kRows, x.rows() - r0) * x.cols();
+    const double* v = x.data() + r0 * x.cols();
+    double lane[4] = {0, 0, 0, 0};
+    Index k = 0;
+    for (; k + 4 <= count; k += 4)
+      for (int l = 0; l < 4; ++l) lane[l] += v[k + l] * 0.0;
+    for (; k < count; ++k) lane[0] += v[k] * 0.0;
+    ok[b] = (lane[0] + lane[1]) + (lane[2] + lane[3]) == 0.0;
+  });
+  return std::all_of(ok.begin(), ok.end(), [](char c) { return c != 0; });
 }
 
 // a·conj(b) and conj(a)·b without the NaN-recovery branch of std::complex's product (finite data here).
@@ -444,231 +470,422 @@ bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std
 
 }  // namespace
 
-FourierSystem::BinView FourierSystem::View(Index bin) const {
-  return BinView{Eigen::Map<const Eigen::MatrixXcd>(&a_[bin * n_ * rr_], n_, rr_),
-                 Eigen::Map<const Eigen::VectorXcd>(&y_[bin * n_], n_),
-                 Eigen::Map<const Eigen::VectorXd>(&prior_[bin * rr_], rr_), prior_positive_[bin] != 0, rank_[bin]};
-}
-
-FourierSystem::FourierSystem(const MultiFrameModel& model, const Image& prior_symbol, double rank_tolerance,
-                             TikhonovBinSolver solver)
-    : model_(model), solver_(solver) {
-  const Shape lr = model.lr_shape();
-  const int r = model.r();
-  n_ = model.frames();
-  rr_ = r * r;
-  nb_ = lr.size();
-  const Index stride = Index(n_) * rr_;
-  a_.resize(nb_ * stride);
-  y_.assign(nb_ * n_, Complex(0));
-  prior_.resize(nb_ * rr_);
-  prior_inv_.resize(nb_ * rr_);
-  prior_positive_.assign(nb_, 0);
-  rank_.assign(nb_, 0);
-  // Pass 1, one per bin: A(u) (entries (1/r²) B(f_k) H_i(f_k), MultiFrameModel::AliasedSystem's arithmetic),
-  // the prior, ||A(u)||²_F = tr of its Gram matrix, and its largest squared column norm, a lower bound of
-  // σ_max(A(u))² (a diagonal entry of AᴴA).
-  std::vector<double> traces(nb_), col_max(nb_);
+void FourierSystem::Gather(Index bin, BinData* d) const {
+  // A(u): entries (1/r²) B(f_k) H_i(f_k) (MultiFrameModel::AliasedSystem's arithmetic), H_i from the half spectrum
+  // (MultiFrameModel::Otf); P(u) and 1/P on the r² aliases.
+  const Shape lr = model_.lr_shape(), hr = model_.hr_shape();
+  const int n = n_, r = r_;
+  d->a.resize(std::size_t(n) * rr_);
+  d->p.resize(rr_);
+  d->pinv.resize(rr_);
+  const Index uy = bin / lr.cols, ux = bin % lr.cols, half = hr.cols / 2 + 1;
   const double inv_rr = 1.0 / double(rr_);
-  const Shape hr = model.hr_shape();
-  const Index half = hr.cols / 2 + 1;
-  // One LR row of bins per task (a fixed partition): its bins read r HR rows of each frame's half-spectrum OTF
-  // (and their Hermitian mirrors), directly, row by row.
-  ParallelFor(lr.rows, [&](Index uy) {
-    std::vector<const Complex*> row(std::size_t(n_) * r), mirror_row(std::size_t(n_) * r);
-    for (int f = 0; f < n_; ++f)
-      for (int ky = 0; ky < r; ++ky) {
-        const Index fy = uy + ky * lr.rows;
-        row[f * r + ky] = &model.otf(f)(fy, 0);
-        mirror_row[f * r + ky] = &model.otf(f)((hr.rows - fy) % hr.rows, 0);
+  for (int ky = 0; ky < r; ++ky) {
+    const Index fy = uy + ky * lr.rows, my = (hr.rows - fy) % hr.rows;
+    const double* sym = &prior_symbol_(fy, 0);
+    for (int kx = 0; kx < r; ++kx) {
+      const int c = ky * r + kx;
+      const Index fx = ux + kx * lr.cols;
+      const Complex b = model_.PixelTransfer(fy, fx) * inv_rr;
+      Complex* out = &d->a[std::size_t(c) * n];
+      if (fx < half) {
+        for (int f = 0; f < n; ++f) out[f] = Mul(b, model_.otf(f)(fy, fx));
+      } else {
+        for (int f = 0; f < n; ++f) out[f] = Mul(b, std::conj(model_.otf(f)(my, hr.cols - fx)));
       }
-    // Alias by alias, frame by frame, a stream along the OTF row into this row's bins (which stay in cache):
-    // one bin at a time would read N r² rows at once, more streams than the prefetcher follows.
-    std::vector<Complex> b(lr.cols);
-    for (int ky = 0; ky < r; ++ky)
-      for (int kx = 0; kx < r; ++kx) {
-        const int c = ky * r + kx;
-        const Index fy = uy + ky * lr.rows;
-        for (Index ux = 0; ux < lr.cols; ++ux) b[ux] = model.PixelTransfer(fy, ux + kx * lr.cols) * inv_rr;
-        for (int f = 0; f < n_; ++f) {
-          // H_i(fy, fx) from the half spectrum (MultiFrameModel::Otf), times B/r² (AliasedSystem).
-          const Complex* h = row[f * r + ky];
-          const Complex* hm = mirror_row[f * r + ky];
-          Complex* out = &a_[(uy * lr.cols) * stride + c * n_ + f];
-          for (Index ux = 0; ux < lr.cols; ++ux) {
-            const Index fx = ux + kx * lr.cols;
-            out[ux * stride] = Mul(b[ux], fx < half ? h[fx] : std::conj(hm[hr.cols - fx]));
-          }
-        }
-        const double* sym = &prior_symbol(fy, 0);
-        for (Index ux = 0; ux < lr.cols; ++ux) {
-          const double pv = sym[ux + kx * lr.cols];
-          prior_[(uy * lr.cols + ux) * rr_ + c] = pv;
-          prior_inv_[(uy * lr.cols + ux) * rr_ + c] = pv > 0 ? 1.0 / pv : 0.0;
-        }
-      }
-    for (Index ux = 0; ux < lr.cols; ++ux) {
-      const Index i = uy * lr.cols + ux;
-      const Complex* a = &a_[i * stride];
-      const double* p = &prior_[i * rr_];
-      double trace = 0, cmax = 0;
-      bool positive = true;
-      for (int c = 0; c < rr_; ++c) {
-        double col = 0;
-        for (int f = 0; f < n_; ++f) col += Norm2(a[c * n_ + f]);
-        trace += col;
-        cmax = std::max(cmax, col);
-        positive = positive && p[c] > 0;
-      }
-      traces[i] = trace;
-      col_max[i] = cmax;
-      prior_positive_[i] = positive;
-    }
-  });
-  // The largest σ² over all bins sets the rank floor. σ_max(u)² lies in [col_max(u), tr(u)], so only bins whose
-  // trace reaches the largest lower bound can hold it (usually the DC bin alone): their Gram's eigenvalues.
-  const int n_gram = std::min(n_, rr_);
-  double lower = 0, trace_ata = 0, trace_p = 0;
-  for (Index i = 0; i < nb_; ++i) lower = std::max(lower, col_max[i]);
-  double sv2_max = 0;
-  {
-    std::vector<Complex> g(std::size_t(n_gram) * n_gram);
-    for (Index i = 0; i < nb_; ++i) {
-      trace_ata += traces[i];
-      for (int c = 0; c < rr_; ++c) trace_p += prior_[i * rr_ + c];
-      if (n_gram == 0 || traces[i] < lower) continue;
-      Gram(&a_[i * stride], n_, nullptr, rr_, g.data());
-      const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> gm(
-          g.data(), n_gram, n_gram);
-      sv2_max = std::max(sv2_max, Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(Eigen::MatrixXcd(gm),
-                                                                                   Eigen::EigenvaluesOnly)
-                                      .eigenvalues()
-                                      .maxCoeff());
+      const double pv = sym[fx];
+      d->p[c] = pv;
+      d->pinv[c] = pv > 0 ? 1.0 / pv : 0.0;
     }
   }
-  sv_floor_ = rank_tolerance * std::sqrt(sv2_max);
-  const double floor2 = sv_floor_ * sv_floor_;
-  // Pass 2, ranks (one bin of each mirror pair: u and −u have conjugate systems, hence the same rank).
+}
+
+void FourierSystem::GatherRun(Index uy, Index ux0, int count, std::size_t stride, Complex* a, double* p,
+                              double* pinv) const {
+  // Gather's arithmetic, HR row by HR row: for each alias row ky and frame, one forward sweep along the OTF's row
+  // (and its mirror row), the stretches of the r alias columns in order, so the hardware prefetcher sees a stream.
+  const Shape lr = model_.lr_shape(), hr = model_.hr_shape();
+  const int n = n_, r = r_, rr = rr_;
+  const Index half = hr.cols / 2 + 1;
+  const double inv_rr = 1.0 / double(rr_);
+  thread_local std::vector<Complex> b_heap;
+  b_heap.resize(std::size_t(r) * count);
+  Complex* b = b_heap.data();  // b[kx·count + k] = B(f)/r² of bin k's alias (ky, kx)
+  for (int ky = 0; ky < r; ++ky) {
+    const Index fy = uy + ky * lr.rows, my = (hr.rows - fy) % hr.rows;
+    const double* sym = &prior_symbol_(fy, 0);
+    if (ky + 1 < r) {  // the next alias row's prior stretches (a stream of its own, prefetched as the OTFs' below)
+      const double* next = &prior_symbol_(fy + lr.rows, 0);
+      for (int kx = 0; kx < r; ++kx)
+        for (int k = 0; k < count; k += 8) __builtin_prefetch(next + ux0 + kx * lr.cols + k);
+    }
+    for (int kx = 0; kx < r; ++kx) {
+      const int c = ky * r + kx;
+      const Index fx0 = ux0 + kx * lr.cols;
+      for (int k = 0; k < count; ++k) {
+        const Index fx = fx0 + k;
+        b[kx * count + k] = model_.PixelTransfer(fy, fx) * inv_rr;
+        const double pv = sym[fx];
+        p[std::size_t(k) * rr + c] = pv;
+        pinv[std::size_t(k) * rr + c] = pv > 0 ? 1.0 / pv : 0.0;
+      }
+    }
+    for (int f = 0; f < n; ++f) {
+      const Complex* h = &model_.otf(f)(fy, 0);
+      const Complex* hm = &model_.otf(f)(my, 0);
+      {
+        // Prefetch the stretches the next (frame, alias row) reads: short strided streams the hardware prefetcher
+        // picks up too late (the reads below were most of this function's time).
+        const int nf = f + 1 < n ? f + 1 : 0;
+        const Index nfy = f + 1 < n ? fy : fy + lr.rows;
+        if (nfy < hr.rows) {
+          const Index nmy = (hr.rows - nfy) % hr.rows;
+          const Complex* nh = &model_.otf(nf)(nfy, 0);
+          const Complex* nhm = &model_.otf(nf)(nmy, 0);
+          for (int kx = 0; kx < r; ++kx) {
+            const Index fx0 = ux0 + kx * lr.cols;
+            for (int k = 0; k < count; k += 4) {
+              const Index fx = fx0 + k;
+              __builtin_prefetch(fx < half ? static_cast<const void*>(nh + fx)
+                                           : static_cast<const void*>(nhm + (hr.cols - fx)));
+            }
+          }
+        }
+      }
+      for (int kx = 0; kx < r; ++kx) {
+        const Index fx0 = ux0 + kx * lr.cols;
+        const Complex* bk = b + kx * count;
+        Complex* out = a + std::size_t(ky * r + kx) * n + f;
+        int k = 0;
+        for (; k < count && fx0 + k < half; ++k) out[k * stride] = Mul(bk[k], h[fx0 + k]);
+        for (; k < count; ++k) out[k * stride] = Mul(bk[k], std::conj(hm[hr.cols - (fx0 + k)]));
+      }
+    }
+  }
+}
+
+template <class Want, class F>
+void FourierSystem::ForGatheredBins(const Want& want, const F& f) const {
+  const Index cols = model_.lr_shape().cols;
+  // Bin stride: N r² rounded up to a multiple of 4 values plus 4 (64 bytes), so that the bins of a run do not map
+  // to one cache set; the run at most kGatherRun bins and ~256 KiB.
+  const std::size_t stride = (std::size_t(n_) * rr_ + 3) / 4 * 4 + 4;
+  const int run = int(std::clamp<std::size_t>((std::size_t(256) << 10) / (stride * sizeof(Complex)), 1, kGatherRun));
+  ParallelFor((nb_ + kBinBlock - 1) / kBinBlock, [&](Index block) {
+    std::vector<Complex> a(stride * run);
+    std::vector<double> p(std::size_t(rr_) * run), pinv(p.size());
+    const Index end = std::min(nb_, (block + 1) * kBinBlock);
+    Index i = block * kBinBlock;
+    while (i < end) {
+      if (!want(i)) {
+        ++i;
+        continue;
+      }
+      // A run of wanted bins within one LR row.
+      const Index row_end = std::min(end, (i / cols + 1) * cols);
+      Index j = i + 1;
+      while (j < row_end && j - i < run && want(j)) ++j;
+      GatherRun(i / cols, i % cols, int(j - i), stride, a.data(), p.data(), pinv.data());
+      for (Index k = i; k < j; ++k)
+        f(k, BinPtr{&a[std::size_t(k - i) * stride], &p[std::size_t(k - i) * rr_], &pinv[std::size_t(k - i) * rr_]});
+      i = j;
+    }
+  });
+}
+
+FourierSystem::BinView FourierSystem::View(Index bin, BinData* d) const {
+  Gather(bin, d);
+  return BinView{Eigen::Map<const Eigen::MatrixXcd>(d->a.data(), n_, rr_),
+                 Eigen::Map<const Eigen::VectorXcd>(&y_[bin * n_], n_),
+                 Eigen::Map<const Eigen::VectorXd>(d->p.data(), rr_), prior_positive_[bin] != 0,
+                 rank_.empty() ? -1 : rank_[bin]};
+}
+
+FourierSystem::FourierSystem(const MultiFrameModel& model, Image prior_symbol, double rank_tolerance,
+                             TikhonovBinSolver solver)
+    : model_(model), solver_(solver), prior_symbol_(std::move(prior_symbol)), rank_tolerance_(rank_tolerance) {
+  const Shape lr = model.lr_shape(), hr = model.hr_shape();
+  r_ = model.r();
+  n_ = model.frames();
+  rr_ = r_ * r_;
+  nb_ = lr.size();
+  if (ShapeOf(prior_symbol_) != hr)
+    throw InvalidArgument("FourierSystem", "prior_symbol shape", ToString(ShapeOf(prior_symbol_)),
+                          "the model's HR shape " + ToString(hr));
+  y_.assign(nb_ * n_, Complex(0));
+  // The bins whose prior vanishes at some alias (the DC bin of the gradient and Laplacian priors): the only ones
+  // whose path a λ > 0 solve decides by their rank.
+  prior_positive_.assign(nb_, 1);
+  ParallelFor(lr.rows, [&](Index uy) {  // LR row uy: its HR rows uy + ky·m_y, written only to its own bins
+    for (Index fy = uy; fy < hr.rows; fy += lr.rows) {
+      const double* row = &prior_symbol_(fy, 0);
+      for (Index fx = 0; fx < hr.cols; ++fx)
+        if (!(row[fx] > 0)) prior_positive_[uy * lr.cols + fx % lr.cols] = 0;
+    }
+  });
+  for (Index i = 0; i < nb_; ++i)
+    if (!prior_positive_[i]) zero_prior_bins_.push_back(i);
+  canonical_.resize(nb_);
+  for (Index uy = 0; uy < lr.rows; ++uy) {
+    const Index muy = (lr.rows - uy) % lr.rows;
+    for (Index ux = 0; ux < lr.cols; ++ux) {
+      const Index mux = (lr.cols - ux) % lr.cols;
+      canonical_[uy * lr.cols + ux] = ux < mux || (ux == mux && uy <= muy);
+    }
+  }
+}
+
+void FourierSystem::NoteNorms(Index i, BinPtr d, FloorNorms* fn) const {
+  // ||A(u)||²_F = tr of its Gram matrix, its largest squared column norm (a lower bound of σ_max(A(u))², a
+  // diagonal entry of AᴴA) and tr P(u).
+  double trace = 0, cmax = 0, psum = 0;
+  for (int c = 0; c < rr_; ++c) {
+    double col = 0;
+    for (int f = 0; f < n_; ++f) col += Norm2(d.a[std::size_t(c) * n_ + f]);
+    trace += col;
+    cmax = std::max(cmax, col);
+    psum += d.p[c];
+  }
+  fn->trace[i] = trace;
+  fn->col_max[i] = cmax;
+  fn->prior[i] = psum;
+}
+
+FourierSystem::FloorNorms FourierSystem::NewFloorNorms() const {
+  FloorNorms fn;
+  fn.trace.assign(nb_, 0.0);
+  fn.col_max.assign(nb_, 0.0);
+  fn.prior.assign(nb_, 0.0);
+  return fn;
+}
+
+void FourierSystem::FinishFloor(const FloorNorms& fn) const {
+  std::lock_guard<std::mutex> lock(lazy_mutex_);
+  if (floor_ready_) return;
+  // Over the canonical bins (a mirror bin's system is the conjugate: the same norms and singular values), in bin
+  // order. The largest σ² over all bins sets the rank floor. σ_max(u)² lies in [col_max(u), tr(u)], so only bins
+  // whose trace reaches the largest lower bound can hold it (usually the DC bin alone): their Gram's eigenvalues.
+  const int n_gram = std::min(n_, rr_);
+  double lower = 0, trace_ata = 0, trace_p = 0;
+  for (Index i = 0; i < nb_; ++i)
+    if (CanonicalBin(i)) lower = std::max(lower, fn.col_max[i]);
+  double sv2_max = 0;
+  std::vector<Complex> g(std::size_t(n_gram) * n_gram);
+  BinData d;
+  for (Index i = 0; i < nb_; ++i) {
+    if (!CanonicalBin(i)) continue;
+    const double weight = MirrorBin(i) == i ? 1.0 : 2.0;
+    trace_ata += weight * fn.trace[i];
+    trace_p += weight * fn.prior[i];
+    if (n_gram == 0 || fn.trace[i] < lower) continue;
+    Gather(i, &d);
+    Gram(d.a.data(), n_, nullptr, rr_, g.data());
+    const Eigen::Map<const Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> gm(
+        g.data(), n_gram, n_gram);
+    sv2_max = std::max(sv2_max, Eigen::SelfAdjointEigenSolver<Eigen::MatrixXcd>(Eigen::MatrixXcd(gm),
+                                                                                 Eigen::EigenvaluesOnly)
+                                    .eigenvalues()
+                                    .maxCoeff());
+  }
+  sv_floor_ = rank_tolerance_ * std::sqrt(sv2_max);
+  lambda0_ = trace_p > 0 && trace_ata > 0 ? trace_ata / trace_p : 1.0;
+  floor_ready_ = true;
+}
+
+bool FourierSystem::FloorReady() const {
+  std::lock_guard<std::mutex> lock(lazy_mutex_);
+  return floor_ready_;
+}
+
+void FourierSystem::EnsureFloor() const {
+  if (FloorReady()) return;
+  FloorNorms fn = NewFloorNorms();
+  ForGatheredBins([&](Index i) { return CanonicalBin(i); }, [&](Index i, BinPtr d) { NoteNorms(i, d, &fn); });
+  FinishFloor(fn);
+}
+
+double FourierSystem::lambda0() const {
+  EnsureFloor();
+  return lambda0_;
+}
+
+int FourierSystem::RankOf(const Complex* a, int cols) const {
   // Columns whose squared norms sum to at most 1e-4 floor² move no singular value by more than 1 % of the floor
   // (Weyl), so they are dropped first (aliases beyond the optical cutoff or on a zero of the pixel box). The
   // rank of the rest is certified by the Cholesky factor L of its Gram matrix G (n' x n'): λ_min(G) >=
   // 1/tr G⁻¹ = 1/||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding. Bins it cannot decide
   // (a σ near or below the floor) try a pivoted Householder QR (bounds on σ without squaring), then singular values
   // to an SVD's accuracy (refined Gram eigenvalues), and an SVD where one lies within 1e-4 of the floor².
-  ForBinBlocks(nb_, [&](Index i) {
-    if (!CanonicalBin(i)) return;
-    const Complex* a = &a_[i * stride];
-    double norms[256];
-    int keep[256];
-    std::vector<double> norm_heap;
-    std::vector<int> keep_heap;
-    double* nrm = rr_ <= 256 ? norms : (norm_heap.resize(rr_), norm_heap.data());
-    int* kp = rr_ <= 256 ? keep : (keep_heap.resize(rr_), keep_heap.data());
-    const double threshold = 1e-4 * floor2;
-    double small = 0;
-    for (int c = 0; c < rr_; ++c) {
-      double s = 0;
-      for (int f = 0; f < n_; ++f) s += Norm2(a[c * n_ + f]);
-      nrm[c] = s;
-      if (s <= threshold) small += s;
-    }
-    int kept = 0;
-    if (small <= threshold) {  // every column below the threshold fits: drop them all
-      for (int c = 0; c < rr_; ++c)
-        if (nrm[c] > threshold) kp[kept++] = c;
-    } else {  // drop the smallest columns while their sum fits (ascending order, ties by index)
-      std::vector<int> order(rr_);
-      for (int c = 0; c < rr_; ++c) order[c] = c;
-      std::sort(order.begin(), order.end(),
-                [&](int x, int y) { return nrm[x] < nrm[y] || (nrm[x] == nrm[y] && x < y); });
-      double dropped = 0;
-      std::vector<char> drop(rr_, 0);
-      for (int c : order)
-        if (dropped + nrm[c] <= threshold) dropped += nrm[c], drop[c] = 1;
-      for (int c = 0; c < rr_; ++c)
-        if (!drop[c]) kp[kept++] = c;
-    }
-    const int size = std::min(n_, kept);
-    if (size == 0) {
-      rank_[i] = 0;
-      return;
-    }
-    std::vector<Complex> g(std::size_t(size) * size), l(g.size()), w(size);
-    Gram(a, n_, kp, kept, g.data());
-    double trace = 0;
-    for (int p = 0; p < size; ++p) trace += g[p * size + p].real();
-    const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(size) * trace;
-    l = g;
-    if (Cholesky(l.data(), size, noise)) {
-      double inv_trace = 0;  // ||L⁻¹||²_F, column by column of L⁻¹ (forward substitution of e_j)
-      for (int j = 0; j < size; ++j)
-        for (int p = j; p < size; ++p) {
-          Complex sum = p == j ? 1.0 : 0.0;
-          for (int q = j; q < p; ++q) sum -= Mul(l[p * size + q], w[q]);
-          w[p] = sum * l[p * size + p].real();
-          inv_trace += Norm2(w[p]);
-        }
-      if (inv_trace > 0 && 1.0 / inv_trace > 4.0 * (floor2 + noise)) {
-        rank_[i] = size;
-        return;
+  const int rr = cols;
+  const double floor2 = sv_floor_ * sv_floor_;
+  double norms[256];
+  int keep[256];
+  std::vector<double> norm_heap;
+  std::vector<int> keep_heap;
+  double* nrm = rr <= 256 ? norms : (norm_heap.resize(rr), norm_heap.data());
+  int* kp = rr <= 256 ? keep : (keep_heap.resize(rr), keep_heap.data());
+  const double threshold = 1e-4 * floor2;
+  double small = 0;
+  for (int c = 0; c < rr; ++c) {
+    double s = 0;
+    for (int f = 0; f < n_; ++f) s += Norm2(a[c * n_ + f]);
+    nrm[c] = s;
+    if (s <= threshold) small += s;
+  }
+  int kept = 0;
+  if (small <= threshold) {  // every column below the threshold fits: drop them all
+    for (int c = 0; c < rr; ++c)
+      if (nrm[c] > threshold) kp[kept++] = c;
+  } else {  // drop the smallest columns while their sum fits (ascending order, ties by index)
+    std::vector<int> order(rr);
+    for (int c = 0; c < rr; ++c) order[c] = c;
+    std::sort(order.begin(), order.end(),
+              [&](int x, int y) { return nrm[x] < nrm[y] || (nrm[x] == nrm[y] && x < y); });
+    double dropped = 0;
+    std::vector<char> drop(rr, 0);
+    for (int c : order)
+      if (dropped + nrm[c] <= threshold) dropped += nrm[c], drop[c] = 1;
+    for (int c = 0; c < rr; ++c)
+      if (!drop[c]) kp[kept++] = c;
+  }
+  const int size = std::min(n_, kept);
+  if (size == 0) return 0;
+  std::vector<Complex> g(std::size_t(size) * size), l(g.size()), w(size);
+  Gram(a, n_, kp, kept, g.data());
+  double trace = 0;
+  for (int p = 0; p < size; ++p) trace += g[p * size + p].real();
+  const double noise = 64.0 * std::numeric_limits<double>::epsilon() * double(size) * trace;
+  l = g;
+  if (Cholesky(l.data(), size, noise)) {
+    double inv_trace = 0;  // ||L⁻¹||²_F, column by column of L⁻¹ (forward substitution of e_j)
+    for (int j = 0; j < size; ++j)
+      for (int p = j; p < size; ++p) {
+        Complex sum = p == j ? 1.0 : 0.0;
+        for (int q = j; q < p; ++q) sum -= Mul(l[p * size + q], w[q]);
+        w[p] = sum * l[p * size + p].real();
+        inv_trace += Norm2(w[p]);
+      }
+    if (inv_trace > 0 && 1.0 / inv_trace > 4.0 * (floor2 + noise)) return size;
+  }
+  // Not certified by the Gram: the pivoted QR of the reduced A(u), and where even that cannot decide, its SVD.
+  std::vector<Complex> reduced(std::size_t(n_) * kept), v(n_);
+  std::vector<double> qr_work(2 * std::size_t(kept));
+  for (int k = 0; k < kept; ++k)
+    for (int f = 0; f < n_; ++f) reduced[std::size_t(k) * n_ + f] = a[kp[k] * n_ + f];
+  const int qr_rank = PivotedQrRank(reduced.data(), n_, kept, sv_floor_, qr_work.data(), v.data());
+  if (qr_rank >= 0) return qr_rank;
+  // The singular values of the reduced A(u) to an SVD's accuracy (refined Gram eigenvalues); an SVD only where
+  // one lies within 1e-4 of the floor², closer than that accuracy can be trusted to classify.
+  const int p = std::min(n_, kept), k = std::max(n_, kept);
+  std::vector<Complex> x(std::size_t(p) * k), buffer;
+  std::vector<double> dv(p), eig_work;
+  for (int c = 0; c < kept; ++c)
+    for (int f = 0; f < n_; ++f) {
+      const Complex z = a[kp[c] * n_ + f];
+      if (n_ <= kept) {
+        x[std::size_t(c) * p + f] = z;  // X = A (N x kept)
+      } else {
+        x[std::size_t(f) * p + c] = std::conj(z);  // X = Aᴴ (kept x N)
       }
     }
-
-    // Not certified by the Gram: the pivoted QR of the reduced A(u), and where even that cannot decide, its SVD.
-    std::vector<Complex> reduced(std::size_t(n_) * kept), v(n_);
-    std::vector<double> qr_work(2 * std::size_t(kept));
-    for (int k = 0; k < kept; ++k)
-      for (int f = 0; f < n_; ++f) reduced[std::size_t(k) * n_ + f] = a[kp[k] * n_ + f];
-    const int qr_rank = PivotedQrRank(reduced.data(), n_, kept, sv_floor_, qr_work.data(), v.data());
-    if (qr_rank >= 0) {
-      rank_[i] = qr_rank;
-      return;
-    }
-    // The singular values of the reduced A(u) to an SVD's accuracy (refined Gram eigenvalues); an SVD only where
-    // one lies within 1e-4 of the floor², closer than that accuracy can be trusted to classify.
-    const int p = std::min(n_, kept), k = std::max(n_, kept);
-    std::vector<Complex> x(std::size_t(p) * k), buffer;
-    std::vector<double> d(p), eig_work;
+  Eigen::VectorXd sv2 = Eigen::Map<Eigen::VectorXd>(dv.data(), p);
+  bool decided = RefinedSquaredSingularValues(x.data(), p, k, dv.data(), &buffer, &eig_work);
+  if (decided) {
+    sv2 = Eigen::Map<Eigen::VectorXd>(dv.data(), p);
+    decided = !((sv2.array() - floor2).abs() <= 1e-4 * floor2).any();
+  }
+  if (!decided) {
+    Eigen::MatrixXcd dense(n_, kept);
     for (int c = 0; c < kept; ++c)
-      for (int f = 0; f < n_; ++f) {
-        const Complex z = a[kp[c] * n_ + f];
-        if (n_ <= kept) {
-          x[std::size_t(c) * p + f] = z;  // X = A (N x kept)
-        } else {
-          x[std::size_t(f) * p + c] = std::conj(z);  // X = Aᴴ (kept x N)
-        }
-      }
-    Eigen::VectorXd sv2 = Eigen::Map<Eigen::VectorXd>(d.data(), p);
-    bool decided = RefinedSquaredSingularValues(x.data(), p, k, d.data(), &buffer, &eig_work);
-    if (decided) {
-      sv2 = Eigen::Map<Eigen::VectorXd>(d.data(), p);
-      decided = !((sv2.array() - floor2).abs() <= 1e-4 * floor2).any();
-    }
-    if (!decided) {
-      Eigen::MatrixXcd dense(n_, kept);
-      for (int c = 0; c < kept; ++c)
-        for (int f = 0; f < n_; ++f) dense(f, c) = a[kp[c] * n_ + f];
-      sv2 = Eigen::JacobiSVD<Eigen::MatrixXcd>(dense).singularValues().array().square().matrix();
-    }
-    rank_[i] = int((sv2.array() > floor2).count());
-  });
+      for (int f = 0; f < n_; ++f) dense(f, c) = a[kp[c] * n_ + f];
+    sv2 = Eigen::JacobiSVD<Eigen::MatrixXcd>(dense).singularValues().array().square().matrix();
+  }
+  return int((sv2.array() > floor2).count());
+}
+
+void FourierSystem::EnsureRanks() const {
+  EnsureFloor();
+  std::lock_guard<std::mutex> lock(lazy_mutex_);
+  if (ranks_ready_) return;
+  // One bin of each mirror pair: u and −u have conjugate systems, hence the same rank.
+  std::vector<int> rank(nb_, -1);
+  ForGatheredBins([&](Index i) { return CanonicalBin(i); },
+                  [&](Index i, BinPtr d) { rank[i] = RankOf(d.a, rr_); });
+  deficient_ = unconstrained_ = 0;
   for (Index i = 0; i < nb_; ++i) {
-    if (!CanonicalBin(i)) rank_[i] = rank_[MirrorBin(i)];
-    if (rank_[i] < rr_) {
+    if (!CanonicalBin(i)) rank[i] = rank[MirrorBin(i)];
+    if (rank[i] < rr_) {
       ++deficient_;
-      unconstrained_ += rr_ - rank_[i];
+      unconstrained_ += rr_ - rank[i];
     }
   }
-  lambda0_ = trace_p > 0 && trace_ata > 0 ? trace_ata / trace_p : 1.0;
+  rank_ = std::move(rank);
+  ranks_ready_ = true;
+}
+
+void FourierSystem::EnsureZeroPriorRanks() const {
+  if (zero_prior_bins_.empty()) return;
+  EnsureFloor();
+  std::lock_guard<std::mutex> lock(lazy_mutex_);
+  if (zero_prior_ranks_ready_) return;
+  // For each bin whose prior vanishes at some aliases Z: whether the data see that null space, i.e. the columns
+  // A(u)_Z have full column rank against the floor (RankOf on those columns alone). Then G = AᴴA + wP is
+  // nonsingular for every w > 0 and the normal equations solve the bin; else the minimum-norm path.
+  seen_.assign(nb_, 0);
+  BinData d;
+  std::vector<Complex> z;
+  for (Index i : zero_prior_bins_) {
+    const Index c = CanonicalBin(i) ? i : MirrorBin(i);
+    if (c == i) {
+      Gather(c, &d);
+      z.clear();
+      int zc = 0;
+      for (int k = 0; k < rr_; ++k)
+        if (!(d.p[k] > 0)) {
+          z.insert(z.end(), d.a.begin() + std::size_t(k) * n_, d.a.begin() + std::size_t(k + 1) * n_);
+          ++zc;
+        }
+      seen_[c] = RankOf(z.data(), zc) == zc;
+    }
+  }
+  for (Index i : zero_prior_bins_) seen_[i] = seen_[CanonicalBin(i) ? i : MirrorBin(i)];
+  zero_prior_ranks_ready_ = true;
+}
+
+void FourierSystem::PrepareChoose(double w) const {
+  // Choose reads a bin's rank only where w = 0, and whether the data see the prior's null space where a bin's
+  // prior vanishes somewhere.
+  if (!(w > 0)) {
+    EnsureRanks();
+  } else {
+    EnsureZeroPriorRanks();
+  }
+}
+
+Index FourierSystem::deficient_bins() const {
+  EnsureRanks();
+  return deficient_;
+}
+
+Index FourierSystem::unconstrained() const {
+  EnsureRanks();
+  return unconstrained_;
 }
 
 void FourierSystem::SetData(const ImageStack& frames) {
   spectral_.reset();  // made from the data: stale now
   const Shape lr = model_.lr_shape();
-  for (int i = 0; i < n_; ++i) {
-    const ComplexImage s = FftForward(frames.at(i).cast<Complex>());
-    for (Index u = 0; u < nb_; ++u) y_[u * n_ + i] = s(u / lr.cols, u % lr.cols);
-  }
+  // The N frames' r2c transforms in parallel (task i writes only frame i's entries), the full spectrum from the
+  // half by Hermitian symmetry.
+  ParallelFor(n_, [&](Index i) {
+    const ComplexImage s = FftR2C(frames.at(i));
+    const Index half = s.cols();
+    for (Index uy = 0; uy < lr.rows; ++uy) {
+      const Index my = (lr.rows - uy) % lr.rows;
+      for (Index ux = 0; ux < lr.cols; ++ux)
+        y_[(uy * lr.cols + ux) * n_ + i] = ux < half ? s(uy, ux) : std::conj(s(my, lr.cols - ux));
+    }
+  });
 }
 
 FourierSystem::Path FourierSystem::Choose(Index bin, double w) const {
@@ -676,7 +893,8 @@ FourierSystem::Path FourierSystem::Choose(Index bin, double w) const {
   if (w > 0 && positive && solver_ != TikhonovBinSolver::kNormalEquations &&
       (solver_ == TikhonovBinSolver::kWoodbury || n_ < rr_))
     return Path::kWoodbury;
-  if (rank_[bin] == rr_ || (w > 0 && positive)) return Path::kNormal;
+  if (w > 0) return positive || seen_[bin] ? Path::kNormal : Path::kMinimumNorm;  // (PrepareChoose made seen_)
+  if (rank_[bin] == rr_) return Path::kNormal;  // w = 0: the rank (PrepareChoose made it)
   return Path::kMinimumNorm;
 }
 
@@ -697,8 +915,8 @@ Eigen::JacobiSVD<Eigen::MatrixXcd> StackedSvd(const A& a, const P& prior, double
 
 }  // namespace
 
-FourierSystem::BinSolution FourierSystem::SolveBin(Index bin, double w, bool want_trace) const {
-  const BinView b = View(bin);
+FourierSystem::BinSolution FourierSystem::SolveBin(Index bin, double w, bool want_trace, BinData* d) const {
+  const BinView b = View(bin, d);
   const Index n = b.a.rows(), rr = b.a.cols();
   BinSolution s;
   Path path = Choose(bin, w);
@@ -748,8 +966,8 @@ FourierSystem::BinSolution FourierSystem::SolveBin(Index bin, double w, bool wan
   return s;
 }
 
-Eigen::MatrixXcd FourierSystem::InverseBin(Index bin, double w, bool* proper, bool* woodbury) const {
-  const BinView b = View(bin);
+Eigen::MatrixXcd FourierSystem::InverseBin(Index bin, double w, bool* proper, bool* woodbury, BinData* d) const {
+  const BinView b = View(bin, d);
   const Index rr = b.a.cols();
   Path path = Choose(bin, w);
   *woodbury = false;
@@ -791,9 +1009,11 @@ Eigen::MatrixXcd FourierSystem::InverseBin(Index bin, double w, bool* proper, bo
 
 FourierSystem::Fit FourierSystem::Evaluate(double lambda, bool want_trace) const {
   const double w = lambda / double(rr_);
+  PrepareChoose(w);
   Fit f;
+  BinData d;
   for (Index i = 0; i < nb_; ++i) {
-    const BinSolution s = SolveBin(i, w, want_trace);
+    const BinSolution s = SolveBin(i, w, want_trace, &d);
     f.residual2 += s.residual2;
     f.dof += s.dof;
     f.woodbury_bins += s.woodbury;
@@ -808,16 +1028,12 @@ Index FourierSystem::MirrorBin(Index bin) const {
   return ((lr.rows - uy) % lr.rows) * lr.cols + (lr.cols - ux) % lr.cols;
 }
 
-bool FourierSystem::CanonicalBin(Index bin) const {
-  const Shape lr = model_.lr_shape();
-  const Index m = MirrorBin(bin), ux = bin % lr.cols, mux = m % lr.cols;
-  return ux < mux || (ux == mux && bin / lr.cols <= m / lr.cols);
-}
+bool FourierSystem::CanonicalBin(Index bin) const { return canonical_[bin] != 0; }
 
-void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp) const {
+void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp, BinData* d) const {
   // The SVD of B = A P^(-1/2) with the full U (N x N), whose columns past q span the complement of A's range, so
   // the part of Y no λ can fit is a sum of squares, not a difference ||Y||² − ||UᴴY||².
-  const BinView b = View(i);
+  const BinView b = View(i, d);
   const int q = std::min(n_, rr_);
   const Eigen::MatrixXcd whitened = b.a * b.prior.cwiseSqrt().cwiseInverse().asDiagonal();
   const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(whitened, Eigen::ComputeFullU);
@@ -830,7 +1046,14 @@ void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp) const {
   sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
 }
 
-void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, std::vector<double>* scratch) const {
+void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, BinPtr bd, std::vector<double>* scratch) const {
+  DecomposeWhitened(n_, bd.a, bd.pinv, &y_[i * n_], &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max], &sp->q[i],
+                    &sp->perp[i], scratch);
+}
+
+void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out,
+                                      double* c_out, int* q_out, double* perp_out,
+                                      std::vector<double>* scratch) const {
   // B = A P^(-1/2) (N x r², column-major), and the data Y. The singular values of B and the projections of Y on
   // its left singular vectors come from the eigen-decomposition of the q x q Gram matrix M = B Bᴴ, which is
   // exact for the large ones but holds each eigenvalue only to ~ q ε ||M|| absolutely: the small s² (aliases
@@ -844,10 +1067,7 @@ void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, std::vector<double>
   // to at most ε² ||B||²_F (below the rounding of any factorisation of B) are dropped first. Where N > r² the
   // Householder QR B = Q [R; 0] comes first: the Gram matrix is then R Rᴴ and ||Y||² − ||UᴴY||² is the sum of
   // squares of the trailing entries of QᴴY (no cancellation).
-  const int n = n_, rr = rr_;
-  const Complex* a = &a_[i * n * rr];
-  const double* pinv = &prior_inv_[i * rr];
-  const Complex* y = &y_[i * n];
+  const int rr = rr_;
   const int qn = std::min(n, rr);
   // Scratch (doubles): B 2·n·rr, Y 2n, M 2qn², U 2qn², d qn, eigen work 3qn² + 2qn, W 2·rr·qn, M_S 2qn², R 2qn²,
   // rotated 2·n·qn, v 2n, norms rr, keep rr.
@@ -934,10 +1154,8 @@ void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, std::vector<double>
     }
     for (int f = kept; f < n; ++f) perp += Norm2(yv[f]);
   }
-  double* s2_out = &sp->s2[i * sp->q_max];
-  double* c_out = &sp->c[i * sp->q_max];
-  sp->q[i] = q;
-  sp->perp[i] = perp;
+  *q_out = q;
+  *perp_out = perp;
   if (q == 0) return;
   // M = Bw Bwᴴ (q x q), Bw(p, c) = bw[c n + p], its small eigenvalues refined on Bw.
   if (!RefinedGramEigen(bw, q, kept, n, d, u, m, rot, w, tmp, ework))
@@ -957,6 +1175,7 @@ void FourierSystem::MakeSpectral() const {
   sp->c.assign(nb_ * sp->q_max, 0.0);
   sp->perp.assign(nb_, 0.0);
   sp->q.assign(nb_, 0);
+  sp->zeros.assign(nb_, 0);
   sp->weight.assign(nb_, 0);
   for (Index i = 0; i < nb_; ++i) {
     if (!prior_positive_[i]) {
@@ -968,18 +1187,79 @@ void FourierSystem::MakeSpectral() const {
     }
   }
   // One decomposition per counted bin, on fixed blocks of bins: each writes only its own slots.
-  ParallelFor((nb_ + kBinBlock - 1) / kBinBlock, [&](Index block) {
+  if (spectral_method_ == SpectralMethod::kSvd) {
+    ForBinBlocks<BinData>(nb_, [&](Index i, BinData* d) {
+      if (sp->weight[i]) DecomposeBinSvd(i, sp.get(), d);
+    });
+  } else {
+    // Every canonical bin is gathered: the decomposition's, and the floor's norms where not made yet.
+    const bool note_norms = !FloorReady();
+    FloorNorms norms;
+    if (note_norms) norms = NewFloorNorms();
+    ForGatheredBins([&](Index i) { return CanonicalBin(i) && (note_norms || sp->weight[i] != 0); },
+                    [&](Index i, BinPtr d) {
+                      if (note_norms) NoteNorms(i, d, &norms);
+                      if (!sp->weight[i]) return;
+                      thread_local std::vector<double> scratch;  // the decomposition's (grown once per thread)
+                      DecomposeBinEigen(i, sp.get(), d, &scratch);
+                    });
+    if (note_norms) FinishFloor(norms);
+    // The bins whose prior vanishes at aliases Z, where the data see that null space (EnsureZeroPriorRanks): x_Z
+    // is fitted without penalty, so with Q_Z from the QR of A(u)_Z the objective is ||Π(Y − A_R x_R)||² +
+    // w ||P_R^½ x_R||² on the complement Π = I − Q_Z Q_Zᴴ (N − z dimensions), a Tikhonov problem with a positive
+    // prior: the same decomposition on the N − z reflected rows, with N − tr H = Σ w/(s² + w) + (N − z − q).
+    // The others stay direct (solved at each λ).
+    EnsureZeroPriorRanks();
+    std::vector<Index> direct;
+    BinData d;
     std::vector<double> scratch;
-    const Index end = std::min(nb_, (block + 1) * kBinBlock);
-    for (Index i = block * kBinBlock; i < end; ++i) {
-      if (!sp->weight[i]) continue;
-      if (spectral_method_ == SpectralMethod::kSvd) {
-        DecomposeBinSvd(i, sp.get());
-      } else {
-        DecomposeBinEigen(i, sp.get(), &scratch);
+    std::vector<Complex> reduced, yr;
+    for (Index i : sp->direct) {
+      if (!seen_[i]) {
+        direct.push_back(i);
+        continue;
       }
+      if (!CanonicalBin(i)) continue;  // counted twice through its canonical mirror
+      Gather(i, &d);
+      std::vector<Complex>& a = d.a;
+      std::vector<Complex> y(y_.begin() + i * n_, y_.begin() + (i + 1) * n_);
+      int z = 0;
+      for (int c = 0; c < rr_ && z < n_; ++c) {
+        if (d.p[c] > 0) continue;
+        // Householder on rows z .. N-1 of column c, applied to every column and to Y.
+        Complex* x = &a[std::size_t(c) * n_ + z];
+        const int len = n_ - z;
+        double alpha2 = 0;
+        for (int t = 0; t < len; ++t) alpha2 += Norm2(x[t]);
+        const double alpha = std::sqrt(alpha2), a0 = std::sqrt(Norm2(x[0]));
+        if (alpha > 0) {
+          const Complex phase = a0 > 0 ? x[0] / a0 : Complex(1.0);
+          std::vector<Complex> v(x, x + len);
+          v[0] += phase * alpha;
+          const double scale = 1.0 / (alpha * (alpha + a0));
+          const auto reflect = [&](Complex* col) {
+            Complex dot = 0;
+            for (int t = 0; t < len; ++t) dot += ConjMul(v[t], col[t]);
+            dot *= scale;
+            for (int t = 0; t < len; ++t) col[t] -= Mul(v[t], dot);
+          };
+          for (int k = 0; k < rr_; ++k) reflect(&a[std::size_t(k) * n_ + z]);
+          reflect(&y[z]);
+        }
+        ++z;
+      }
+      const int nr = n_ - z;
+      reduced.assign(std::size_t(nr) * rr_, Complex(0));
+      for (int k = 0; k < rr_; ++k)
+        for (int t = 0; t < nr; ++t) reduced[std::size_t(k) * nr + t] = a[std::size_t(k) * n_ + z + t];
+      yr.assign(y.begin() + z, y.end());
+      DecomposeWhitened(nr, reduced.data(), d.pinv.data(), yr.data(), &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max],
+                        &sp->q[i], &sp->perp[i], &scratch);
+      sp->zeros[i] = z;
+      sp->weight[i] = MirrorBin(i) == i ? 1 : 2;
     }
-  });
+    sp->direct = std::move(direct);
+  }
   for (Index i = 0; i < nb_; ++i) {
     const int weight = sp->weight[i];
     if (!weight) continue;
@@ -989,7 +1269,7 @@ void FourierSystem::MakeSpectral() const {
       sp->term_weight.push_back(weight);
     }
     sp->fixed_residual += weight * sp->perp[i];
-    sp->fixed_dof += weight * double(n_ - sp->q[i]);
+    sp->fixed_dof += weight * double(n_ - sp->zeros[i] - sp->q[i]);
   }
   spectral_ = std::move(sp);
 }
@@ -1050,7 +1330,7 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prio
         const int q = sp.q[i];
         const double* s2 = &sp.s2[i * sp.q_max];
         const double* c = &sp.c[i * sp.q_max];
-        double res = sp.perp[i], dof = double(n - q), prior = 0, dprior = 0;
+        double res = sp.perp[i], dof = double(n - sp.zeros[i] - q), prior = 0, dprior = 0;
         for (int k = 0; k < q; ++k) {
           // w / (s² + w), 1 where both vanish (an unseen direction keeps all its data in the residual).
           const double d = s2[k] + w;
@@ -1081,9 +1361,11 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prio
       dprior += part[4 * b + 3];
     }
   }
+  if (!sp.direct.empty()) PrepareChoose(w);
+  BinData bd;
   for (Index i : sp.direct) {
-    const BinView b = View(i);
-    const BinSolution s = SolveBin(i, w, true);
+    const BinSolution s = SolveBin(i, w, true, &bd);
+    const BinView b = View(i, &bd);
     f.residual2 += s.residual2;
     f.dof += s.dof;
     if (want_prior) {
@@ -1091,7 +1373,8 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prio
       const Eigen::VectorXcd px = b.prior.cast<Complex>().cwiseProduct(s.x);
       prior += (s.x.conjugate().cwiseProduct(px)).sum().real();
       bool proper = true, woodbury = false;
-      const Eigen::MatrixXcd g = InverseBin(i, w, &proper, &woodbury);
+      BinData gd;
+      const Eigen::MatrixXcd g = InverseBin(i, w, &proper, &woodbury, &gd);
       dprior -= 2.0 * (px.adjoint() * g * px)(0, 0).real();
     }
   }
@@ -1104,13 +1387,13 @@ FourierSystem::Fit FourierSystem::EvaluateSpectral(double lambda, bool want_prio
   return f;
 }
 
-bool FourierSystem::SolveBinInPlace(Index bin, double w, Path path, Complex* x, Complex* scratch) const {
+bool FourierSystem::SolveBinInPlace(Index bin, BinPtr d, double w, Path path, Complex* x, Complex* scratch) const {
   // The per-bin solves of SolveBin on caller-owned scratch (no allocation): A is column-major N x r².
   const int n = n_, rr = rr_;
-  const Complex* a = &a_[bin * n * rr];
+  const Complex* a = d.a;
   const Complex* y = &y_[bin * n];
-  const double* p = &prior_[bin * rr];
-  const double* pinv = &prior_inv_[bin * rr];
+  const double* p = d.p;
+  const double* pinv = d.pinv;
   if (path == Path::kWoodbury) {
     // (3): K = A P⁻¹ Aᴴ + w I (N x N), X = P⁻¹ Aᴴ K⁻¹ Y.
     Complex* k = scratch;
@@ -1159,82 +1442,136 @@ Image FourierSystem::Solve(double lambda, Fit* fit) const {
   const Shape hr = model_.hr_shape(), lr = model_.lr_shape();
   const int r = model_.r(), rr = r * r, n = model_.frames();
   const double w = lambda / double(rr);
+  // At w > 0 the bins whose prior vanishes somewhere are solved after the others, once the floor (noted by this
+  // pass where not made yet) has decided their path; the rest need nothing made beforehand.
+  const bool defer = w > 0 && !zero_prior_bins_.empty();
+  const bool note_norms = defer && !FloorReady();
+  FloorNorms norms;
+  if (note_norms) norms = NewFloorNorms();
+  if (!defer) PrepareChoose(w);
   // Only one bin of each mirror pair u, −u is solved; the other is its conjugate (the data are real), so the
   // output spectrum is exactly Hermitian and half the bins cost nothing (fourier_normal_system.hpp).
   const Index half_cols = hr.cols / 2 + 1;
   ComplexImage X(hr.rows, half_cols);
-  std::vector<double> row_residual(lr.rows, 0.0);
+  std::vector<double> row_residual(lr.rows, 0.0), row_prior(lr.rows, 0.0);
   std::vector<Index> row_woodbury(lr.rows, 0);
-  ParallelFor(lr.rows, [&](Index uy) {
-    std::vector<Complex> scratch(std::max(rr * rr, n * n + n) + rr);
-    Complex* x = scratch.data() + std::max(rr * rr, n * n + n);
-    const Index muy = (lr.rows - uy) % lr.rows;
-    for (Index ux = 0; ux < lr.cols; ++ux) {
-      const Index mux = (lr.cols - ux) % lr.cols;
-      if (!(ux < mux || (ux == mux && uy <= muy))) continue;
-      const bool self_mirror = ux == mux && uy == muy;
-      const Index bin = uy * lr.cols + ux;
-      Path path = Choose(bin, w);
-      bool done = false, woodbury = false;
-      if (path == Path::kWoodbury) {
-        done = woodbury = SolveBinInPlace(bin, w, Path::kWoodbury, x, scratch.data());
-        if (!done) path = Path::kNormal;
-      }
-      if (!done && path == Path::kNormal) done = SolveBinInPlace(bin, w, Path::kNormal, x, scratch.data());
-      if (!done) {  // the minimum-norm path (rare: a rank-deficient bin with a zero of the prior)
-        const BinSolution s = SolveBin(bin, w, false);
-        for (int c = 0; c < rr; ++c) x[c] = s.x[c];
-      }
-      // The residual |Y − A X|², frame by frame (A column-major: frame i of alias c at c·N + i).
-      const Complex* a = &a_[bin * n * rr];
-      const Complex* y = &y_[bin * n];
-      double res = 0;
-      for (int i = 0; i < n; ++i) {
-        Complex ax = 0;
-        for (int c = 0; c < rr; ++c) ax += Mul(a[c * n + i], x[c]);
-        res += Norm2(y[i] - ax);
-      }
-      row_residual[uy] += self_mirror ? res : 2 * res;
-      row_woodbury[uy] += woodbury ? (self_mirror ? 1 : 2) : 0;
-      if (self_mirror) {  // keep the stored spectrum Hermitian within the bin (see FourierNormalSystem)
-        for (int c = 0; c < rr; ++c) scratch[c] = x[c];
-        for (int ky = 0; ky < r; ++ky)
-          for (int kx = 0; kx < r; ++kx) {
-            const Index my = (hr.rows - (uy + ky * lr.rows)) % hr.rows;
-            const Index mx = (hr.cols - (ux + kx * lr.cols)) % hr.cols;
-            x[ky * r + kx] = 0.5 * (scratch[ky * r + kx] + std::conj(scratch[int(my / lr.rows) * r + int(mx / lr.cols)]));
-          }
-      }
+  // The bins of a row in runs gathered at once (GatherRun); stride and run length as ForGatheredBins'.
+  const std::size_t stride = (std::size_t(n) * rr + 3) / 4 * 4 + 4;
+  const int run = int(std::clamp<std::size_t>((std::size_t(256) << 10) / (stride * sizeof(Complex)), 1, kGatherRun));
+  // Solves canonical bin (uy, ux) from its gathered system bp into X; returns its residual and Woodbury counts.
+  const auto solve_bin = [&](Index uy, Index ux, BinPtr bp, Complex* x, Complex* scratch, BinData* d, double* residual,
+                             double* prior_norm, Index* woodbury_count) {
+    const Index muy = (lr.rows - uy) % lr.rows, mux = (lr.cols - ux) % lr.cols;
+    const bool self_mirror = ux == mux && uy == muy;
+    const Index bin = uy * lr.cols + ux;
+    Path path = Choose(bin, w);
+    bool done = false, woodbury = false;
+    if (path == Path::kWoodbury) {
+      done = woodbury = SolveBinInPlace(bin, bp, w, Path::kWoodbury, x, scratch);
+      if (!done) path = Path::kNormal;
+    }
+    if (!done && path == Path::kNormal) done = SolveBinInPlace(bin, bp, w, Path::kNormal, x, scratch);
+    if (!done) {  // the minimum-norm path (rare: a rank-deficient bin with a zero of the prior)
+      const BinSolution s = SolveBin(bin, w, false, d);
+      for (int c = 0; c < rr; ++c) x[c] = s.x[c];
+    }
+    // The residual |Y − A X|², frame by frame (A column-major: frame i of alias c at c·N + i).
+    const Complex* a = bp.a;
+    const Complex* y = &y_[bin * n];
+    double res = 0;
+    for (int i = 0; i < n; ++i) {
+      Complex ax = 0;
+      for (int c = 0; c < rr; ++c) ax += Mul(a[c * n + i], x[c]);
+      res += Norm2(y[i] - ax);
+    }
+    *residual += self_mirror ? res : 2 * res;
+    *woodbury_count += woodbury ? (self_mirror ? 1 : 2) : 0;
+    if (self_mirror) {  // keep the stored spectrum Hermitian within the bin (see FourierNormalSystem)
+      for (int c = 0; c < rr; ++c) scratch[c] = x[c];
       for (int ky = 0; ky < r; ++ky)
         for (int kx = 0; kx < r; ++kx) {
-          const Index fy = uy + ky * lr.rows, fx = ux + kx * lr.cols;
-          if (fx < half_cols) X(fy, fx) = x[ky * r + kx];
-          const Index my = (hr.rows - fy) % hr.rows, mx = (hr.cols - fx) % hr.cols;
-          if (mx < half_cols) X(my, mx) = std::conj(x[ky * r + kx]);
+          const Index my = (hr.rows - (uy + ky * lr.rows)) % hr.rows;
+          const Index mx = (hr.cols - (ux + kx * lr.cols)) % hr.cols;
+          x[ky * r + kx] = 0.5 * (scratch[ky * r + kx] + std::conj(scratch[int(my / lr.rows) * r + int(mx / lr.cols)]));
         }
     }
+    double pn = 0;  // ||P^½ X(u)||²
+    for (int ky = 0; ky < r; ++ky)
+      for (int kx = 0; kx < r; ++kx) {
+        const Index fy = uy + ky * lr.rows, fx = ux + kx * lr.cols;
+        if (fx < half_cols) X(fy, fx) = x[ky * r + kx];
+        const Index my = (hr.rows - fy) % hr.rows, mx = (hr.cols - fx) % hr.cols;
+        if (mx < half_cols) X(my, mx) = std::conj(x[ky * r + kx]);
+        pn += bp.p[ky * r + kx] * Norm2(x[ky * r + kx]);
+      }
+    *prior_norm += self_mirror ? pn : 2 * pn;
+  };
+  const std::size_t scratch_size = std::max(rr * rr, n * n + n);
+  ParallelFor(lr.rows, [&](Index uy) {
+    std::vector<Complex> scratch(scratch_size + rr);
+    Complex* x = scratch.data() + scratch_size;
+    std::vector<Complex> run_a(stride * run);
+    std::vector<double> run_p(std::size_t(rr) * run), run_pinv(run_p.size());
+    BinData d;
+    const Index muy = (lr.rows - uy) % lr.rows;
+    const auto canonical = [&](Index ux) {
+      const Index mux = (lr.cols - ux) % lr.cols;
+      return ux < mux || (ux == mux && uy <= muy);
+    };
+    Index run_begin = 0, run_end = 0;  // the gathered bins [run_begin, run_end) of this row
+    for (Index ux = 0; ux < lr.cols; ++ux) {
+      if (!canonical(ux)) continue;
+      if (ux >= run_end) {
+        run_begin = ux;
+        run_end = ux + 1;
+        while (run_end < lr.cols && run_end - run_begin < run && canonical(run_end)) ++run_end;
+        GatherRun(uy, run_begin, int(run_end - run_begin), stride, run_a.data(), run_p.data(), run_pinv.data());
+      }
+      const std::size_t k = std::size_t(ux - run_begin);
+      const BinPtr bp{&run_a[k * stride], &run_p[k * rr], &run_pinv[k * rr]};
+      const Index bin = uy * lr.cols + ux;
+      if (note_norms) NoteNorms(bin, bp, &norms);
+      if (defer && !prior_positive_[bin]) continue;
+      solve_bin(uy, ux, bp, x, scratch.data(), &d, &row_residual[uy], &row_prior[uy], &row_woodbury[uy]);
+    }
   });
+  if (defer) {
+    // The bins whose prior vanishes somewhere, in bin order, after their row's others.
+    if (note_norms) FinishFloor(norms);
+    PrepareChoose(w);
+    std::vector<Complex> scratch(scratch_size + rr);
+    BinData d;
+    for (Index bin : zero_prior_bins_) {
+      if (!CanonicalBin(bin)) continue;
+      Gather(bin, &d);
+      solve_bin(bin / lr.cols, bin % lr.cols, d.ptr(), scratch.data() + scratch_size, scratch.data(), &d,
+                &row_residual[bin / lr.cols], &row_prior[bin / lr.cols], &row_woodbury[bin / lr.cols]);
+    }
+  }
   Fit f;
   for (Index uy = 0; uy < lr.rows; ++uy) {
     f.residual2 += row_residual[uy];
+    f.prior2 += row_prior[uy];
     f.woodbury_bins += row_woodbury[uy];
   }
   f.residual2 /= double(nb_);  // Parseval, as in Evaluate
+  f.prior2 /= double(nb_) * double(rr);  // ||Γx||² = (1/M²) Σ_u ||P^½ X(u)||², M² = m² r² (EvaluateSpectral)
   if (fit) *fit = f;
   Image x = FftC2R(X, hr.cols);
-  if (!AllFinite(x)) throw NumericalError("Tikhonov Fourier solve produced non-finite values");
+  if (!AllFiniteParallel(x)) throw NumericalError("Tikhonov Fourier solve produced non-finite values");
   return x;
 }
 
 std::vector<Eigen::MatrixXcd> FourierSystem::Inverses(double lambda, bool* proper,
                                                       Index* woodbury_bins) const {
   const double w = lambda / double(model_.r() * model_.r());
+  PrepareChoose(w);
   std::vector<Eigen::MatrixXcd> out(nb_);
   std::vector<char> ok(nb_, 1), used(nb_, 0);
   // Each bin's inverse on its own; the flags are reduced in bin order afterwards.
-  ForBinBlocks(nb_, [&](Index i) {
+  ForBinBlocks<BinData>(nb_, [&](Index i, BinData* d) {
     bool proper_i = true, woodbury_i = false;
-    out[i] = InverseBin(i, w, &proper_i, &woodbury_i);
+    out[i] = InverseBin(i, w, &proper_i, &woodbury_i, d);
     ok[i] = proper_i;
     used[i] = woodbury_i;
   });
@@ -1447,6 +1784,7 @@ double GcvSearch(const FourierSystem& sys, const TikhonovOptions& options, doubl
   // decomposition per bin: a log grid finds the basin, golden-section search on log λ then finds the minimum
   // between the grid neighbours of the best point to 1e-4 decades (continuous, not a grid point).
   const double n_data = double(sys.model().frames()) * double(sys.bins());
+  sys.PrepareSpectral();  // the decomposition and λ₀ in one pass
   const LogGridMinimum m = MinimiseOnLogGrid(
       [&](double t) {
         const FourierSystem::Fit f = sys.EvaluateSpectral(sys.lambda0() * std::pow(10.0, t));
@@ -1481,6 +1819,7 @@ double LcurveSearch(const FourierSystem& sys, const TikhonovOptions& options, do
   // curve for the same reason). Grid t = log10(λ/λ₀) from +gcv_decades/2 down to −gcv_decades (walking on up
   // to +gcv_decades while κ still rises at the top), then golden-section on [t_{k−1}, t_{k+1}].
   const double dt = 1.0 / options.gcv_steps_per_decade;
+  sys.PrepareSpectral();  // the decomposition and λ₀ in one pass
   int evaluated = 0;
   auto kappa = [&](double t) {
     ++evaluated;
@@ -1543,6 +1882,7 @@ double Upre(const FourierSystem& sys, double lambda, double variance) {
 
 double UpreSearch(const FourierSystem& sys, const TikhonovOptions& options, double variance, double* score,
                   int* evaluations, std::string* edge) {
+  sys.PrepareSpectral();  // the decomposition and λ₀ in one pass
   const LogGridMinimum m = MinimiseOnLogGrid(
       [&](double t) { return Upre(sys, sys.lambda0() * std::pow(10.0, t), variance); }, options.gcv_decades,
       options.gcv_steps_per_decade);
@@ -1553,20 +1893,27 @@ double UpreSearch(const FourierSystem& sys, const TikhonovOptions& options, doub
 }
 
 void FinishSummary(const ReconstructionProblem& solved, const Image& x, double lambda,
-                   const TikhonovOptions& options, TikhonovSummary* s) {
+                   const TikhonovOptions& options, TikhonovSummary* s, const double* prior_norm2) {
   std::vector<double> rms;
   const double misfit = WeightedDataMisfit(solved, x, &rms);
   s->frame_residual_rms = rms;
   s->weighted_residual = 2.0 * misfit;
-  const Vector gx = TikhonovPriorOperator(ShapeOf(x), options)->Apply(AsVector(x));
-  s->final_cost = 2.0 * misfit + lambda * gx.squaredNorm();
+  const double gx2 = prior_norm2 ? *prior_norm2
+                                 : TikhonovPriorOperator(ShapeOf(x), options)->Apply(AsVector(x)).squaredNorm();
+  s->final_cost = 2.0 * misfit + lambda * gx2;
   s->lambda = lambda;
   s->solved_hr_shape = ShapeOf(x);
 }
 
-std::string BinReport(const FourierSystem& sys) {
-  const Shape hr = sys.model().hr_shape();
-  return std::to_string(sys.unconstrained()) + " of " + std::to_string(hr.size()) +
+std::string CountUnconstrained(const FourierSystem& sys, bool count, TikhonovSummary* s) {
+  s->unconstrained_counted = count || sys.ranks_made();
+  if (!s->unconstrained_counted) {
+    s->rank_deficient_bins = s->unconstrained_frequencies = -1;
+    return "";
+  }
+  s->rank_deficient_bins = sys.deficient_bins();
+  s->unconstrained_frequencies = sys.unconstrained();
+  return "; " + std::to_string(sys.unconstrained()) + " of " + std::to_string(sys.model().hr_shape().size()) +
          " HR frequencies unconstrained by the data (" + std::to_string(sys.deficient_bins()) +
          " rank-deficient bins)";
 }
@@ -1614,6 +1961,7 @@ TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovO
   } else if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy) {
     const double n_w = double(model.frames()) * double(model.lr_shape().size());
     s.discrepancy_target = options.discrepancy_factor * options.noise_sigma * options.noise_sigma * n_w;
+    sys.PrepareSpectral();  // the decomposition and λ₀ in one pass
     const LambdaSearch d = DiscrepancySearch(
         [&](double lam) { return w0 * sys.EvaluateSpectral(lam).residual2; }, s.discrepancy_target,
         sys.lambda0(), options.discrepancy_tolerance, options.discrepancy_max_evaluations);
@@ -1630,10 +1978,10 @@ TikhonovResult FourierPath(const ReconstructionProblem& problem, const TikhonovO
   result.image = sys.Solve(lambda_eff, &fit);
   s.woodbury_bins = fit.woodbury_bins;
   s.lr_bins = sys.bins();
-  s.rank_deficient_bins = sys.deficient_bins();
-  s.unconstrained_frequencies = sys.unconstrained();
-  FinishSummary(problem, result.image, lambda_eff * w0, options, &s);
-  s.message = "lambda " + ToString(s.lambda) + note + "; " + BinReport(sys);
+  const std::string counts = CountUnconstrained(sys, options.count_unconstrained, &s);
+  // ||Γx||² from the solve's spectrum (Parseval: the operator's norm to rounding, without a pass over the image).
+  FinishSummary(problem, result.image, lambda_eff * w0, options, &s, &fit.prior2);
+  s.message = "lambda " + ToString(s.lambda) + note + counts;
   if (options.lambda_rule == TikhonovLambdaRule::kDiscrepancy)
     s.message += "; weighted residual " + ToString(s.weighted_residual) + " vs target " +
                  ToString(s.discrepancy_target);

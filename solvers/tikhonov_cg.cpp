@@ -215,8 +215,7 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
     throw NumericalError(std::string(function) + ": the CG solve produced non-finite values");
   result.image = padded ? padded->CropObject(x_grid) : x_grid;
   s.lr_bins = sys.bins();
-  s.rank_deficient_bins = sys.deficient_bins();
-  s.unconstrained_frequencies = sys.unconstrained();
+  CountUnconstrained(sys, options.count_unconstrained, &s);
   FinishSummary(grid, x_grid, lambda, options, &s);
   if (last.method == "large-lambda-expansion")
     s.message = "lambda " + ToString(lambda) + note + "; " + last.message;

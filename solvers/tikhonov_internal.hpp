@@ -7,6 +7,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -21,10 +22,16 @@ Image PriorSymbolImage(const TikhonovOptions& options, Shape hr);
 // Everything about a periodic model and a Fourier-diagonal prior that depends on neither λ nor the data:
 // the N x r² systems A(u), the prior P(u) and the ranks. λ below is always the λ' of the *unweighted*
 // objective ||y − Ax||² + λ'||Γx||² (tikhonov.hpp, (2) with w = λ'/r²).
+//
+// Nothing of size N·r²·m² is stored: each bin's A(u) (N x r²) and P(u) are gathered from the model's OTFs and the
+// prior symbol into per-thread scratch when a pass reaches the bin (the same values, bit for bit, a flat copy
+// would hold), so a solve costs no allocation of the model's size. The rank floor (rank_tolerance x the largest
+// singular value of all bins), λ₀ and the ranks are made on first use: a solve at λ > 0 with a positive prior
+// needs none of them; the ranks (the counts deficient_bins() and unconstrained(), and λ = 0) need an SVD's
+// accuracy in bins whose singular values straddle the floor, which is most bins at N ≈ r².
 class FourierSystem {
  public:
-  FourierSystem(const MultiFrameModel& model, const Image& prior_symbol, double rank_tolerance,
-                TikhonovBinSolver solver);
+  FourierSystem(const MultiFrameModel& model, Image prior_symbol, double rank_tolerance, TikhonovBinSolver solver);
 
   // Data spectra (frames on the model's LR grid, finite).
   void SetData(const ImageStack& frames);
@@ -43,8 +50,9 @@ class FourierSystem {
   // B(u) = A(u) P(u)^(-1/2) = U diag(s) Vᴴ and c = |Uᴴ Y(u)|², w = λ/r²,
   //   ||Y − A X||² = Σ_k (w / (s_k² + w))² c_k + ||(I − UUᴴ) Y||²,   N − tr H = Σ_k w / (s_k² + w) + (N − q),
   // q = min(N, r²): O(q) per bin and λ instead of a solve, so a λ rule may evaluate as often as it likes
-  // (tikhonov.hpp, "λ rules"). Bins whose prior vanishes somewhere (the DC bin of the gradient and Laplacian
-  // priors) are solved directly at each λ.
+  // (tikhonov.hpp, "λ rules"). Bins whose prior vanishes at aliases Z (the DC bin of the gradient and Laplacian
+  // priors) are reduced to the complement of A(u)_Z's range where the data see that null space (MakeSpectral), with
+  // N − tr H = Σ_k w/(s_k² + w) + (N − z − q); only where they do not are they solved directly at each λ.
   // want_prior adds η = ||Γx||² = (1/(m² r²)) Σ_u Σ_k s_k² c_k/(s_k² + w)² and its derivative by λ,
   // dη/dλ = −(2/(m² r⁴)) Σ_u Σ_k s_k² c_k/(s_k² + w)³ (direct bins: −2 Re (Px)ᴴ G⁻¹ (Px) per bin).
   Fit EvaluateSpectral(double lambda, bool want_prior = false) const;
@@ -54,24 +62,56 @@ class FourierSystem {
   // says why that is as accurate as an SVD of B). kSvd: the SVD of B (the reference the tests compare with).
   // Setting it discards a decomposition already made.
   enum class SpectralMethod { kEigen, kSvd };
+  // Makes EvaluateSpectral's decomposition now (and, where not made yet, the floor and λ₀ from the same pass):
+  // the λ rules call it before lambda0() so that one pass over the bins serves both.
+  void PrepareSpectral() const {
+    if (!spectral_) MakeSpectral();
+  }
   void SetSpectralMethod(SpectralMethod method) {
     spectral_method_ = method;
     spectral_.reset();
   }
+  // x_λ; *fit gets the residual, ||Γx||² (prior2, from the spectrum) and the Woodbury count.
   Image Solve(double lambda, Fit* fit = nullptr) const;
 
   // G(u)⁻¹ for every bin (pseudo-inverse where singular; *proper = false then).
   std::vector<Eigen::MatrixXcd> Inverses(double lambda, bool* proper, Index* woodbury_bins) const;
 
   const MultiFrameModel& model() const { return model_; }
-  double lambda0() const { return lambda0_; }  // Σ tr AᴴA / Σ tr P
+  double lambda0() const;  // Σ tr AᴴA / Σ tr P (made on first use)
   Index bins() const { return nb_; }
-  Index deficient_bins() const { return deficient_; }
-  Index unconstrained() const { return unconstrained_; }
+  // The rank counts (made on first use: every bin's rank against the floor, FourierSystem's costliest pass).
+  Index deficient_bins() const;
+  Index unconstrained() const;
+  // Whether the ranks have been made (by the counts above, or by a solve at λ = 0).
+  bool ranks_made() const {
+    std::lock_guard<std::mutex> lock(lazy_mutex_);
+    return ranks_ready_;
+  }
 
  private:
-  // Bin i of the flat per-bin arrays, seen as Eigen matrices (no copy): A(u) column-major N x r², the data
-  // Y(u) and the prior P(u) on the r² aliases.
+  // One bin's A(u) (column-major N x r²), P(u) and 1/P (0 where P = 0), gathered into caller-owned scratch.
+  struct BinPtr {
+    const Complex* a;
+    const double* p;
+    const double* pinv;
+  };
+  struct BinData {
+    std::vector<Complex> a;
+    std::vector<double> p, pinv;
+    BinPtr ptr() const { return {a.data(), p.data(), pinv.data()}; }
+  };
+  void Gather(Index bin, BinData* d) const;
+  // The bins ux0 .. ux0 + count − 1 of LR row uy gathered at once (the same values as Gather), streaming along the
+  // OTF rows: bin k's A at a + k·stride (stride >= N r², padded so that consecutive bins do not alias in the cache),
+  // its P and 1/P at p + k·r², pinv + k·r².
+  void GatherRun(Index uy, Index ux0, int count, std::size_t stride, Complex* a, double* p, double* pinv) const;
+  // f(bin, BinPtr) for every bin with want(bin), on fixed blocks of bins (a partition independent of the thread
+  // count; tasks in parallel), the wanted bins of each LR row gathered in runs by GatherRun.
+  template <class Want, class F>
+  void ForGatheredBins(const Want& want, const F& f) const;
+  // Bin `bin` gathered into *d, seen as Eigen matrices: A(u) column-major N x r², the data Y(u) and the prior
+  // P(u) on the r² aliases. rank is -1 where not computed (the callers that read it made it first).
   struct BinView {
     Eigen::Map<const Eigen::MatrixXcd> a;
     Eigen::Map<const Eigen::VectorXcd> y;
@@ -79,7 +119,25 @@ class FourierSystem {
     bool prior_positive;
     int rank;
   };
-  BinView View(Index bin) const;
+  BinView View(Index bin, BinData* d) const;
+  // The lazily made parts (each under lazy_mutex_, so concurrent const calls are safe): the floor and λ₀, and the
+  // ranks of every bin or of the bins whose prior vanishes somewhere (the only ones a λ > 0 solve asks about).
+  void EnsureFloor() const;
+  void EnsureRanks() const;
+  void EnsureZeroPriorRanks() const;
+  // Makes sure Choose(bin, w) can be called for every bin (ranks where it will read them).
+  void PrepareChoose(double w) const;
+  // The rank of the N x cols column-major matrix a (columns of A(u)) against the floor (EnsureFloor first).
+  int RankOf(const Complex* a, int cols) const;
+  // The floor's inputs per bin (canonical bins), noted by any pass that gathers every canonical bin (EnsureFloor's
+  // own, Solve's, MakeSpectral's), and the floor and λ₀ made from them (once; later calls do nothing).
+  struct FloorNorms {
+    std::vector<double> trace, col_max, prior;
+  };
+  FloorNorms NewFloorNorms() const;
+  void NoteNorms(Index bin, BinPtr d, FloorNorms* fn) const;
+  void FinishFloor(const FloorNorms& fn) const;
+  bool FloorReady() const;
   struct BinSolution {
     Eigen::VectorXcd x;
     double residual2 = 0;
@@ -88,11 +146,11 @@ class FourierSystem {
   };
   enum class Path { kWoodbury, kNormal, kMinimumNorm };
   Path Choose(Index bin, double w) const;
-  BinSolution SolveBin(Index bin, double w, bool want_trace) const;
-  // SolveBin's Woodbury or normal-equations path on caller scratch (max(r⁴, N² + N) values) without
-  // allocation; false where the Cholesky fails (the caller falls back as SolveBin does).
-  bool SolveBinInPlace(Index bin, double w, Path path, Complex* x, Complex* scratch) const;
-  Eigen::MatrixXcd InverseBin(Index bin, double w, bool* proper, bool* woodbury) const;
+  BinSolution SolveBin(Index bin, double w, bool want_trace, BinData* d) const;
+  // SolveBin's Woodbury or normal-equations path on the gathered bin `d` and caller scratch (max(r⁴, N² + N)
+  // values) without allocation; false where the Cholesky fails (the caller falls back as SolveBin does).
+  bool SolveBinInPlace(Index bin, BinPtr d, double w, Path path, Complex* x, Complex* scratch) const;
+  Eigen::MatrixXcd InverseBin(Index bin, double w, bool* proper, bool* woodbury, BinData* d) const;
 
   // EvaluateSpectral's per-bin decomposition (empty until first use; `direct` lists the bins solved directly).
   // Flat, a fixed stride of q_max = min(N, r²) values per bin; q[i] of them are used (fewer where columns of B
@@ -103,16 +161,21 @@ class FourierSystem {
     std::vector<double> c;      // |u_kᴴ Y|², likewise
     std::vector<double> perp;   // ||(I − UUᴴ) Y||² per bin
     std::vector<int> q;         // values used per bin
+    std::vector<int> zeros;     // z: aliases of a zero of the prior reduced away (MakeSpectral), else 0
     std::vector<char> weight;   // 2 for one bin of a mirror pair (the other copies it), 1 if self-mirror, else 0
-    std::vector<Index> direct;  // bins with a zero of the prior (solved at each λ)
+    std::vector<Index> direct;  // bins with a zero of the prior the data do not see (solved at each λ)
     // The same values as one stream of terms (the counted bins' q values in bin order) for the λ loop:
     // s², weight·c and weight; and the λ-independent parts Σ weight·perp and Σ weight·(N − q).
     std::vector<double> term_s2, term_wc, term_weight;
     double fixed_residual = 0, fixed_dof = 0;
   };
   void MakeSpectral() const;
-  void DecomposeBinSvd(Index bin, Spectral* sp) const;
-  void DecomposeBinEigen(Index bin, Spectral* sp, std::vector<double>* scratch) const;
+  void DecomposeBinSvd(Index bin, Spectral* sp, BinData* d) const;
+  void DecomposeBinEigen(Index bin, Spectral* sp, BinPtr d, std::vector<double>* scratch) const;
+  // DecomposeBinEigen's decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s²,
+  // |uᴴY|², the count q and the part of Y outside the range.
+  void DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out, double* c_out,
+                         int* q_out, double* perp_out, std::vector<double>* scratch) const;
   SpectralMethod spectral_method_ = SpectralMethod::kEigen;
   // The bin of −u (LR frequencies), and whether `bin` is the one of its pair {u, −u} that is computed (the
   // other is its conjugate: real frames, real PSFs, an even prior).
@@ -122,19 +185,22 @@ class FourierSystem {
 
   const MultiFrameModel& model_;
   TikhonovBinSolver solver_;
-  // The per-bin data, flat (one allocation per quantity, bin-major, a fixed stride per bin): built in one pass
-  // over blocks of bins, on DefaultThreads() threads, each block writing only its own bins.
-  int n_ = 0, rr_ = 0;              // N frames, r² aliases
+  Image prior_symbol_;              // |Γ̂|² on the full HR spectrum
+  double rank_tolerance_;
+  int n_ = 0, r_ = 0, rr_ = 0;      // N frames, r, r² aliases
   Index nb_ = 0;                    // LR bins
-  std::vector<Complex> a_;          // A(u): bin i at i·N·r², column-major N x r²
   std::vector<Complex> y_;          // Y(u): bin i at i·N
-  std::vector<double> prior_;       // P(u): bin i at i·r²
-  std::vector<double> prior_inv_;   // 1/P(u) where P > 0, else 0
   std::vector<char> prior_positive_;
-  std::vector<int> rank_;
-  double sv_floor_ = 0;
-  double lambda0_ = 1;
-  Index deficient_ = 0, unconstrained_ = 0;
+  std::vector<char> canonical_;     // CanonicalBin, per bin
+  std::vector<Index> zero_prior_bins_;  // bins whose prior vanishes at some alias
+  // Lazily made (lazy_mutex_): the floor and λ₀; the ranks (-1 until made).
+  mutable std::mutex lazy_mutex_;
+  mutable bool floor_ready_ = false, ranks_ready_ = false, zero_prior_ranks_ready_ = false;
+  mutable std::vector<int> rank_;
+  mutable std::vector<char> seen_;  // zero-prior bins: the data see the prior's null space (Choose)
+  mutable double sv_floor_ = 0;
+  mutable double lambda0_ = 1;
+  mutable Index deficient_ = 0, unconstrained_ = 0;
 };
 
 // x = scale · (AᵀA + λ'ΓᵀΓ)⁻¹ b as a self-adjoint LinearOperator on the HR grid: FFT, per-bin G⁻¹, inverse
@@ -190,10 +256,12 @@ double UpreSearch(const FourierSystem& sys, const TikhonovOptions& options, doub
 
 // Fills lambda, final_cost, weighted_residual, frame_residual_rms (WeightedDataMisfit of `solved`, the
 // problem on the grid x lives on) and solved_hr_shape.
+// ||Γx||² is prior_norm2 when given (the Fourier path's, from its spectrum), else the prior operator's.
 void FinishSummary(const ReconstructionProblem& solved, const Image& x, double lambda,
-                   const TikhonovOptions& options, TikhonovSummary* s);
-// "k of n HR frequencies unconstrained by the data (b rank-deficient bins)".
-std::string BinReport(const FourierSystem& sys);
+                   const TikhonovOptions& options, TikhonovSummary* s, const double* prior_norm2 = nullptr);
+// Fills the summary's rank counts when `count` or when the system has made its ranks anyway (λ = 0), else -1, and
+// returns the message part: "; k of n HR frequencies unconstrained by the data (b rank-deficient bins)" or "".
+std::string CountUnconstrained(const FourierSystem& sys, bool count, TikhonovSummary* s);
 // The std map √(variance_scale · diag (AᵀA + λ'ΓᵀΓ)⁻¹); false (and nothing written) if the posterior is
 // improper.
 bool PosteriorStd(const FourierSystem& sys, double lambda_eff, double variance_scale, Image* std_map,

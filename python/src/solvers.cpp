@@ -84,7 +84,9 @@ OptionTable<TikhonovOptions> TikhonovTable() {
              "posterior draws behind the std map where it has no closed form (weights, masks, padding), >= 2")
       .Field("std_seed", &TikhonovOptions::std_seed, "seed of those draws")
       .Nested("spectrum_fit", &TikhonovOptions::spectrum_fit, SpectrumFitTable())
-      .Field("rank_tolerance", &TikhonovOptions::rank_tolerance, "relative singular-value floor, (0, 1)");
+      .Field("rank_tolerance", &TikhonovOptions::rank_tolerance, "relative singular-value floor, (0, 1)")
+      .Field("count_unconstrained", &TikhonovOptions::count_unconstrained,
+             "count the HR frequencies the frames leave unconstrained (summary message); costly where N is near r^2");
   return t;
 }
 

@@ -73,6 +73,12 @@ def test_options_table(demo_dir):
     assert help_["tv_max_iterations"]["default"] == 1000
     assert help_["noise_sigma"]["default"] == 1.0  # the CLI's default
     assert "linear_leakage" in help_
+    # The rank counts are made on request (tikhonov_count_unconstrained, the CLI's --count-unconstrained).
+    counted = aosr.reconstruct(ds, "tikhonov", lambda_=0.5, tikhonov_count_unconstrained=True)
+    assert "HR frequencies unconstrained by the data" in counted.summary["message"]
+    assert "unconstrained" not in fixed.summary["message"]
+    assert bits_equal(counted.image, fixed.image)
+    assert help_["tikhonov_count_unconstrained"]["default"] is False
 
 
 @pytest.mark.parametrize("kwargs,needle", [

@@ -53,6 +53,7 @@ struct ReconstructArgs {
   std::string prior = "gradient";
   std::string boundary = "periodic";
   bool std_map = false;
+  bool count_unconstrained = false;  // --count-unconstrained
   double noise_sigma = 1.0;
   CLI::Option* noise_sigma_option = nullptr;  // to tell a given --noise-sigma from the default
   // TV / MAP
@@ -138,6 +139,7 @@ void RunReconstruct(const ReconstructArgs& a) {
     throw InvalidArgument("aosr reconstruct", "--boundary", a.boundary, "periodic | padded");
   }
   o.tikhonov.compute_std = a.std_map;
+  o.tikhonov.count_unconstrained = a.count_unconstrained;
   o.tikhonov.noise_sigma = a.noise_sigma;
   ParseTargetPsf(a.target_psf, &o.linear);
   o.linear.leakage = a.leakage;
@@ -496,6 +498,9 @@ void RegisterReconstruct(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--boundary", a->boundary, "Tikhonov boundary: periodic | padded")->capture_default_str();
   cmd->add_flag("--std", a->std_map, "Tikhonov: write the posterior standard deviation map (closed form for uniform weights, else from posterior draws)");
+  cmd->add_flag("--count-unconstrained", a->count_unconstrained,
+                "Tikhonov: count the HR frequencies the frames leave unconstrained (the rank of every Fourier bin's "
+                "system; costly where N is near r^2) and report them in the summary message");
   a->noise_sigma_option = cmd->add_option("--noise-sigma", a->noise_sigma,
                   "Tikhonov --std, discrepancy, upre, wiener, and linear: noise sigma of a weight-1 pixel (1 for "
                   "inverse-variance weights)")

@@ -177,6 +177,19 @@ TEST_F(ReconstructCliTest, TikhonovWritesItsPosteriorStdMap) {
   EXPECT_NEAR(s(10, 11), s(12, 13), 1e-5 * s(10, 11));
 }
 
+// The rank counts are made on request: the summary reports the unconstrained HR frequencies with
+// --count-unconstrained and does not without it, the image being the same bits.
+TEST_F(ReconstructCliTest, TikhonovCountsUnconstrainedFrequenciesOnRequest) {
+  const nlohmann::json plain = Run("tikhonov", "--lambda 0.01");
+  const aosr::Image a = aosr::ReadFitsImage(Out("tikhonov"));
+  const nlohmann::json counted = Run("tikhonov", "--lambda 0.01 --count-unconstrained");
+  const aosr::Image b = aosr::ReadFitsImage(Out("tikhonov"));
+  EXPECT_THAT(counted["summary"]["message"].get<std::string>(), HasSubstr("HR frequencies unconstrained by the data"))
+      << counted.dump(2);
+  EXPECT_THAT(plain["summary"]["message"].get<std::string>(), Not(HasSubstr("unconstrained"))) << plain.dump(2);
+  EXPECT_TRUE((a == b).all());
+}
+
 TEST_F(ReconstructCliTest, BadRequestsFailBeforeWritingAnything) {
   CliRun r = RunCli("reconstruct " + Data() + " -m wiener -o " + Out("x"));
   EXPECT_EQ(r.status, 1);

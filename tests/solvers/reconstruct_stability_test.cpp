@@ -62,11 +62,19 @@ void ExpectSane(const Reconstruction& rec, const ReconstructionProblem& p, Recon
   EXPECT_FALSE(rec.summary.method.empty());
 }
 
+// These tests read the summary's rank counts, which are made on request (count_unconstrained).
 TikhonovOptions FixedLambda(double lambda, TikhonovPrior prior = TikhonovPrior::kGradient) {
   TikhonovOptions t;
   t.lambda_rule = TikhonovLambdaRule::kFixed;
   t.lambda = lambda;
   t.prior = prior;
+  t.count_unconstrained = true;
+  return t;
+}
+
+TikhonovOptions CountingDefaults() {
+  TikhonovOptions t = ReconstructOptions().tikhonov;
+  t.count_unconstrained = true;
   return t;
 }
 
@@ -89,7 +97,7 @@ TEST(ReconstructStabilityTest, FewerFramesThanRSquaredStaysBelowThePriorOnlyErro
     EXPECT_LT(RelativeError(rec.image, truth), 0.8 * flat) << ToString(m);
   }
   // Tikhonov says how little the frames determine: every bin has rank <= N < r².
-  const TikhonovResult t = ReconstructTikhonov(p, ReconstructOptions().tikhonov);
+  const TikhonovResult t = ReconstructTikhonov(p, CountingDefaults());
   const Index m2 = model->lr_shape().size();
   EXPECT_EQ(t.summary.lr_bins, m2);
   EXPECT_EQ(t.summary.rank_deficient_bins, m2);
@@ -621,7 +629,7 @@ TEST(ReconstructStabilityTest, REightWithFourFrames) {
     EXPECT_NE(rec.summary.termination, Termination::kFailed) << ToString(m) << ": " << rec.summary.BriefReport();
     EXPECT_LT(RelativeError(rec.image, truth), FlatError(truth)) << ToString(m);
   }
-  const TikhonovResult t = ReconstructTikhonov(p, ReconstructOptions().tikhonov);
+  const TikhonovResult t = ReconstructTikhonov(p, CountingDefaults());
   EXPECT_EQ(t.summary.rank_deficient_bins, 16);
   EXPECT_GE(t.summary.unconstrained_frequencies, Index(64 - 4) * 16);
 }

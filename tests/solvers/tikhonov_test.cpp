@@ -1,5 +1,6 @@
 #include "aosr/solvers/tikhonov.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -20,6 +21,8 @@ namespace {
 Image Random(Shape s, std::uint64_t seed) { return aosr::test::RandomImage(s, seed); }
 
 using test::RasterModel;
+using ::testing::HasSubstr;
+using ::testing::Not;
 
 // The Fourier solution must be the minimiser of the spatial objective: check it against CG on
 // (AᵀA + λΓᵀΓ) x = Aᵀy built from the very same operators.
@@ -73,6 +76,7 @@ TEST(TikhonovTest, ExactRecoveryOfInvertibleBandWithCompleteRaster) {
   TikhonovSummary s;
   const Image xr = TikhonovFourier(m, m.Render(x), opt, &s);
   EXPECT_LT((xr - x).matrix().norm() / x.matrix().norm(), 1e-8);
+  EXPECT_TRUE(s.unconstrained_counted) << "at lambda = 0 the minimum-norm solve makes the ranks: they are reported";
   EXPECT_EQ(s.rank_deficient_bins, deficient);
   EXPECT_GT(s.unconstrained_frequencies, 0);
   EXPECT_LT(s.unconstrained_frequencies, hr.size() / 4);
@@ -85,11 +89,79 @@ TEST(TikhonovTest, ReportsUnconstrainedFrequenciesWhenFramesAreTooFew) {
   const MultiFrameModel m = RasterModel(hr, r, {{0, 0}, {1, 1}}, 1.0);
   TikhonovOptions opt;
   opt.lambda = 1e-3;
+  opt.count_unconstrained = true;
   TikhonovSummary s;
-  const Image xr = TikhonovFourier(m, m.Render(Random(hr, 2).abs()), opt, &s);
+  const Image frames_x = Random(hr, 2).abs();
+  const Image xr = TikhonovFourier(m, m.Render(frames_x), opt, &s);
   EXPECT_TRUE(AllFinite(xr));
+  EXPECT_TRUE(s.unconstrained_counted);
   EXPECT_EQ(s.rank_deficient_bins, s.lr_bins);
   EXPECT_GE(s.unconstrained_frequencies, 2 * s.lr_bins);
+  EXPECT_THAT(s.message, HasSubstr("HR frequencies unconstrained by the data"));
+  // Not asked for (the default) at λ > 0: not counted, and the summary says so; the image is the same bits.
+  opt.count_unconstrained = false;
+  TikhonovSummary quiet;
+  const Image xq = TikhonovFourier(m, m.Render(frames_x), opt, &quiet);
+  EXPECT_FALSE(quiet.unconstrained_counted);
+  EXPECT_EQ(quiet.rank_deficient_bins, -1);
+  EXPECT_EQ(quiet.unconstrained_frequencies, -1);
+  EXPECT_THAT(quiet.message, Not(HasSubstr("unconstrained")));
+  EXPECT_TRUE((xq == xr).all());
+}
+
+// The ranks made on request agree with each bin's JacobiSVD against the same floor (rank_tolerance x the largest
+// singular value of all bins), for N < r², N = r² and N > r², with a prior that vanishes at the DC alias (whose
+// bin a λ > 0 solve ranks by itself) and one that does not; and the counts are the same bits on 1, 2 and 3 threads.
+TEST(TikhonovTest, RanksOnRequestAgreeWithTheSvdCounts) {
+  struct Case {
+    int r;
+    std::vector<std::pair<double, double>> shifts;
+    TikhonovPrior prior;
+  };
+  const std::vector<Case> cases = {
+      {2, {{0, 0}, {0.5, 0.5}}, TikhonovPrior::kGradient},
+      {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}, TikhonovPrior::kIdentity},
+      {3, {{0, 0}, {0.4, 1.1}, {1.3, 0.2}, {2.1, 2.2}, {0.7, 1.9}, {1.6, 0.8}, {2.5, 1.4}, {0.2, 2.6}, {1.1, 1.7},
+           {2.8, 0.5}, {0.9, 0.1}},
+       TikhonovPrior::kLaplacian}};
+  for (const Case& c : cases) {
+    const Shape hr{12 * c.r, 8 * c.r};
+    const MultiFrameModel m = RasterModel(hr, c.r, c.shifts, 0.9);
+    const Shape lr = m.lr_shape();
+    TikhonovOptions opt;
+    opt.prior = c.prior;
+    // The oracle: every bin's singular values by JacobiSVD, the floor from the largest of all.
+    std::vector<Eigen::VectorXd> sv;
+    double sv_max = 0;
+    for (Index uy = 0; uy < lr.rows; ++uy)
+      for (Index ux = 0; ux < lr.cols; ++ux) {
+        sv.push_back(Eigen::JacobiSVD<Eigen::MatrixXcd>(m.AliasedSystem(uy, ux)).singularValues());
+        sv_max = std::max(sv_max, sv.back().maxCoeff());
+      }
+    Index deficient = 0, unconstrained = 0;
+    for (const Eigen::VectorXd& s : sv) {
+      const Index rank = (s.array() > opt.rank_tolerance * sv_max).count();
+      if (rank < c.r * c.r) ++deficient, unconstrained += c.r * c.r - rank;
+    }
+    ASSERT_GT(deficient, 0) << "r = " << c.r << ": the case must have rank-deficient bins";
+    const ImageStack frames = m.Render(Random(hr, 5).abs());
+    std::vector<Index> counts;
+    for (int threads : {1, 2, 3}) {
+      SetDefaultThreads(threads);
+      tikhonov_internal::FourierSystem sys(m, tikhonov_internal::PriorSymbolImage(opt, hr), opt.rank_tolerance,
+                                           TikhonovBinSolver::kAuto);
+      sys.SetData(frames);
+      sys.Solve(1e-3);  // a λ > 0 solve ranks at most the bins whose prior vanishes
+      EXPECT_FALSE(sys.ranks_made());
+      counts.push_back(sys.deficient_bins());
+      counts.push_back(sys.unconstrained());
+      EXPECT_TRUE(sys.ranks_made());
+    }
+    SetDefaultThreads(1);
+    EXPECT_EQ(counts[0], deficient) << "r = " << c.r << ", N = " << c.shifts.size();
+    EXPECT_EQ(counts[1], unconstrained) << "r = " << c.r << ", N = " << c.shifts.size();
+    for (std::size_t k = 2; k < counts.size(); ++k) EXPECT_EQ(counts[k], counts[k % 2]);
+  }
 }
 
 }  // namespace
@@ -670,6 +742,66 @@ TEST(TikhonovTest, SpectralEigenPathMatchesTheSvdPath) {
 // The flat engine on 1 and 2 threads gives the same bits (DESIGN.md §4): ranks, λ₀, the spectral sums of every
 // λ rule (the terms stream and the per-bin path), the GCV λ and the solve, on a grid of several bin blocks and
 // term blocks (96 x 96 LR bins), with N < r², N > r² and duplicate frames.
+// The engine's lazily made parts give the same bits whichever pass makes them (the floor and λ₀ from their own pass,
+// from the spectral decomposition's or from the solve's), and a whole reconstruction (GCV and λ fixed; Woodbury and
+// normal-equation bins; a prior vanishing at DC, whose bin the solve defers and the decomposition reduces) is the same
+// bits on 1, 2 and 3 threads.
+TEST(TikhonovTest, LazyPartsAndReconstructionsAreBitIdenticalOnOneTwoAndThreeThreads) {
+  struct Case {
+    int r;
+    std::vector<std::pair<double, double>> shifts;
+    TikhonovPrior prior;
+  };
+  const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}, TikhonovPrior::kGradient},
+                                   {4, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}, {2.7, 3.1}}, TikhonovPrior::kLaplacian},
+                                   {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}}, TikhonovPrior::kPowerSpectrum}};
+  const int saved = DefaultThreads();
+  for (const Case& c : cases) {
+    const Shape hr{40 * c.r, 48 * c.r};
+    const std::string what = "r = " + std::to_string(c.r) + ", N = " + std::to_string(c.shifts.size());
+    const auto model = std::make_shared<MultiFrameModel>(RasterModel(hr, c.r, c.shifts, 1.2));
+    const ImageStack frames = test::AddNoise(model->Render(test::RandomImage(hr, 4).abs()), 0.02, 6);
+    TikhonovOptions o;
+    o.prior = c.prior;
+    // λ₀ (and with it the floor) from EnsureFloor's pass, from the decomposition's and from the solve's.
+    FourierSystem own(*model, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+    FourierSystem spectral(*model, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+    FourierSystem solved(*model, PriorSymbolImage(o, hr), o.rank_tolerance, TikhonovBinSolver::kAuto);
+    for (FourierSystem* s : {&own, &spectral, &solved}) s->SetData(frames);
+    const double lambda0 = own.lambda0();
+    spectral.PrepareSpectral();
+    solved.Solve(1e-2);
+    EXPECT_EQ(spectral.lambda0(), lambda0) << what;
+    EXPECT_EQ(solved.lambda0(), lambda0) << what;
+    EXPECT_EQ(solved.deficient_bins(), own.deficient_bins()) << what;
+
+    ReconstructionProblem p;
+    p.model = model;
+    p.frames = frames;
+    std::vector<TikhonovResult> gcv, fixed;
+    for (int threads : {1, 2, 3}) {
+      SetDefaultThreads(threads);
+      TikhonovOptions g = o;
+      g.lambda_rule = TikhonovLambdaRule::kGcv;
+      gcv.push_back(ReconstructTikhonov(p, g));
+      TikhonovOptions f = o;
+      f.lambda = gcv.front().summary.lambda;
+      fixed.push_back(ReconstructTikhonov(p, f));
+    }
+    SetDefaultThreads(saved);
+    for (std::size_t k = 1; k < gcv.size(); ++k) {
+      EXPECT_TRUE((gcv[k].image == gcv[0].image).all()) << what << ", " << k + 1 << " threads";
+      EXPECT_TRUE((fixed[k].image == fixed[0].image).all()) << what << ", " << k + 1 << " threads";
+      EXPECT_EQ(gcv[k].summary.lambda, gcv[0].summary.lambda) << what;
+      EXPECT_EQ(gcv[k].summary.gcv, gcv[0].summary.gcv) << what;
+      EXPECT_EQ(gcv[k].summary.final_cost, gcv[0].summary.final_cost) << what;
+      EXPECT_EQ(fixed[k].summary.final_cost, fixed[0].summary.final_cost) << what;
+    }
+    // λ fixed at GCV's λ is GCV's image.
+    EXPECT_TRUE((fixed[0].image == gcv[0].image).all()) << what;
+  }
+}
+
 TEST(TikhonovTest, FlatEngineIsBitIdenticalOnOneAndTwoThreads) {
   struct Case {
     int r;

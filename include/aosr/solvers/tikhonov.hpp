@@ -25,7 +25,10 @@
 //    *Singular bins.* Where G(u) is singular (λ = 0 and A(u) rank deficient, or a prior null space the
 //    data do not see) the minimum-norm solution of the stacked system [A; √w P^½] is returned (SVD, with
 //    singular values below rank_tolerance × the largest of all bins dropped) and the summary counts the HR
-//    frequencies the data leave unconstrained: they are reported, not filled.
+//    frequencies the data leave unconstrained: they are reported, not filled (at λ = 0 always, otherwise on
+//    request: TikhonovOptions::count_unconstrained). At λ > 0 a bin whose prior vanishes at some aliases is
+//    solved by (2) when the data see those aliases (their columns of A(u) have full column rank against that
+//    floor), else by the minimum-norm path.
 //
 // 2. Conjugate gradients (anything that breaks periodicity: non-uniform weights, masked pixels, zero-padded
 //    boundaries). Solves the normal equations of (1),
@@ -101,9 +104,11 @@
 //   kGcv          generalised cross-validation (Golub, Heath & Wahba 1979, Technometrics 21, 215): minimises
 //                 GCV(λ) = n · ||y − A x_λ||² / (n − tr H_λ)²; needs no noise level. Each value is a sum over
 //                 the singular values of the whitened bins B(u) = A(u) P(u)^(−½) (one decomposition per bin for
-//                 the whole search, then O(min(N, r²)) per bin and λ; the decomposition is the eigen-decomposition
-//                 of the small Gram matrix B Bᴴ with its small eigenvalues refined on B itself, as accurate as an
-//                 SVD of B: tested against one to 1e-10 in the GCV curve), so the search is a log grid (gcv_decades x
+//                 the whole search, then O(min(N, r²)) per bin and λ; a bin whose prior vanishes at z aliases the
+//                 data see is first reduced to the N − z dimensions outside those aliases' columns; the
+//                 decomposition is the eigen-decomposition of the small Gram matrix B Bᴴ with its small
+//                 eigenvalues refined on B itself, as accurate as an SVD of B: tested against one to 1e-10 in
+//                 the GCV curve), so the search is a log grid (gcv_decades x
 //                 gcv_steps_per_decade) to find the basin and a golden-section search on log λ between the
 //                 best point's neighbours to 1e-4 decades: a continuous minimiser, not a grid point. Needs a
 //                 Fourier-exact problem (uniform weights, periodic boundary: tr H exactly, per bin; a CG
@@ -243,6 +248,15 @@ struct TikhonovOptions {
   // A singular value of A(u) below rank_tolerance × the largest singular value over all bins counts as
   // zero when reporting unconstrained frequencies and in the minimum-norm path. In (0, 1).
   double rank_tolerance = 1e-9;
+  // Count the HR frequencies the data leave unconstrained (summary.rank_deficient_bins,
+  // unconstrained_frequencies and the message): the rank of every A(u) against that floor. Off by default
+  // because the solve does not need them (at λ > 0 a bin whose prior is positive is solved without its rank)
+  // and they are the costliest part of it where N ≈ r²: most bins then have singular values within a factor
+  // 2-10 of the floor, whose rank takes singular values to an SVD's accuracy (measured at r = 4, N = 16: ~5x
+  // the time of the rest of a λ-fixed solve; bench/results/tikhonov.md). Off, the counts are -1 and
+  // summary.unconstrained_counted is false, except at λ = 0, where the minimum-norm solve makes every rank
+  // and the counts are reported anyway.
+  bool count_unconstrained = false;
   // Progress and cancellation (core/progress.hpp). The Fourier path is direct: stage "tikhonov" is reported
   // as iteration 0 of 1 when it starts and 1 of 1 (value λ) when it ends; a cancellation asked then has nothing
   // left to cut short (a caller such as Python's Ctrl-C handling acts on it after the return). The CG path
@@ -265,8 +279,10 @@ struct TikhonovSummary : SolverSummary {
   double weighted_residual = 0.0;       // Σ w (y − A x̂)² = 2 · WeightedDataMisfit
   int lambda_evaluations = 0;           // λ values tried (solves or Fourier passes) by the rule
   Index lr_bins = 0;                    // number of per-frequency systems (of the grid solved on)
-  Index rank_deficient_bins = 0;        // bins where rank A(u) < r²
-  Index unconstrained_frequencies = 0;  // Σ_u (r² − rank A(u)): HR bins the data do not determine
+  // The rank counts, when counted (TikhonovOptions::count_unconstrained, or λ = 0); -1 otherwise.
+  bool unconstrained_counted = false;
+  Index rank_deficient_bins = -1;        // bins where rank A(u) < r²
+  Index unconstrained_frequencies = -1;  // Σ_u (r² − rank A(u)): HR bins the data do not determine
   Index woodbury_bins = 0;              // bins of the final Fourier solve/preconditioner done by Woodbury (3)
   bool preconditioned = false;          // CG path: preconditioned by the Fourier inverse
   double preconditioner_weight = 0.0;   // w̄ of that preconditioner
