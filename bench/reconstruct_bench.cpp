@@ -59,6 +59,7 @@
 #include <thread>
 #include <vector>
 
+#include "fft_floor.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/memory.hpp"
 #include "aosr/core/metrics.hpp"
@@ -117,25 +118,10 @@ struct Row {
   std::string note;
 };
 
-// Seconds per out-of-place r2c FFTW transform of rows x cols (FFTW_MEASURE plan): the minimum over 15
-// batches, the least disturbed estimate on a shared machine (a median moved 3.4 -> 5.0 ms between runs at
-// 1024^2; the minimum is what FFTW costs when nothing else is running).
+// The FFT floor: bench/fft_floor.hpp, on wall time.
 double FftSeconds(int rows, int cols) {
-  double* in = fftw_alloc_real(std::size_t(rows) * cols);
-  fftw_complex* out = fftw_alloc_complex(std::size_t(rows) * (cols / 2 + 1));
-  fftw_plan plan = fftw_plan_dft_r2c_2d(rows, cols, in, out, FFTW_MEASURE);
-  for (int i = 0; i < rows * cols; ++i) in[i] = (i % 7) * 0.1;
-  const int reps = std::max(5, int(2e7 / (double(rows) * cols * 8)));
-  std::vector<double> batches;
-  for (int b = 0; b < 15; ++b) {
-    const auto t0 = Clock::now();
-    for (int k = 0; k < reps; ++k) fftw_execute(plan);
-    batches.push_back(Since(t0) / reps);
-  }
-  fftw_destroy_plan(plan);
-  fftw_free(in);
-  fftw_free(out);
-  return *std::min_element(batches.begin(), batches.end());
+  const Clock::time_point origin = Clock::now();
+  return aosr::bench::R2cFloorSeconds(rows, cols, [origin] { return Since(origin); });
 }
 
 std::string Fmt(const char* f, double v) {

@@ -41,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "fft_floor.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/parallel.hpp"
 #include "aosr/io/config.hpp"
@@ -69,24 +70,8 @@ double CpuNow() {
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
 
-// Seconds per out-of-place r2c FFTW transform (FFTW_MEASURE), the minimum of 15 batches (reconstruct_bench).
-double FftSeconds(int rows, int cols) {
-  double* in = fftw_alloc_real(std::size_t(rows) * cols);
-  fftw_complex* out = fftw_alloc_complex(std::size_t(rows) * (cols / 2 + 1));
-  fftw_plan plan = fftw_plan_dft_r2c_2d(rows, cols, in, out, FFTW_MEASURE);
-  for (int i = 0; i < rows * cols; ++i) in[i] = (i % 7) * 0.1;
-  const int reps = std::max(5, int(2e7 / (double(rows) * cols * 8)));
-  double best = 1e300;
-  for (int b = 0; b < 15; ++b) {
-    const double t0 = CpuNow();
-    for (int k = 0; k < reps; ++k) fftw_execute(plan);
-    best = std::min(best, (CpuNow() - t0) / reps);
-  }
-  fftw_destroy_plan(plan);
-  fftw_free(in);
-  fftw_free(out);
-  return best;
-}
+// The FFT floor: bench/fft_floor.hpp, on process CPU time.
+double FftSeconds(int rows, int cols) { return aosr::bench::R2cFloorSeconds(rows, cols, CpuNow); }
 
 // The minimum over `repeats` runs of f: CPU time on one thread, wall time on more.
 template <class F>
