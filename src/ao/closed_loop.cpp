@@ -356,10 +356,14 @@ ClosedLoopResult ClosedLoop::Run(double duration_s, double settling_s) {
   const long steps = std::llround(duration_s / t);
   const long settle = std::llround(settling_s / t);
   for (long i = 0; i < settle; ++i) Step(false);
+  return Record(steps, static_cast<int>(settle));
+}
+
+ClosedLoopResult ClosedLoop::Record(long steps, int settling_steps) {
   const double start = time_s();
   BeginRecording();
   for (long i = 0; i < steps; ++i) Step(true);
-  return FinishRecording(static_cast<int>(settle), start);
+  return FinishRecording(settling_steps, start);
 }
 
 std::vector<ClosedLoopResult> ClosedLoop::RunSubExposures(const std::vector<Image>& dm_offsets_m,
@@ -410,12 +414,9 @@ std::vector<ClosedLoopResult> ClosedLoop::RunSubExposures(const std::vector<Imag
       remaining = std::max(0L, settle - probe);
     }
     for (long k = 0; k < remaining; ++k) Step(false);
-    const double start = time_s();
-    BeginRecording();
-    for (long k = 0; k < steps; ++k) Step(true);
-    results.push_back(FinishRecording(static_cast<int>(settle + (settle == 0 && options_.offset_calibration ==
-                                                                     OffsetCalibration::kOnSky)),
-                                      start));
+    // Settling frames run: `settle`, or the one probe frame when there was no settling.
+    const bool probed_only = settle == 0 && options_.offset_calibration == OffsetCalibration::kOnSky;
+    results.push_back(Record(steps, static_cast<int>(settle + (probed_only ? 1 : 0))));
     results.back().tilt_gain[0] = gain(0, 0);
     results.back().tilt_gain[1] = gain(1, 1);
     if (after_each && !after_each(int(results.size()))) break;

@@ -206,6 +206,9 @@ class ClosedLoop {
   void ScienceStage(bool psf_frame);
   void BeginRecording();
   ClosedLoopResult FinishRecording(int settling_steps, double start_time_s);
+  // Records `steps` frames from now (BeginRecording, Step(true), FinishRecording); `settling_steps` is what the
+  // result reports as run before them.
+  ClosedLoopResult Record(long steps, int settling_steps);
 
   ClosedLoopOptions options_;
   Image amplitude_;
