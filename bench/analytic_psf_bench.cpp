@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/parallel.hpp"
@@ -97,6 +98,7 @@ double MedianMs(int reps, F&& f) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   int reps = 15;
   std::vector<Index> pupils = {64, 128, 256};
   for (int i = 1; i < argc; ++i) {

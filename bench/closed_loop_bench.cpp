@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/ao/closed_loop.hpp"
 #include "aosr/ao/control.hpp"
@@ -200,6 +201,7 @@ void RunOne(const Args& args, const std::string& kind) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   const Args args = Parse(argc, argv);
   std::printf(
       "aosr closed-loop benchmark: 8 m, %ld-pixel pupil, 3 layers (r0 0.15 m at 550 nm, L0 30 m, winds "

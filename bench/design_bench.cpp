@@ -43,6 +43,7 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/design/design_objective.hpp"
 #include "aosr/design/design_optimizer.hpp"
@@ -223,6 +224,7 @@ struct OptRow {
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   bool quick = false;
   std::string out_file, command = "build/bench/design_bench";
   for (int i = 1; i < argc; ++i) {

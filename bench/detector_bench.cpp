@@ -10,9 +10,11 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/scene/detector.hpp"
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   using Clock = std::chrono::steady_clock;
   const int repeats = argc > 1 ? std::max(1, std::atoi(argv[1])) : 7;
   aosr::DetectorOptions o;

@@ -26,6 +26,7 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/parallel.hpp"
 
@@ -70,6 +71,7 @@ struct RawPair {
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   bool quick = false;
   int rounds = 7;
   std::string out;

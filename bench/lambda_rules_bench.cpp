@@ -41,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/core/metrics.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/scene/dataset.hpp"
@@ -207,6 +208,7 @@ void RunScene(const Scene& s, std::vector<Row>* rows, std::vector<std::string>* 
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   std::string out;
   bool quick = false;
   std::string command = "build/bench/lambda_rules_bench";

@@ -427,6 +427,7 @@ void WritePlot(const std::string& path, const std::vector<Row>& rows) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   bool quick = false;
   std::string out_file, only;
   int frames_only = 0;

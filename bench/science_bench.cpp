@@ -37,6 +37,7 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/io/config.hpp"
@@ -666,6 +667,7 @@ void Galaxies(const std::string& scene, bool quick, std::ostringstream& md) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   bool quick = false;
   std::string out_file, part = "all";
   std::string command = "build/bench/science_bench";

@@ -13,6 +13,7 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/scene/pipeline.hpp"
 #include "aosr/scene/telescope.hpp"
@@ -29,6 +30,7 @@ std::string Bucket(const std::string& stage) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   namespace fs = std::filesystem;
   std::vector<std::string> scenes;
   for (int i = 1; i < argc; ++i) scenes.push_back(argv[i]);

@@ -42,6 +42,7 @@
 #include <vector>
 
 #include "fft_floor.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/parallel.hpp"
 #include "aosr/io/config.hpp"
@@ -192,6 +193,7 @@ void Run(const std::string& scene, int frames, int repeats, bool weighted, int p
 }  // namespace
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   std::vector<std::string> scenes;
   std::vector<int> frames;
   int repeats = 5;

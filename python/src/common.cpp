@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 
 namespace aosr::python {
 
@@ -183,6 +184,9 @@ PYBIND11_MODULE(_aosr, m) {
   m.doc() =
       "aosr: super-resolved imaging with adaptive optics (pybind11 bindings of the C++ library).\n\n"
       "Use the package `aosr`, which re-exports this module; see docs/python.md.";
+  // The same allocator settings as the CLI (memory.hpp): freed image-sized arrays are reused instead of being
+  // page-faulted in again; AOSR_MALLOC_TUNING=0 before the import keeps the interpreter's own settings.
+  m.attr("allocator_tuned") = aosr::TuneAllocatorForLargeArrays();
   BindCore(m);
   BindIo(m);
   BindOptics(m);

@@ -6,10 +6,12 @@
 #include <new>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
 
 int main(int argc, char** argv) {
+  aosr::TuneAllocatorForLargeArrays();  // freed image-sized arrays reused, not page-faulted in again (memory.hpp)
   CLI::App app{
       "aosr: super-resolved imaging with adaptive optics.\n"
       "The DM adds a designed phase to each of N sub-exposures; reconstructing the N undersampled frames\n"

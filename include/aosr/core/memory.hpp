@@ -47,4 +47,16 @@ void CheckMemory(double bytes, const std::string& what);
 // The peak resident set size of this process so far, in bytes (getrusage), for reports and benchmarks.
 double PeakResidentBytes();
 
+// Tunes glibc's allocator for a process that allocates and frees image-sized arrays (MiB to tens of MiB)
+// many times a second: solver temporaries, and Ceres's L-BFGS, which makes new vectors every iteration.
+// glibc's defaults adapt the mmap and trim thresholds to the largest block freed so far and then hand the
+// heap's free top back to the kernel whenever it exceeds twice that, so each such array is page-faulted in
+// again on its next use: at r = 8 (1024^2) that was 25-30 % of a MAP reconstruction's time (1.6 s of system
+// time in 4.9 s). Fixed thresholds (mmap above 32 MiB, the largest glibc accepts; trim above 1 GiB) keep
+// freed blocks for reuse; the cost is that the process's resident size stays near its peak instead of
+// shrinking between steps. The CLI, the benchmarks and the Python module call it at start; it does nothing
+// when the user already chose malloc settings (GLIBC_TUNABLES with glibc.malloc.*, or MALLOC_*_ variables)
+// or set AOSR_MALLOC_TUNING=0, and outside glibc. Returns whether it changed the settings.
+bool TuneAllocatorForLargeArrays();
+
 }  // namespace aosr
