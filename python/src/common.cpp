@@ -186,7 +186,10 @@ PYBIND11_MODULE(_aosr, m) {
       "Use the package `aosr`, which re-exports this module; see docs/python.md.";
   // The same allocator settings as the CLI (memory.hpp): freed image-sized arrays are reused instead of being
   // page-faulted in again; AOSR_MALLOC_TUNING=0 before the import keeps the interpreter's own settings.
-  m.attr("allocator_tuned") = aosr::TuneAllocatorForLargeArrays();
+  static const bool tuned = aosr::TuneAllocatorForLargeArrays();
+  m.def("allocator_tuned", [] { return tuned; },
+        "Whether importing aosr set glibc's malloc thresholds (freed image-sized arrays reused; aosr's\n"
+        "core/memory.hpp). False outside glibc, or when AOSR_MALLOC_TUNING=0 or malloc tunables were set.");
   BindCore(m);
   BindIo(m);
   BindOptics(m);

@@ -95,15 +95,23 @@ void BindCore(py::module_& m) {
   m.def(
       "set_fft_planner", [](const std::string& planner) {
         FftSettings s = GetFftSettings();
-        if (planner == "estimate") s.planner = FftSettings::Planner::kEstimate;
+        if (planner == "estimate" || planner == "heuristic") s.planner = FftSettings::Planner::kEstimate;
         else if (planner == "measure") s.planner = FftSettings::Planner::kMeasure;
         else if (planner == "patient") s.planner = FftSettings::Planner::kPatient;
-        else throw InvalidArgument("aosr.set_fft_planner", "planner", planner, "estimate | measure | patient");
+        else
+          throw InvalidArgument("aosr.set_fft_planner", "planner", planner,
+                                "estimate | heuristic | measure | patient");
+        s.shipped_wisdom = planner != "heuristic";
         SetFftSettings(s);
       },
       py::arg("planner"),
-      "FFTW planning rigour: 'estimate' (default: reproducible bytes), 'measure' or 'patient' (may be faster; the\n"
-      "last bits of results then vary from run to run). The CLI's --fft-planner.");
+      "FFTW planning: 'estimate' (default, reproducible bytes: the plans aosr ships in its FFTW wisdom, FFTW's\n"
+      "heuristics for other shapes), 'heuristic' (reproducible: FFTW_ESTIMATE's heuristics alone), 'measure' or\n"
+      "'patient' (time candidates for shapes the wisdom lacks; the last bits of results then vary from run to run).\n"
+      "The CLI's --fft-planner.");
+  m.def("fft_wisdom_loaded", &FftWisdomLoaded,
+        "Whether FFTW accepted aosr's shipped wisdom when the last plan was made (False before any transform, or\n"
+        "when this FFTW build cannot read it: plans are then FFTW_ESTIMATE's, slower at 512^2 and up).");
   m.def(
       "set_memory_limit", [](const std::string& limit) { SetMemoryLimitBytes(ParseByteSize(limit, "limit")); },
       py::arg("limit"),

@@ -46,6 +46,22 @@ def test_errors_map_to_exceptions(tmp_path):
             aosr.set_memory_limit("1T")
 
 
+def test_fft_planner_settings_and_shipped_wisdom(demo_dir):
+    # The shipped FFTW wisdom is read by this FFTW (else every transform silently takes FFTW_ESTIMATE's slower
+    # plans); 'heuristic' plans without it and gives the same image to rounding; a bad name is refused.
+    assert aosr.allocator_tuned() in (True, False)
+    try:
+        a = aosr.reconstruct(demo_dir, "tikhonov").image
+        assert aosr.fft_wisdom_loaded()
+        aosr.set_fft_planner("heuristic")
+        b = aosr.reconstruct(demo_dir, "tikhonov").image
+        assert np.max(np.abs(a - b)) <= 1e-9 * np.max(np.abs(a))
+        with pytest.raises(aosr.InvalidArgument, match="heuristic"):
+            aosr.set_fft_planner("fastest")
+    finally:
+        aosr.set_fft_planner("estimate")
+
+
 def test_evaluate_matches_cli(demo_dir, cli, tmp_path):
     rec = aosr.reconstruct(demo_dir, "drizzle")
     aosr.write_fits(tmp_path / "e.fits", rec.image, dtype="float64")

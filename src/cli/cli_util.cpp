@@ -109,10 +109,12 @@ void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads) 
         ->capture_default_str()
         ->check(CLI::Range(0, 256));
   cmd->add_option("--fft-planner", args->fft_planner,
-                  "FFTW planning: estimate (reproducible, default) | measure | patient (may be faster; the last "
-                  "bits of results then vary from run to run)")
+                  "FFTW planning: estimate (reproducible, default: the plans aosr ships in its FFTW wisdom, FFTW's "
+                  "heuristics for other shapes) | heuristic (reproducible: FFTW_ESTIMATE's heuristics alone, slower at "
+                  "512^2 and up) | measure | patient (time candidates for shapes the wisdom lacks; the last bits of "
+                  "results then vary from run to run)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"estimate", "measure", "patient"}));
+      ->check(CLI::IsMember({"estimate", "heuristic", "measure", "patient"}));
   cmd->add_option("--memory-limit", args->memory_limit,
                   "refuse work whose estimated memory exceeds this, e.g. 8G (default: AOSR_MEMORY_LIMIT, else the "
                   "physical memory or what ulimit -v leaves)");
@@ -125,6 +127,7 @@ void ApplyExecution(const ExecutionArgs& args) {
   fft.planner = args.fft_planner == "measure"   ? FftSettings::Planner::kMeasure
                 : args.fft_planner == "patient" ? FftSettings::Planner::kPatient
                                                 : FftSettings::Planner::kEstimate;
+  fft.shipped_wisdom = args.fft_planner != "heuristic";
   SetFftSettings(fft);
   if (!args.memory_limit.empty()) SetMemoryLimitBytes(ParseByteSize(args.memory_limit, "--memory-limit"));
 }

@@ -12,6 +12,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/parallel.hpp"
+#include "fftw_wisdom.inc"  // kShippedFftwWisdom (generated from data/fftw_wisdom.txt)
 
 namespace aosr {
 namespace {
@@ -43,17 +44,22 @@ struct PlanKey {
   Index n0, n1, howmany, istride, idist, ostride, odist;
   bool in_place;
   FftSettings::Planner planner;
+  bool shipped_wisdom;
   auto Tie() const {
-    return std::tie(kind, rank, n0, n1, howmany, istride, idist, ostride, odist, in_place, planner);
+    return std::tie(kind, rank, n0, n1, howmany, istride, idist, ostride, odist, in_place, planner,
+                    shipped_wisdom);
   }
   bool operator<(const PlanKey& o) const { return Tie() < o.Tie(); }
 };
 
 unsigned PlannerFlags(FftSettings::Planner p) {
   switch (p) {
-    case FftSettings::Planner::kEstimate: return FFTW_ESTIMATE;
-    case FftSettings::Planner::kMeasure: return FFTW_MEASURE;
-    case FftSettings::Planner::kPatient: return FFTW_PATIENT;
+    case FftSettings::Planner::kEstimate:
+      return FFTW_ESTIMATE;
+    case FftSettings::Planner::kMeasure:
+      return FFTW_MEASURE;
+    case FftSettings::Planner::kPatient:
+      return FFTW_PATIENT;
   }
   return FFTW_ESTIMATE;
 }
@@ -96,6 +102,7 @@ class PlanCache {
       if (it != plans_.end()) {
         plan = it->second;
       } else {
+        PrepareWisdom(key);
         plan = Make(key);
         if (plan == nullptr)
           throw Error("FFTW failed to make a plan for shape " + std::to_string(key.n0) + "x" +
@@ -116,6 +123,12 @@ class PlanCache {
     for (auto& [key, plan] : plans_) fftw_destroy_plan(plan);
     plans_.clear();
     fftw_forget_wisdom();
+    shipped_loaded_ = false;
+  }
+
+  bool WisdomLoaded() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return shipped_loaded_;
   }
 
   void Set(const FftSettings& s) {
@@ -158,12 +171,12 @@ class PlanCache {
     fftw_plan plan = nullptr;
     switch (k.kind) {
       case Kind::kR2C:
-        plan = fftw_plan_many_dft_r2c(k.rank, n, howmany, static_cast<double*>(in), nullptr, is, id, co, nullptr, os,
-                                      od, flags);
+        plan = fftw_plan_many_dft_r2c(k.rank, n, howmany, static_cast<double*>(in), nullptr, is, id, co,
+                                      nullptr, os, od, flags);
         break;
       case Kind::kC2R:
-        plan = fftw_plan_many_dft_c2r(k.rank, n, howmany, ci, nullptr, is, id, static_cast<double*>(out), nullptr, os,
-                                      od, flags);
+        plan = fftw_plan_many_dft_c2r(k.rank, n, howmany, ci, nullptr, is, id, static_cast<double*>(out),
+                                      nullptr, os, od, flags);
         break;
       case Kind::kForward:
       case Kind::kInverse:
@@ -176,8 +189,24 @@ class PlanCache {
     return plan;
   }
 
+  // FFTW keeps one wisdom store per process and consults it for every plan: an entry recorded while
+  // planning with FFTW_MEASURE (by aosr's opt-in planners, or by anything else in the process that uses
+  // FFTW directly: a benchmark's reference plans, another library) would answer a later FFTW_ESTIMATE
+  // request for the same problem, and the "deterministic" plan would depend on what the process did
+  // before. So every kEstimate plan is made from a store that holds exactly the shipped wisdom (or
+  // nothing): it is forgotten and re-imported before each new plan (about 1 ms for the 170 kB of shipped
+  // wisdom, once per shape and block class). kMeasure and kPatient plans, not reproducible anyway, plan on
+  // top of what the store holds, so that their timings accumulate (build/bench/fft_wisdom exports them).
+  void PrepareWisdom(const PlanKey& key) {
+    if (key.planner == FftSettings::Planner::kEstimate) fftw_forget_wisdom();
+    if (key.shipped_wisdom)
+      shipped_loaded_ =
+          kShippedFftwWisdom[0] != '\0' && fftw_import_wisdom_from_string(kShippedFftwWisdom) == 1;
+  }
+
   std::mutex mutex_;
   FftSettings settings_;
+  bool shipped_loaded_ = false;
   std::map<PlanKey, fftw_plan> plans_;
   std::atomic<std::uint64_t> generation_{1};
 };
@@ -252,11 +281,12 @@ struct Partition {
 // out (row length out_len), out of place. For kC2R the rows of `out` are also multiplied by `scale`.
 template <typename In, typename Out>
 void RowPass(Kind kind, Index n, Index rows, const In* in, Index in_len, Out* out, Index out_len,
-             FftSettings::Planner planner, double scale) {
+             const FftSettings& fs, double scale) {
   const Partition part(rows);
   ParallelFor(part.count, DefaultThreads(), [&](Index b) {
     const Index r0 = part.Begin(b), nb = part.Size(b, rows);
-    const fftw_plan p = PlanCache::Get().Plan({kind, 1, n, 0, nb, 1, in_len, 1, out_len, false, planner});
+    const fftw_plan p = PlanCache::Get().Plan(
+        {kind, 1, n, 0, nb, 1, in_len, 1, out_len, false, fs.planner, fs.shipped_wisdom});
     const In* src = in + r0 * in_len;
     Out* dst = out + r0 * out_len;
     if constexpr (std::is_same_v<In, double>) {
@@ -278,12 +308,13 @@ void RowPass(Kind kind, Index n, Index rows, const In* in, Index in_len, Out* ou
 // is the pass the scale needs anyway. A function of the row length only, so of the shape.
 constexpr Index kInPlaceC2RMinCols = 900;
 
-void RowPassC2RInPlace(Index n, Index rows, Complex* work, Index half, double* out, FftSettings::Planner planner,
+void RowPassC2RInPlace(Index n, Index rows, Complex* work, Index half, double* out, const FftSettings& fs,
                        double scale) {
   const Partition part(rows);
   ParallelFor(part.count, DefaultThreads(), [&](Index b) {
     const Index r0 = part.Begin(b), nb = part.Size(b, rows);
-    const fftw_plan p = PlanCache::Get().Plan({Kind::kC2R, 1, n, 0, nb, 1, half, 1, 2 * half, true, planner});
+    const fftw_plan p = PlanCache::Get().Plan(
+        {Kind::kC2R, 1, n, 0, nb, 1, half, 1, 2 * half, true, fs.planner, fs.shipped_wisdom});
     Complex* block = work + r0 * half;
     double* real = reinterpret_cast<double*>(block);
     fftw_execute_dft_c2r(p, C(block), real);
@@ -313,13 +344,15 @@ bool BufferedColumns(Index rows, Index cols) {
   return cols % 16 == 0 || std::size_t(rows) * std::size_t(cols) * sizeof(Complex) >= (std::size_t(16) << 20);
 }
 
-void ColumnPass(Kind kind, Index rows, Index cols, const Complex* in, Complex* out, FftSettings::Planner planner) {
+void ColumnPass(Kind kind, Index rows, Index cols, const Complex* in, Complex* out, const FftSettings& fs) {
   if (BufferedColumns(rows, cols)) {
     const Index chunks = (cols + kChunkColumns - 1) / kChunkColumns;
     ParallelFor(chunks, DefaultThreads(), [&](Index b) {
       const Index c0 = b * kChunkColumns, nb = std::min(kChunkColumns, cols - c0);
-      const fftw_plan p = PlanCache::Get().Plan({kind, 1, rows, 0, nb, 1, rows, 1, rows, true, planner});
-      Complex* buf = static_cast<Complex*>(Scratch::ForThread().Reserve(kColumns, sizeof(Complex) * rows * nb));
+      const fftw_plan p = PlanCache::Get().Plan(
+          {kind, 1, rows, 0, nb, 1, rows, 1, rows, true, fs.planner, fs.shipped_wisdom});
+      Complex* buf =
+          static_cast<Complex*>(Scratch::ForThread().Reserve(kColumns, sizeof(Complex) * rows * nb));
       for (Index i = 0; i < rows; ++i) {
         const Complex* src = in + i * cols + c0;
         for (Index c = 0; c < nb; ++c) buf[c * rows + i] = src[c];
@@ -336,12 +369,13 @@ void ColumnPass(Kind kind, Index rows, Index cols, const Complex* in, Complex* o
   const bool in_place = in == out;
   ParallelFor(part.count, DefaultThreads(), [&](Index b) {
     const Index c0 = part.Begin(b), nb = part.Size(b, cols);
-    const fftw_plan p = PlanCache::Get().Plan({kind, 1, rows, 0, nb, cols, 1, cols, 1, in_place, planner});
+    const fftw_plan p = PlanCache::Get().Plan(
+        {kind, 1, rows, 0, nb, cols, 1, cols, 1, in_place, fs.planner, fs.shipped_wisdom});
     fftw_execute_dft(p, C(in + c0), C(out + c0));
   });
 }
 
-FftSettings::Planner CurrentPlanner() { return PlanCache::Get().Settings().planner; }
+FftSettings CurrentSettings() { return PlanCache::Get().Settings(); }
 
 }  // namespace
 
@@ -353,23 +387,28 @@ std::size_t FftPlanCount() { return PlanCache::Get().Count(); }
 
 void FftResetPlansForTesting() { PlanCache::Get().Reset(); }
 
+bool FftWisdomLoaded() { return PlanCache::Get().WisdomLoaded(); }
+
+const char* FftShippedWisdom() { return kShippedFftwWisdom; }
+
 std::uint64_t FftExecutionCount() { return g_executions.load(std::memory_order_relaxed); }
 
 void FftR2CInto(const Image& x, ComplexImage* X) {
   CheckNonEmpty("FftR2C", x.rows(), x.cols());
   CheckArgument(X != nullptr, "FftR2C", "X", "null", "an output array");
   const Index rows = x.rows(), cols = x.cols(), half = cols / 2 + 1;
-  const auto planner = CurrentPlanner();
+  const FftSettings fs = CurrentSettings();
   X->resize(rows, half);
   CheckAligned(x.data());
   CheckAligned(X->data());
   CountExecution();
   if (!Blocked(rows, cols)) {
-    const fftw_plan p = PlanCache::Get().Plan({Kind::kR2C, 2, rows, cols, 1, 1, 0, 1, 0, false, planner});
+    const fftw_plan p = PlanCache::Get().Plan(
+        {Kind::kR2C, 2, rows, cols, 1, 1, 0, 1, 0, false, fs.planner, fs.shipped_wisdom});
     fftw_execute_dft_r2c(p, R(x.data()), C(X->data()));
   } else {
-    RowPass(Kind::kR2C, cols, rows, x.data(), cols, X->data(), half, planner, 1.0);
-    ColumnPass(Kind::kForward, rows, half, X->data(), X->data(), planner);
+    RowPass(Kind::kR2C, cols, rows, x.data(), cols, X->data(), half, fs, 1.0);
+    ColumnPass(Kind::kForward, rows, half, X->data(), X->data(), fs);
   }
 }
 
@@ -385,7 +424,7 @@ void FftC2RInto(const ComplexImage& X, Index cols, Image* x) {
                 "2*(X.cols()-1) or 2*(X.cols()-1)+1 with X.cols() = " + std::to_string(X.cols()));
   CheckArgument(x != nullptr, "FftC2R", "x", "null", "an output array");
   const Index rows = X.rows(), half = X.cols();
-  const auto planner = CurrentPlanner();
+  const FftSettings fs = CurrentSettings();
   x->resize(rows, cols);
   CheckAligned(X.data());
   CheckAligned(x->data());
@@ -396,15 +435,16 @@ void FftC2RInto(const ComplexImage& X, Index cols, Image* x) {
   Complex* work = static_cast<Complex*>(Scratch::ForThread().Reserve(kSpectrum, sizeof(Complex) * X.size()));
   if (!Blocked(rows, cols)) {
     std::memcpy(work, X.data(), sizeof(Complex) * X.size());
-    const fftw_plan p = PlanCache::Get().Plan({Kind::kC2R, 2, rows, cols, 1, 1, 0, 1, 0, false, planner});
+    const fftw_plan p = PlanCache::Get().Plan(
+        {Kind::kC2R, 2, rows, cols, 1, 1, 0, 1, 0, false, fs.planner, fs.shipped_wisdom});
     fftw_execute_dft_c2r(p, C(work), x->data());
     *x *= scale;
   } else {
-    ColumnPass(Kind::kInverse, rows, half, X.data(), work, planner);
+    ColumnPass(Kind::kInverse, rows, half, X.data(), work, fs);
     if (cols >= kInPlaceC2RMinCols)
-      RowPassC2RInPlace(cols, rows, work, half, x->data(), planner, scale);
+      RowPassC2RInPlace(cols, rows, work, half, x->data(), fs, scale);
     else
-      RowPass(Kind::kC2R, cols, rows, static_cast<const Complex*>(work), half, x->data(), cols, planner, scale);
+      RowPass(Kind::kC2R, cols, rows, static_cast<const Complex*>(work), half, x->data(), cols, fs, scale);
   }
 }
 
@@ -419,17 +459,18 @@ void FullComplex(const char* fn, Kind kind, const ComplexImage& in, ComplexImage
   CheckNonEmpty(fn, in.rows(), in.cols());
   CheckArgument(out != nullptr && out != &in, fn, "out", "null or the input", "a separate output array");
   const Index rows = in.rows(), cols = in.cols();
-  const auto planner = CurrentPlanner();
+  const FftSettings fs = CurrentSettings();
   out->resize(rows, cols);
   CheckAligned(in.data());
   CheckAligned(out->data());
   CountExecution();
   if (!Blocked(rows, cols)) {
-    const fftw_plan p = PlanCache::Get().Plan({kind, 2, rows, cols, 1, 1, 0, 1, 0, false, planner});
+    const fftw_plan p =
+        PlanCache::Get().Plan({kind, 2, rows, cols, 1, 1, 0, 1, 0, false, fs.planner, fs.shipped_wisdom});
     fftw_execute_dft(p, C(in.data()), C(out->data()));
   } else {
-    RowPass(kind, cols, rows, in.data(), cols, out->data(), cols, planner, 1.0);
-    ColumnPass(kind, rows, cols, out->data(), out->data(), planner);
+    RowPass(kind, cols, rows, in.data(), cols, out->data(), cols, fs, 1.0);
+    ColumnPass(kind, rows, cols, out->data(), out->data(), fs);
   }
 }
 }  // namespace
@@ -440,7 +481,9 @@ ComplexImage FftForward(const ComplexImage& x) {
   return X;
 }
 
-void FftForwardInto(const ComplexImage& x, ComplexImage* X) { FullComplex("FftForward", Kind::kForward, x, X); }
+void FftForwardInto(const ComplexImage& x, ComplexImage* X) {
+  FullComplex("FftForward", Kind::kForward, x, X);
+}
 
 ComplexImage FftInverse(const ComplexImage& X) {
   ComplexImage x;

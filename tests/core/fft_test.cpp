@@ -1,5 +1,6 @@
 #include "aosr/core/fft.hpp"
 
+#include <fftw3.h>
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -173,6 +174,68 @@ TEST(FftTest, PlannerIsASettingNotMaths) {
   const ComplexImage measured = FftR2C(x);
   SetFftSettings(saved);
   EXPECT_LT((measured - reference).abs().maxCoeff(), 1e-12 * reference.abs().maxCoeff());
+}
+
+// The wisdom aosr ships (data/fftw_wisdom.txt, compiled in) is read by this machine's FFTW: if a new FFTW
+// build refuses it, this test says so (regenerate it with build/bench/fft_wisdom), instead of every transform
+// silently falling back to FFTW_ESTIMATE's plans, 1.5-2x slower at 512^2 and up.
+TEST(FftTest, ShippedWisdomIsReadByThisFftw) {
+  ASSERT_NE(FftShippedWisdom()[0], '\0') << "data/fftw_wisdom.txt is empty";
+  FftResetPlansForTesting();
+  EXPECT_FALSE(FftWisdomLoaded());
+  FftR2C(RandomImage({256, 256}, 30));
+  EXPECT_TRUE(FftWisdomLoaded());
+}
+
+// The shipped plans and FFTW_ESTIMATE's heuristic ones compute the same transforms to rounding, on both
+// execution paths and for shapes in the wisdom (64, 256, 512) and not in it (odd, prime, rectangular).
+TEST(FftTest, ShippedWisdomAndHeuristicPlansAgreeToRounding) {
+  const FftSettings saved = GetFftSettings();
+  EXPECT_TRUE(saved.shipped_wisdom);  // the default
+  for (Shape s : {Shape{64, 64}, Shape{256, 256}, Shape{512, 512}, Shape{375, 375}, Shape{211, 300}}) {
+    SCOPED_TRACE(ToString(s));
+    SetFftSettings(saved);
+    const Outputs shipped = Transform(s);
+    FftSettings heuristic = saved;
+    heuristic.shipped_wisdom = false;
+    SetFftSettings(heuristic);
+    const Outputs plain = Transform(s);
+    const double scale = shipped.r2c.abs().maxCoeff();
+    EXPECT_LT((shipped.r2c - plain.r2c).abs().maxCoeff(), 1e-13 * scale);
+    EXPECT_LT((shipped.fwd - plain.fwd).abs().maxCoeff(), 1e-13 * shipped.fwd.abs().maxCoeff());
+    EXPECT_LT((shipped.c2r - plain.c2r).abs().maxCoeff(), 1e-13 * shipped.c2r.abs().maxCoeff());
+    EXPECT_LT((shipped.inv - plain.inv).abs().maxCoeff(), 1e-13 * shipped.inv.abs().maxCoeff());
+  }
+  SetFftSettings(saved);
+}
+
+// A plan is a function of its shape, whatever else the process planned: FFTW's wisdom store is shared by
+// every FFTW user in the process, and an entry made by a timed FFTW_MEASURE plan of the very same problem
+// (aosr's 2-D r2c, out of place) must not leak into aosr's reproducible plans: neither for a shape the
+// shipped wisdom lacks (120^2) nor with the shipped wisdom off.
+TEST(FftTest, PlansDoNotDependOnWhatElseThisProcessPlanned) {
+  const FftSettings saved = GetFftSettings();
+  FftSettings heuristic = saved;
+  heuristic.shipped_wisdom = false;
+  for (const auto& [settings, s] : {std::pair{saved, Shape{120, 120}}, std::pair{heuristic, Shape{128, 128}}}) {
+    SCOPED_TRACE(ToString(s));
+    SetFftSettings(settings);
+    const Image x = RandomImage(s, 31);
+    FftResetPlansForTesting();
+    const ComplexImage clean = FftR2C(x);
+    for (unsigned flags : {unsigned(FFTW_MEASURE), unsigned(FFTW_PATIENT)}) {
+      FftResetPlansForTesting();
+      double* in = fftw_alloc_real(std::size_t(s.rows * s.cols));
+      fftw_complex* out = fftw_alloc_complex(std::size_t(s.rows * (s.cols / 2 + 1)));
+      fftw_plan foreign = fftw_plan_dft_r2c_2d(int(s.rows), int(s.cols), in, out, flags);
+      ASSERT_NE(foreign, nullptr);
+      EXPECT_TRUE(SameBytes(FftR2C(x), clean)) << "after a foreign plan with flags " << flags;
+      fftw_destroy_plan(foreign);
+      fftw_free(in);
+      fftw_free(out);
+    }
+  }
+  SetFftSettings(saved);
 }
 
 }  // namespace

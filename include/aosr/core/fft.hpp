@@ -16,12 +16,18 @@
 //    contiguous buffer, transformed and scattered back). The blocks are the tasks of ParallelFor
 //    (parallel.hpp) on DefaultThreads() threads. Which way is a function of the shape only.
 //    bench/results/fft.md compares this with one FFTW 2-D plan on 1 and 2 threads.
-//  * Reproducibility: with the default planner (kEstimate, whose choices are FFTW's deterministic
-//    heuristics, no timing) the output bytes depend only on the input bytes: not on the run, the thread
-//    count, or the arrays' addresses, because every block is always computed by the same plan on arrays
-//    of the same alignment (tested bit for bit for every size class: powers of two, odd, primes > 7,
-//    one-row images). kMeasure and kPatient time candidate algorithms, so the chosen plan, and with it
-//    the last bits of every result, may change from run to run; they are opt-in for benchmarks.
+//  * Plans come from wisdom the library ships (data/fftw_wisdom.txt: FFTW_PATIENT's choices for the
+//    plans of the common square sizes, 8^2 to 2048^2, made once by build/bench/fft_wisdom and compiled in)
+//    where it has them, and from FFTW_ESTIMATE's deterministic heuristics elsewhere. Either way no plan
+//    is timed at run time, so the plan is a function of the shape. The wisdom's plans were measured
+//    1.5-2x faster than FFTW_ESTIMATE's at 512^2-2048^2 (bench/results/fft.md). If this machine's FFTW
+//    cannot read it (another FFTW version or build), FftWisdomLoaded() says so and plans are ESTIMATE's.
+//  * Reproducibility: with the default planner (kEstimate: shipped wisdom, then FFTW's heuristics, no
+//    timing) the output bytes depend only on the input bytes: not on the run, the thread count, or the
+//    arrays' addresses, because every block is always computed by the same plan on arrays of the same
+//    alignment (tested bit for bit for every size class: powers of two, odd, primes > 7, one-row
+//    images). kMeasure and kPatient time candidate algorithms for shapes the wisdom lacks, so the chosen
+//    plan, and with it the last bits of every result, may change from run to run; they are opt-in.
 #pragma once
 
 #include <cstddef>
@@ -37,6 +43,9 @@ struct FftSettings {
   // times candidates once per shape and kPatient more thoroughly: sometimes faster, never reproducible.
   enum class Planner { kEstimate, kMeasure, kPatient };
   Planner planner = Planner::kEstimate;
+  // Plan from the wisdom the library ships where it has the shape (the default). False plans from FFTW's
+  // planner alone: for benchmarks of the difference, and tests that results agree to rounding either way.
+  bool shipped_wisdom = true;
 };
 
 // Global FFT settings. Thread-safe. Changing them affects plans made afterwards.
@@ -64,6 +73,11 @@ std::size_t FftPlanCount();
 // Destroys every cached plan and FFTW's wisdom, so the next transforms plan as a fresh process would (the
 // run-to-run reproducibility test). No transform may be running on any thread while it is called.
 void FftResetPlansForTesting();
+// Whether FFTW accepted the shipped wisdom when the last plan with shipped_wisdom on was made (false
+// before any such plan, or when this FFTW cannot read it: another FFTW version or build).
+bool FftWisdomLoaded();
+// The shipped wisdom itself (FFTW's text format), for benchmarks that plan with FFTW directly.
+const char* FftShippedWisdom();
 // Number of transforms executed through this file since the program started (all threads; a relaxed
 // atomic counter). Tests use it to prove a disabled stage does no FFT work; benchmarks to count the FFT
 // floor of an algorithm. Every FFT in aosr goes through this file, so the count is complete.
