@@ -90,7 +90,8 @@ inline double Norm2(Complex z) { return z.real() * z.real() + z.imag() * z.imag(
 // Hermitian tridiagonal matrix, a diagonal unitary that makes it real, then the implicit QL algorithm with
 // Wilkinson shifts on the real symmetric tridiagonal (the scheme of EISPACK's tql2), rotations accumulated.
 // Backward stable: each eigenvalue carries an absolute error of a few n ε ||M||₂ (so small eigenvalues of a
-// Gram matrix lose digits relative to the largest; FourierSystem refines them, tikhonov.cpp). False if QL does
+// Gram matrix lose digits relative to the largest: where those matter, take the SVD of the factor instead,
+// SingularSpectrum below). False if QL does
 // not converge in 60 iterations per eigenvalue (non-finite input).
 inline bool HermitianEigen(Complex* m, int n, double* d, Complex* u, double* work) {
   if (n <= 0) return true;
@@ -254,6 +255,258 @@ inline bool HermitianEigen(Complex* m, int n, double* d, Complex* u, double* wor
         u[(k + 1 + i) * n + j] -= Complex(a.real() * s.real() - a.imag() * s.imag(), a.real() * s.imag() + a.imag() * s.real());
       }
     }
+  }
+  return true;
+}
+
+}  // namespace aosr::bins
+
+namespace aosr::bins {
+
+// A Householder reflector in LAPACK's zlarfg convention: for x (m values) finds τ and v (v₀ = 1, v₁.. written over
+// x₁..) with Hᴴ x = β e₁ for H = I − τ v vᴴ and β real, and returns β (τ = 0, H = I, where x is already β e₁).
+inline double Reflector(Complex* x, int m, Complex* tau) {
+  const Complex alpha = x[0];
+  double tail = 0;
+  for (int i = 1; i < m; ++i) tail += Norm2(x[i]);
+  if (tail == 0 && alpha.imag() == 0) {
+    *tau = 0;
+    return alpha.real();
+  }
+  const double beta = -std::copysign(std::sqrt(Norm2(alpha) + tail), alpha.real());
+  *tau = Complex((beta - alpha.real()) / beta, -alpha.imag() / beta);
+  const Complex scale = 1.0 / (alpha - beta);  // |α − β| >= |β|: no cancellation
+  for (int i = 1; i < m; ++i)
+    x[i] = Complex(x[i].real() * scale.real() - x[i].imag() * scale.imag(),
+                   x[i].real() * scale.imag() + x[i].imag() * scale.real());
+  return beta;
+}
+
+// col ← Hᴴ col = col − conj(τ) v (vᴴ col) for the reflector (τ, v) of Reflector (v₀ = 1 implicit, v₁.. at v).
+inline void ReflectLeft(Complex tau, const Complex* v, int m, Complex* col) {
+  Complex dot = col[0];
+  for (int i = 1; i < m; ++i)
+    dot += Complex(v[i].real() * col[i].real() + v[i].imag() * col[i].imag(),
+                   v[i].real() * col[i].imag() - v[i].imag() * col[i].real());
+  const Complex f(tau.real() * dot.real() + tau.imag() * dot.imag(), tau.real() * dot.imag() - tau.imag() * dot.real());
+  col[0] -= f;
+  for (int i = 1; i < m; ++i)
+    col[i] -= Complex(f.real() * v[i].real() - f.imag() * v[i].imag(), f.real() * v[i].imag() + f.imag() * v[i].real());
+}
+
+// The row a (m values at stride `stride`) ← a H = a − τ (a v) vᴴ.
+inline void ReflectRight(Complex tau, const Complex* v, int m, Complex* a, int stride) {
+  Complex s = a[0];
+  for (int i = 1; i < m; ++i) {
+    const Complex ai = a[i * stride];
+    s += Complex(ai.real() * v[i].real() - ai.imag() * v[i].imag(), ai.real() * v[i].imag() + ai.imag() * v[i].real());
+  }
+  const Complex f(tau.real() * s.real() - tau.imag() * s.imag(), tau.real() * s.imag() + tau.imag() * s.real());
+  a[0] -= f;
+  for (int i = 1; i < m; ++i)  // f conj(v_i)
+    a[i * stride] -=
+        Complex(f.real() * v[i].real() + f.imag() * v[i].imag(), f.imag() * v[i].real() - f.real() * v[i].imag());
+}
+
+// A plane rotation (c, s) with c f + s g = r >= 0 and −s f + c g = 0; (1, 0) where f and g are both zero (or
+// both below the square root of the smallest normal number: entries far below the convergence tolerance of
+// SingularSpectrum, whose matrix is scaled so that its largest entry is O(1)).
+inline double Rotation(double f, double g, double* c, double* s) {
+  const double r = std::sqrt(f * f + g * g);
+  if (!(r > 0)) {
+    *c = 1, *s = 0;
+    return 0;
+  }
+  *c = f / r, *s = g / r;
+  return r;
+}
+
+// The singular values of the p x k complex matrix X (element (i, j) at x[j ld + i]; destroyed) and the squared
+// projections |u_jᴴ y|² of y (p values; destroyed) on its left singular vectors u_j, without forming them:
+// q = min(p, k) values s2 (σ², ascending) and c, and *perp = ||y||² − Σ c, the part of y outside span{u_j}, as a sum
+// of squares (the trailing rows of Uᴴy when p > k; 0 when p <= k). `work`: 2q doubles, `v`: max(p, k) complex.
+//
+// Golub-Kahan: Householder bidiagonalisation X = P B Qᴴ (P's reflectors applied to y), with real β's so that B is
+// real: upper bidiagonal when p >= k; lower when p < k, turned upper by q − 1 rotations from the left (applied to y
+// too). Then implicit-shift QR sweeps on B (Golub & Van Loan, Algorithms 8.6.1-8.6.2: Wilkinson shift from the
+// trailing 2 x 2 of BᵀB, a zero diagonal chased off its row or column first), the left rotations applied to y
+// only. Backward stable on X: every σ carries an absolute error of a few ε ||X||₂ (the accuracy of an SVD of X),
+// so σ² is exact to ~ε σ_max σ, unlike an eigen-decomposition of X Xᴴ (~ε σ_max²). The sweeps converge when an
+// off-diagonal entry is at most ε ||B|| (that absolute accuracy; no relative accuracy is claimed). X is scaled
+// by a power of two first (exact) so that its largest entry is O(1). False if the sweeps do not converge (60
+// per singular value; non-finite input).
+inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, double* s2, double* c, double* perp,
+                             double* work, Complex* v) {
+  const int q = std::min(p, k);
+  *perp = 0;
+  if (q == 0) {
+    for (int i = 0; i < p; ++i) *perp += Norm2(y[i]);
+    return true;
+  }
+  double big = 0;
+  bool finite = true;
+  for (int j = 0; j < k; ++j)
+    for (int i = 0; i < p; ++i) {
+      const Complex z = x[j * ld + i];
+      finite = finite && std::isfinite(z.real()) && std::isfinite(z.imag());
+      big = std::max(big, std::max(std::abs(z.real()), std::abs(z.imag())));
+    }
+  if (!finite) return false;
+  int scale_exp = 0;
+  if (big > 0) {
+    scale_exp = -std::ilogb(big);
+    const double scale = std::ldexp(1.0, scale_exp);
+    for (int j = 0; j < k; ++j)
+      for (int i = 0; i < p; ++i) x[j * ld + i] *= scale;
+  }
+  double* d = work;
+  double* e = work + q;
+  Complex tau;
+  if (p >= k) {  // upper bidiagonal: reflectors on column j (rows j..), then on row j (columns j+1..)
+    for (int j = 0; j < k; ++j) {
+      Complex* col = x + j * ld + j;
+      d[j] = Reflector(col, p - j, &tau);
+      if (tau != Complex(0)) {
+        for (int t = j + 1; t < k; ++t) ReflectLeft(tau, col, p - j, x + t * ld + j);
+        ReflectLeft(tau, col, p - j, y + j);
+      }
+      if (j + 1 < k) {
+        const int m = k - j - 1;
+        for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + 1 + t) * ld + j]);
+        e[j] = Reflector(v, m, &tau);
+        if (tau != Complex(0))
+          for (int r = j + 1; r < p; ++r) ReflectRight(tau, v, m, x + (j + 1) * ld + r, ld);
+      }
+    }
+    for (int i = k; i < p; ++i) *perp += Norm2(y[i]);
+  } else {  // lower bidiagonal: reflectors on row j (columns j..), then on column j (rows j+1..)
+    for (int j = 0; j < p; ++j) {
+      const int m = k - j;
+      for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + t) * ld + j]);
+      d[j] = Reflector(v, m, &tau);
+      if (tau != Complex(0))
+        for (int r = j + 1; r < p; ++r) ReflectRight(tau, v, m, x + j * ld + r, ld);
+      if (j + 1 < p) {
+        Complex* col = x + j * ld + j + 1;
+        e[j] = Reflector(col, p - j - 1, &tau);
+        if (tau != Complex(0)) {
+          for (int t = j + 1; t < k; ++t) ReflectLeft(tau, col, p - j - 1, x + t * ld + j + 1);
+          ReflectLeft(tau, col, p - j - 1, y + j + 1);
+        }
+      }
+    }
+    // Lower -> upper: a rotation of rows j, j+1 zeroes the subdiagonal e_j and fills the superdiagonal.
+    for (int j = 0; j + 1 < q; ++j) {
+      double cs, sn;
+      d[j] = Rotation(d[j], e[j], &cs, &sn);
+      e[j] = sn * d[j + 1];
+      d[j + 1] *= cs;
+      const Complex a = y[j], b = y[j + 1];
+      y[j] = cs * a + sn * b;
+      y[j + 1] = cs * b - sn * a;
+    }
+  }
+  e[q - 1] = 0;
+  // Implicit-shift QR on the upper bidiagonal (d, e), left rotations applied to y.
+  double anorm = 0;
+  for (int i = 0; i < q; ++i) anorm = std::max(anorm, std::abs(d[i]) + std::abs(e[i]));
+  const double tol = std::numeric_limits<double>::epsilon() * anorm;
+  int budget = 60 * q;
+  int hi = q - 1;
+  while (hi > 0) {
+    if (std::abs(e[hi - 1]) <= tol) {
+      e[hi - 1] = 0;
+      --hi;
+      continue;
+    }
+    int lo = hi - 1;
+    while (lo > 0 && std::abs(e[lo - 1]) > tol) --lo;
+    if (lo > 0) e[lo - 1] = 0;
+    if (--budget < 0) return false;
+    // A zero on the diagonal of the block: chase its row's superdiagonal off to the right (rotations from the
+    // left, applied to y), or for the last one its column's upwards (rotations from the right).
+    int zero = -1;
+    for (int i = lo; i <= hi; ++i)
+      if (std::abs(d[i]) <= tol) {
+        zero = i;
+        break;
+      }
+    if (zero >= 0 && zero < hi) {
+      const int i = zero;
+      double f = e[i];
+      d[i] = 0, e[i] = 0;
+      for (int j = i + 1; j <= hi; ++j) {
+        double cs, sn;
+        const double r = Rotation(d[j], f, &cs, &sn);  // rows j (c) and i (s): zeroes (i, j)
+        d[j] = r;
+        if (j < hi) {
+          f = -sn * e[j];
+          e[j] *= cs;
+        }
+        const Complex a = y[i], b = y[j];
+        y[j] = cs * b + sn * a;
+        y[i] = cs * a - sn * b;
+      }
+      continue;
+    }
+    if (zero == hi) {
+      double f = e[hi - 1];
+      d[hi] = 0, e[hi - 1] = 0;
+      for (int j = hi - 1; j >= lo; --j) {
+        double cs, sn;
+        d[j] = Rotation(d[j], f, &cs, &sn);  // columns j and hi: zeroes (j, hi)
+        if (j > lo) {
+          f = -sn * e[j - 1];
+          e[j - 1] *= cs;
+        }
+      }
+      continue;
+    }
+    // Wilkinson shift μ: the eigenvalue of the trailing 2 x 2 of BᵀB (block lo..hi) nearer its last entry.
+    const double dm = d[hi - 1], em = e[hi - 1], dn = d[hi];
+    const double t11 = dm * dm + (hi - 1 > lo ? e[hi - 2] * e[hi - 2] : 0.0);
+    const double t12 = dm * em, t22 = dn * dn + em * em;
+    const double delta = 0.5 * (t11 - t22);
+    const double root = std::sqrt(delta * delta + t12 * t12);
+    const double denom = delta + (delta >= 0 ? root : -root);
+    const double mu = denom != 0 ? t22 - t12 * t12 / denom : t22;
+    // The sweep: a right rotation from the first column of BᵀB − μI, then the bulge chased down the block.
+    double f = d[lo] * d[lo] - mu, g = d[lo] * e[lo];
+    for (int j = lo; j < hi; ++j) {
+      double cs, sn;
+      double r = Rotation(f, g, &cs, &sn);  // columns j, j+1
+      if (j > lo) e[j - 1] = r;
+      f = cs * d[j] + sn * e[j];
+      e[j] = cs * e[j] - sn * d[j];
+      g = sn * d[j + 1];
+      d[j + 1] *= cs;
+      r = Rotation(f, g, &cs, &sn);  // rows j, j+1
+      d[j] = r;
+      f = cs * e[j] + sn * d[j + 1];
+      d[j + 1] = cs * d[j + 1] - sn * e[j];
+      if (j + 1 < hi) {
+        g = sn * e[j + 1];
+        e[j + 1] *= cs;
+      }
+      const Complex a = y[j], b = y[j + 1];
+      y[j] = cs * a + sn * b;
+      y[j + 1] = cs * b - sn * a;
+    }
+    e[hi - 1] = f;
+  }
+  // σ² ascending with their projections (insertion sort: q <= 16 here).
+  const double unscale = std::ldexp(1.0, -scale_exp);
+  for (int i = 0; i < q; ++i) {
+    const double sv = d[i] * unscale;
+    const double s2i = sv * sv, ci = Norm2(y[i]);
+    int j = i;
+    while (j > 0 && s2[j - 1] > s2i) {
+      s2[j] = s2[j - 1];
+      c[j] = c[j - 1];
+      --j;
+    }
+    s2[j] = s2i;
+    c[j] = ci;
   }
   return true;
 }

@@ -56,12 +56,12 @@ class FourierSystem {
   // want_prior adds η = ||Γx||² = (1/(m² r²)) Σ_u Σ_k s_k² c_k/(s_k² + w)² and its derivative by λ,
   // dη/dλ = −(2/(m² r⁴)) Σ_u Σ_k s_k² c_k/(s_k² + w)³ (direct bins: −2 Re (Px)ᴴ G⁻¹ (Px) per bin).
   Fit EvaluateSpectral(double lambda, bool want_prior = false) const;
-  // How EvaluateSpectral's per-bin decomposition is made. kEigen (default): the eigen-decomposition of the
-  // whitened Gram matrix B Bᴴ (q x q, q = min(N, r²), after a Householder QR of B when N > r² so that the part of
-  // Y no λ fits is a sum of squares), its small eigenvalues refined by Rayleigh-Ritz on B itself (tikhonov.cpp
-  // says why that is as accurate as an SVD of B). kSvd: the SVD of B (the reference the tests compare with).
-  // Setting it discards a decomposition already made.
-  enum class SpectralMethod { kEigen, kSvd };
+  // How EvaluateSpectral's per-bin decomposition is made. kBidiagonal (default): the singular values of the
+  // whitened B and the projections UᴴY from its Householder bidiagonalisation and implicit QR sweeps, the left
+  // transformations applied to Y alone (bins::SingularSpectrum: an SVD's accuracy without forming U; where N > r²
+  // the part of Y no λ fits is a sum of squares). kSvd: Eigen's JacobiSVD of B with the full U (the reference the
+  // tests compare with). Setting it discards a decomposition already made.
+  enum class SpectralMethod { kBidiagonal, kSvd };
   // Makes EvaluateSpectral's decomposition now (and, where not made yet, the floor and λ₀ from the same pass):
   // the λ rules call it before lambda0() so that one pass over the bins serves both.
   void PrepareSpectral() const {
@@ -171,12 +171,12 @@ class FourierSystem {
   };
   void MakeSpectral() const;
   void DecomposeBinSvd(Index bin, Spectral* sp, BinData* d) const;
-  void DecomposeBinEigen(Index bin, Spectral* sp, BinPtr d, std::vector<double>* scratch) const;
-  // DecomposeBinEigen's decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s²,
+  void DecomposeBinBidiagonal(Index bin, Spectral* sp, BinPtr d, std::vector<double>* scratch) const;
+  // DecomposeBinBidiagonal's decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s²,
   // |uᴴY|², the count q and the part of Y outside the range.
   void DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out, double* c_out,
                          int* q_out, double* perp_out, std::vector<double>* scratch) const;
-  SpectralMethod spectral_method_ = SpectralMethod::kEigen;
+  SpectralMethod spectral_method_ = SpectralMethod::kBidiagonal;
   // The bin of −u (LR frequencies), and whether `bin` is the one of its pair {u, −u} that is computed (the
   // other is its conjugate: real frames, real PSFs, an even prior).
   Index MirrorBin(Index bin) const;
