@@ -275,37 +275,58 @@ inline double Reflector(Complex* x, int m, Complex* tau) {
   }
   const double beta = -std::copysign(std::sqrt(Norm2(alpha) + tail), alpha.real());
   *tau = Complex((beta - alpha.real()) / beta, -alpha.imag() / beta);
-  const Complex scale = 1.0 / (alpha - beta);  // |α − β| >= |β|: no cancellation
+  // 1/(α − β) = conj(α − β)/|α − β|², with |α − β| >= |β|: no cancellation, no overflow.
+  const double dr = alpha.real() - beta, di = alpha.imag(), inv = 1.0 / (dr * dr + di * di);
+  const double sr = dr * inv, si = -di * inv;
   for (int i = 1; i < m; ++i)
-    x[i] = Complex(x[i].real() * scale.real() - x[i].imag() * scale.imag(),
-                   x[i].real() * scale.imag() + x[i].imag() * scale.real());
+    x[i] = Complex(x[i].real() * sr - x[i].imag() * si, x[i].real() * si + x[i].imag() * sr);
   return beta;
 }
 
-// col ← Hᴴ col = col − conj(τ) v (vᴴ col) for the reflector (τ, v) of Reflector (v₀ = 1 implicit, v₁.. at v).
-inline void ReflectLeft(Complex tau, const Complex* v, int m, Complex* col) {
-  Complex dot = col[0];
-  for (int i = 1; i < m; ++i)
-    dot += Complex(v[i].real() * col[i].real() + v[i].imag() * col[i].imag(),
-                   v[i].real() * col[i].imag() - v[i].imag() * col[i].real());
-  const Complex f(tau.real() * dot.real() + tau.imag() * dot.imag(), tau.real() * dot.imag() - tau.imag() * dot.real());
-  col[0] -= f;
-  for (int i = 1; i < m; ++i)
-    col[i] -= Complex(f.real() * v[i].real() - f.imag() * v[i].imag(), f.real() * v[i].imag() + f.imag() * v[i].real());
+// The columns a_t (t < cols; rows values each, column stride ld) ← Hᴴ a_t = a_t − conj(τ) v (vᴴ a_t), for the
+// reflector (τ, v) of Reflector (v₀ = 1 implicit, v₁.. at v). The columns' dot products accumulate side by side
+// (independent chains, each in the order of i). `w`: cols complex scratch.
+inline void ReflectColumns(Complex tau, const Complex* v, int rows, Complex* a, int ld, int cols, Complex* w) {
+  for (int t = 0; t < cols; ++t) w[t] = a[t * ld];
+  for (int i = 1; i < rows; ++i) {
+    const double vr = v[i].real(), vi = v[i].imag();
+    for (int t = 0; t < cols; ++t) {
+      const Complex z = a[t * ld + i];
+      w[t] += Complex(vr * z.real() + vi * z.imag(), vr * z.imag() - vi * z.real());
+    }
+  }
+  for (int t = 0; t < cols; ++t) {
+    const Complex dot = w[t];
+    const double fr = tau.real() * dot.real() + tau.imag() * dot.imag();
+    const double fi = tau.real() * dot.imag() - tau.imag() * dot.real();
+    Complex* col = a + t * ld;
+    col[0] -= Complex(fr, fi);
+    for (int i = 1; i < rows; ++i)
+      col[i] -= Complex(fr * v[i].real() - fi * v[i].imag(), fr * v[i].imag() + fi * v[i].real());
+  }
 }
 
-// The row a (m values at stride `stride`) ← a H = a − τ (a v) vᴴ.
-inline void ReflectRight(Complex tau, const Complex* v, int m, Complex* a, int stride) {
-  Complex s = a[0];
+// The rows a_r (r < rows; m values each at column stride ld, rows contiguous) ← a_r H = a_r − τ (a_r v) vᴴ. The
+// rows' products accumulate side by side, each in the order of i. `s`: rows complex scratch.
+inline void ReflectRows(Complex tau, const Complex* v, int m, Complex* a, int ld, int rows, Complex* s) {
+  for (int r = 0; r < rows; ++r) s[r] = a[r];
   for (int i = 1; i < m; ++i) {
-    const Complex ai = a[i * stride];
-    s += Complex(ai.real() * v[i].real() - ai.imag() * v[i].imag(), ai.real() * v[i].imag() + ai.imag() * v[i].real());
+    const double vr = v[i].real(), vi = v[i].imag();
+    const Complex* col = a + i * ld;
+    for (int r = 0; r < rows; ++r)
+      s[r] += Complex(col[r].real() * vr - col[r].imag() * vi, col[r].real() * vi + col[r].imag() * vr);
   }
-  const Complex f(tau.real() * s.real() - tau.imag() * s.imag(), tau.real() * s.imag() + tau.imag() * s.real());
-  a[0] -= f;
-  for (int i = 1; i < m; ++i)  // f conj(v_i)
-    a[i * stride] -=
-        Complex(f.real() * v[i].real() + f.imag() * v[i].imag(), f.imag() * v[i].real() - f.real() * v[i].imag());
+  for (int r = 0; r < rows; ++r) {
+    const Complex z = s[r];
+    s[r] = Complex(tau.real() * z.real() - tau.imag() * z.imag(), tau.real() * z.imag() + tau.imag() * z.real());
+    a[r] -= s[r];
+  }
+  for (int i = 1; i < m; ++i) {  // f conj(v_i)
+    const double vr = v[i].real(), vi = v[i].imag();
+    Complex* col = a + i * ld;
+    for (int r = 0; r < rows; ++r)
+      col[r] -= Complex(s[r].real() * vr + s[r].imag() * vi, s[r].imag() * vr - s[r].real() * vi);
+  }
 }
 
 // A plane rotation (c, s) with c f + s g = r >= 0 and −s f + c g = 0; (1, 0) where f and g are both zero (or
@@ -324,7 +345,7 @@ inline double Rotation(double f, double g, double* c, double* s) {
 // The singular values of the p x k complex matrix X (element (i, j) at x[j ld + i]; destroyed) and the squared
 // projections |u_jᴴ y|² of y (p values; destroyed) on its left singular vectors u_j, without forming them:
 // q = min(p, k) values s2 (σ², ascending) and c, and *perp = ||y||² − Σ c, the part of y outside span{u_j}, as a sum
-// of squares (the trailing rows of Uᴴy when p > k; 0 when p <= k). `work`: 2q doubles, `v`: max(p, k) complex.
+// of squares (the trailing rows of Uᴴy when p > k; 0 when p <= k). `work`: 2q doubles, `v`: 2 max(p, k) complex.
 //
 // Golub-Kahan: Householder bidiagonalisation X = P B Qᴴ (P's reflectors applied to y), with real β's so that B is
 // real: upper bidiagonal when p >= k; lower when p < k, turned upper by q − 1 rotations from the left (applied to y
@@ -361,21 +382,21 @@ inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, doubl
   }
   double* d = work;
   double* e = work + q;
+  Complex* w = v + std::max(p, k);  // the reflectors' scratch
   Complex tau;
   if (p >= k) {  // upper bidiagonal: reflectors on column j (rows j..), then on row j (columns j+1..)
     for (int j = 0; j < k; ++j) {
       Complex* col = x + j * ld + j;
       d[j] = Reflector(col, p - j, &tau);
       if (tau != Complex(0)) {
-        for (int t = j + 1; t < k; ++t) ReflectLeft(tau, col, p - j, x + t * ld + j);
-        ReflectLeft(tau, col, p - j, y + j);
+        ReflectColumns(tau, col, p - j, x + (j + 1) * ld + j, ld, k - j - 1, w);
+        ReflectColumns(tau, col, p - j, y + j, 0, 1, w);
       }
       if (j + 1 < k) {
         const int m = k - j - 1;
         for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + 1 + t) * ld + j]);
         e[j] = Reflector(v, m, &tau);
-        if (tau != Complex(0))
-          for (int r = j + 1; r < p; ++r) ReflectRight(tau, v, m, x + (j + 1) * ld + r, ld);
+        if (tau != Complex(0)) ReflectRows(tau, v, m, x + (j + 1) * ld + j + 1, ld, p - j - 1, w);
       }
     }
     for (int i = k; i < p; ++i) *perp += Norm2(y[i]);
@@ -384,14 +405,13 @@ inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, doubl
       const int m = k - j;
       for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + t) * ld + j]);
       d[j] = Reflector(v, m, &tau);
-      if (tau != Complex(0))
-        for (int r = j + 1; r < p; ++r) ReflectRight(tau, v, m, x + j * ld + r, ld);
+      if (tau != Complex(0)) ReflectRows(tau, v, m, x + j * ld + j + 1, ld, p - j - 1, w);
       if (j + 1 < p) {
         Complex* col = x + j * ld + j + 1;
         e[j] = Reflector(col, p - j - 1, &tau);
         if (tau != Complex(0)) {
-          for (int t = j + 1; t < k; ++t) ReflectLeft(tau, col, p - j - 1, x + t * ld + j + 1);
-          ReflectLeft(tau, col, p - j - 1, y + j + 1);
+          ReflectColumns(tau, col, p - j - 1, x + (j + 1) * ld + j + 1, ld, k - j - 1, w);
+          ReflectColumns(tau, col, p - j - 1, y + j + 1, 0, 1, w);
         }
       }
     }

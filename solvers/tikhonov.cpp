@@ -710,7 +710,7 @@ int FourierSystem::RankOf(const Complex* a, int cols) const {
   // The singular values of the reduced A(u) to an SVD's accuracy (bins::SingularSpectrum); an SVD only where
   // one lies within 1e-4 of the floor², closer than that accuracy can be trusted to classify.
   const int p = std::min(n_, kept);
-  std::vector<Complex> x(std::size_t(n_) * kept), y(n_, Complex(0)), sv_v(std::max(n_, kept));
+  std::vector<Complex> x(std::size_t(n_) * kept), y(n_, Complex(0)), sv_v(2 * std::size_t(std::max(n_, kept)));
   std::vector<double> dv(p), cv(p), sv_work(2 * std::size_t(p));
   for (int c = 0; c < kept; ++c)
     for (int f = 0; f < n_; ++f) x[std::size_t(c) * n_ + f] = a[kp[c] * n_ + f];
@@ -992,15 +992,15 @@ void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pin
   // squares of the trailing entries of PᴴY (no cancellation).
   const int rr = rr_;
   const int qn = std::min(n, rr);
-  // Scratch (doubles): B 2·n·rr, Y 2n, v 2·max(n, rr), d and e 2qn, norms rr, keep rr.
+  // Scratch (doubles): B 2·n·rr, Y 2n, v 4·max(n, rr), d and e 2qn, norms rr, keep rr.
   const std::size_t need =
-      2 * std::size_t(n) * rr + 2 * n + 2 * std::size_t(std::max(n, rr)) + 2 * qn + 2 * std::size_t(rr) + 16;
+      2 * std::size_t(n) * rr + 2 * n + 4 * std::size_t(std::max(n, rr)) + 2 * qn + 2 * std::size_t(rr) + 16;
   if (scratch->size() < need) scratch->resize(need);
   double* base = scratch->data();
   Complex* bw = reinterpret_cast<Complex*>(base);
   Complex* yv = bw + std::size_t(n) * rr;
   Complex* v = yv + n;
-  double* de = reinterpret_cast<double*>(v + std::max(n, rr));
+  double* de = reinterpret_cast<double*>(v + 2 * std::max(n, rr));
   double* norms = de + 2 * qn;
   int* keep = reinterpret_cast<int*>(norms + rr);
   // B and its column norms; columns below ε² ||B||²_F in total dropped (ascending, ties by index).

@@ -699,7 +699,7 @@ TEST(TikhonovTest, SingularSpectrumMatchesAnSvd) {
         Eigen::VectorXcd y(p);
         for (int i = 0; i < p; ++i) y[i] = Complex(n01(rng), n01(rng));
         const int q = std::min(p, k);
-        std::vector<Complex> xa(x.data(), x.data() + x.size()), ya(y.data(), y.data() + p), v(std::max(p, k));
+        std::vector<Complex> xa(x.data(), x.data() + x.size()), ya(y.data(), y.data() + p), v(2 * std::max(p, k));
         std::vector<double> s2(q), c(q), work(2 * q);
         double perp = -1;
         ASSERT_TRUE(bins::SingularSpectrum(xa.data(), p, k, p, ya.data(), s2.data(), c.data(), &perp, work.data(),
@@ -735,7 +735,7 @@ TEST(TikhonovTest, SingularSpectrumMatchesAnSvd) {
         ++cases;
       }
   EXPECT_GT(cases, 500);
-  std::vector<Complex> bad(4, Complex(1.0)), yb(2, Complex(1.0)), v(2);
+  std::vector<Complex> bad(4, Complex(1.0)), yb(2, Complex(1.0)), v(4);
   bad[3] = Complex(std::numeric_limits<double>::quiet_NaN(), 0.0);
   std::vector<double> s2(2), c(2), work(4);
   double perp = 0;
