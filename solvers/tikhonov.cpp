@@ -563,7 +563,9 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, Image prior_symbol, d
     const Index muy = (lr.rows - uy) % lr.rows;
     for (Index ux = 0; ux < lr.cols; ++ux) {
       const Index mux = (lr.cols - ux) % lr.cols;
-      canonical_[uy * lr.cols + ux] = ux < mux || (ux == mux && uy <= muy);
+      // 2 for the computed bin of a pair {u, −u}, 1 for a bin that is its own mirror, 0 for the other of a pair.
+      const bool canonical = ux < mux || (ux == mux && uy <= muy);
+      canonical_[uy * lr.cols + ux] = canonical ? (ux == mux && uy == muy ? 1 : 2) : 0;
     }
   }
 }
@@ -607,7 +609,7 @@ void FourierSystem::FinishFloor(const FloorNorms& fn) const {
   BinData d;
   for (Index i = 0; i < nb_; ++i) {
     if (!CanonicalBin(i)) continue;
-    const double weight = MirrorBin(i) == i ? 1.0 : 2.0;
+    const double weight = MirrorWeight(i);
     trace_ata += weight * fn.trace[i];
     trace_p += weight * fn.prior[i];
     if (n_gram == 0 || fn.trace[i] < lower) continue;
@@ -1062,7 +1064,7 @@ void FourierSystem::MakeSpectral() const {
     } else if (CanonicalBin(i)) {
       // Bins u and −u have conjugate systems and data (real frames, real PSFs, an even prior), hence the same
       // singular values and |UᴴY|²: one of each pair is decomposed and counted twice.
-      sp->weight[i] = MirrorBin(i) == i ? 1 : 2;
+      sp->weight[i] = char(MirrorWeight(i));
     }
   }
   // One decomposition per counted bin, on fixed blocks of bins: each writes only its own slots.
@@ -1135,17 +1137,24 @@ void FourierSystem::MakeSpectral() const {
       DecomposeWhitened(nr, reduced.data(), d.pinv.data(), yr.data(), &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max],
                         &sp->q[i], &sp->perp[i], &scratch);
       sp->zeros[i] = z;
-      sp->weight[i] = MirrorBin(i) == i ? 1 : 2;
+      sp->weight[i] = char(MirrorWeight(i));
     }
     sp->direct = std::move(direct);
   }
+  std::size_t terms = 0;
+  for (Index i = 0; i < nb_; ++i)
+    if (sp->weight[i]) terms += std::size_t(sp->q[i]);
+  sp->term_s2.resize(terms);
+  sp->term_wc.resize(terms);
+  sp->term_weight.resize(terms);
+  std::size_t t = 0;
   for (Index i = 0; i < nb_; ++i) {
     const int weight = sp->weight[i];
     if (!weight) continue;
-    for (int k = 0; k < sp->q[i]; ++k) {
-      sp->term_s2.push_back(sp->s2[i * sp->q_max + k]);
-      sp->term_wc.push_back(weight * sp->c[i * sp->q_max + k]);
-      sp->term_weight.push_back(weight);
+    for (int k = 0; k < sp->q[i]; ++k, ++t) {
+      sp->term_s2[t] = sp->s2[i * sp->q_max + k];
+      sp->term_wc[t] = weight * sp->c[i * sp->q_max + k];
+      sp->term_weight[t] = weight;
     }
     sp->fixed_residual += weight * sp->perp[i];
     sp->fixed_dof += weight * double(n_ - sp->zeros[i] - sp->q[i]);

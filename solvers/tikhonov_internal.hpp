@@ -181,6 +181,9 @@ class FourierSystem {
   // other is its conjugate: real frames, real PSFs, an even prior).
   Index MirrorBin(Index bin) const;
   bool CanonicalBin(Index bin) const;
+  // How often a canonical bin counts in sums over all bins: 2 (itself and its mirror), 1 (its own mirror); 0 for
+  // the non-canonical bin of a pair.
+  int MirrorWeight(Index bin) const { return canonical_[bin]; }
   mutable std::unique_ptr<Spectral> spectral_;
 
   const MultiFrameModel& model_;
@@ -191,7 +194,7 @@ class FourierSystem {
   Index nb_ = 0;                    // LR bins
   std::vector<Complex> y_;          // Y(u): bin i at i·N
   std::vector<char> prior_positive_;
-  std::vector<char> canonical_;     // CanonicalBin, per bin
+  std::vector<char> canonical_;     // MirrorWeight per bin (CanonicalBin: nonzero)
   std::vector<Index> zero_prior_bins_;  // bins whose prior vanishes at some alias
   // Lazily made (lazy_mutex_): the floor and λ₀; the ranks (-1 until made).
   mutable std::mutex lazy_mutex_;
