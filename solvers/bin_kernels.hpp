@@ -356,14 +356,25 @@ inline double Rotation(double f, double g, double* c, double* s) {
 // off-diagonal entry is at most ε ||B|| (that absolute accuracy; no relative accuracy is claimed). X is scaled
 // by a power of two first (exact) so that its largest entry is O(1). False if the sweeps do not converge (60
 // per singular value; non-finite input).
-inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, double* s2, double* c, double* perp,
-                             double* work, Complex* v) {
-  const int q = std::min(p, k);
-  *perp = 0;
-  if (q == 0) {
-    for (int i = 0; i < p; ++i) *perp += Norm2(y[i]);
-    return true;
-  }
+//
+// SingularSpectra<L> does the same for L matrices of one shape at once, their steps interleaved (each matrix's
+// arithmetic exactly as alone, so the same bits): the bidiagonalisations reflector by reflector and the QR sweeps
+// sweep by sweep, so that the long chains of square roots and divisions of one matrix overlap the other's.
+struct SpectrumJob {
+  Complex* x;
+  Complex* y;
+  double* s2;
+  double* c;
+  double* perp;
+  double* work;
+  Complex* v;
+  bool ok = true;  // out: false if the sweeps did not converge
+};
+
+namespace detail {
+
+// X scaled by a power of two so that its largest entry is O(1); false if X holds a non-finite value.
+inline bool ScaleToUnit(Complex* x, int p, int k, int ld, int* scale_exp) {
   double big = 0;
   bool finite = true;
   for (int j = 0; j < k; ++j)
@@ -372,49 +383,66 @@ inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, doubl
       finite = finite && std::isfinite(z.real()) && std::isfinite(z.imag());
       big = std::max(big, std::max(std::abs(z.real()), std::abs(z.imag())));
     }
+  *scale_exp = 0;
   if (!finite) return false;
-  int scale_exp = 0;
   if (big > 0) {
-    scale_exp = -std::ilogb(big);
-    const double scale = std::ldexp(1.0, scale_exp);
+    *scale_exp = -std::ilogb(big);
+    const double scale = std::ldexp(1.0, *scale_exp);
     for (int j = 0; j < k; ++j)
       for (int i = 0; i < p; ++i) x[j * ld + i] *= scale;
   }
-  double* d = work;
-  double* e = work + q;
+  return true;
+}
+
+// Step j of the bidiagonalisation of SingularSpectrum (d, e in job.work).
+inline void BidiagonalStep(SpectrumJob& job, int p, int k, int ld, int j) {
+  const int q = std::min(p, k);
+  Complex* x = job.x;
+  Complex* y = job.y;
+  Complex* v = job.v;
   Complex* w = v + std::max(p, k);  // the reflectors' scratch
+  double* d = job.work;
+  double* e = job.work + q;
   Complex tau;
   if (p >= k) {  // upper bidiagonal: reflectors on column j (rows j..), then on row j (columns j+1..)
-    for (int j = 0; j < k; ++j) {
-      Complex* col = x + j * ld + j;
-      d[j] = Reflector(col, p - j, &tau);
-      if (tau != Complex(0)) {
-        ReflectColumns(tau, col, p - j, x + (j + 1) * ld + j, ld, k - j - 1, w);
-        ReflectColumns(tau, col, p - j, y + j, 0, 1, w);
-      }
-      if (j + 1 < k) {
-        const int m = k - j - 1;
-        for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + 1 + t) * ld + j]);
-        e[j] = Reflector(v, m, &tau);
-        if (tau != Complex(0)) ReflectRows(tau, v, m, x + (j + 1) * ld + j + 1, ld, p - j - 1, w);
-      }
+    Complex* col = x + j * ld + j;
+    d[j] = Reflector(col, p - j, &tau);
+    if (tau != Complex(0)) {
+      ReflectColumns(tau, col, p - j, x + (j + 1) * ld + j, ld, k - j - 1, w);
+      ReflectColumns(tau, col, p - j, y + j, 0, 1, w);
     }
-    for (int i = k; i < p; ++i) *perp += Norm2(y[i]);
+    if (j + 1 < k) {
+      const int m = k - j - 1;
+      for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + 1 + t) * ld + j]);
+      e[j] = Reflector(v, m, &tau);
+      if (tau != Complex(0)) ReflectRows(tau, v, m, x + (j + 1) * ld + j + 1, ld, p - j - 1, w);
+    }
   } else {  // lower bidiagonal: reflectors on row j (columns j..), then on column j (rows j+1..)
-    for (int j = 0; j < p; ++j) {
-      const int m = k - j;
-      for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + t) * ld + j]);
-      d[j] = Reflector(v, m, &tau);
-      if (tau != Complex(0)) ReflectRows(tau, v, m, x + j * ld + j + 1, ld, p - j - 1, w);
-      if (j + 1 < p) {
-        Complex* col = x + j * ld + j + 1;
-        e[j] = Reflector(col, p - j - 1, &tau);
-        if (tau != Complex(0)) {
-          ReflectColumns(tau, col, p - j - 1, x + (j + 1) * ld + j + 1, ld, k - j - 1, w);
-          ReflectColumns(tau, col, p - j - 1, y + j + 1, 0, 1, w);
-        }
+    const int m = k - j;
+    for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + t) * ld + j]);
+    d[j] = Reflector(v, m, &tau);
+    if (tau != Complex(0)) ReflectRows(tau, v, m, x + j * ld + j + 1, ld, p - j - 1, w);
+    if (j + 1 < p) {
+      Complex* col = x + j * ld + j + 1;
+      e[j] = Reflector(col, p - j - 1, &tau);
+      if (tau != Complex(0)) {
+        ReflectColumns(tau, col, p - j - 1, x + (j + 1) * ld + j + 1, ld, k - j - 1, w);
+        ReflectColumns(tau, col, p - j - 1, y + j + 1, 0, 1, w);
       }
     }
+  }
+}
+
+// After the bidiagonalisation: the part of y outside the range, the lower bidiagonal turned upper, e[q-1] = 0.
+inline void FinishBidiagonal(SpectrumJob& job, int p, int k) {
+  const int q = std::min(p, k);
+  double* d = job.work;
+  double* e = job.work + q;
+  Complex* y = job.y;
+  *job.perp = 0;
+  if (p >= k) {
+    for (int i = k; i < p; ++i) *job.perp += Norm2(y[i]);
+  } else {
     // Lower -> upper: a rotation of rows j, j+1 zeroes the subdiagonal e_j and fills the superdiagonal.
     for (int j = 0; j + 1 < q; ++j) {
       double cs, sn;
@@ -427,22 +455,39 @@ inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, doubl
     }
   }
   e[q - 1] = 0;
-  // Implicit-shift QR on the upper bidiagonal (d, e), left rotations applied to y.
-  double anorm = 0;
-  for (int i = 0; i < q; ++i) anorm = std::max(anorm, std::abs(d[i]) + std::abs(e[i]));
-  const double tol = std::numeric_limits<double>::epsilon() * anorm;
-  int budget = 60 * q;
-  int hi = q - 1;
-  while (hi > 0) {
+}
+
+// The implicit QR sweeps on the upper bidiagonal (d, e) of one matrix, one step at a time.
+struct BidiagonalQr {
+  double* d = nullptr;
+  double* e = nullptr;
+  Complex* y = nullptr;
+  int hi = 0, budget = 0;
+  double tol = 0;
+  bool failed = false;
+
+  BidiagonalQr() = default;
+  BidiagonalQr(SpectrumJob& job, int q) : d(job.work), e(job.work + q), y(job.y), hi(q - 1), budget(60 * q) {
+    double anorm = 0;
+    for (int i = 0; i < q; ++i) anorm = std::max(anorm, std::abs(d[i]) + std::abs(e[i]));
+    tol = std::numeric_limits<double>::epsilon() * anorm;
+  }
+  bool Active() const { return hi > 0 && !failed; }
+
+  // One deflation, zero chase or sweep.
+  void Step() {
     if (std::abs(e[hi - 1]) <= tol) {
       e[hi - 1] = 0;
       --hi;
-      continue;
+      return;
     }
     int lo = hi - 1;
     while (lo > 0 && std::abs(e[lo - 1]) > tol) --lo;
     if (lo > 0) e[lo - 1] = 0;
-    if (--budget < 0) return false;
+    if (--budget < 0) {
+      failed = true;
+      return;
+    }
     // A zero on the diagonal of the block: chase its row's superdiagonal off to the right (rotations from the
     // left, applied to y), or for the last one its column's upwards (rotations from the right).
     int zero = -1;
@@ -467,7 +512,7 @@ inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, doubl
         y[j] = cs * b + sn * a;
         y[i] = cs * a - sn * b;
       }
-      continue;
+      return;
     }
     if (zero == hi) {
       double f = e[hi - 1];
@@ -480,7 +525,7 @@ inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, doubl
           e[j - 1] *= cs;
         }
       }
-      continue;
+      return;
     }
     // Wilkinson shift μ: the eigenvalue of the trailing 2 x 2 of BᵀB (block lo..hi) nearer its last entry.
     const double dm = d[hi - 1], em = e[hi - 1], dn = d[hi];
@@ -514,21 +559,69 @@ inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, doubl
     }
     e[hi - 1] = f;
   }
-  // σ² ascending with their projections (insertion sort: q <= 16 here).
+};
+
+// σ² ascending with their projections (insertion sort: q <= 16 here), unscaled.
+inline void SortSpectrum(const SpectrumJob& job, int q, int scale_exp) {
   const double unscale = std::ldexp(1.0, -scale_exp);
+  const double* d = job.work;
   for (int i = 0; i < q; ++i) {
     const double sv = d[i] * unscale;
-    const double s2i = sv * sv, ci = Norm2(y[i]);
+    const double s2i = sv * sv, ci = Norm2(job.y[i]);
     int j = i;
-    while (j > 0 && s2[j - 1] > s2i) {
-      s2[j] = s2[j - 1];
-      c[j] = c[j - 1];
+    while (j > 0 && job.s2[j - 1] > s2i) {
+      job.s2[j] = job.s2[j - 1];
+      job.c[j] = job.c[j - 1];
       --j;
     }
-    s2[j] = s2i;
-    c[j] = ci;
+    job.s2[j] = s2i;
+    job.c[j] = ci;
   }
-  return true;
+}
+
+}  // namespace detail
+
+template <int L>
+inline void SingularSpectra(SpectrumJob* jobs, int p, int k, int ld) {
+  const int q = std::min(p, k);
+  if (q == 0) {  // nothing to decompose: all of y is outside the range
+    for (int l = 0; l < L; ++l) {
+      jobs[l].ok = true;
+      *jobs[l].perp = 0;
+      for (int i = 0; i < p; ++i) *jobs[l].perp += Norm2(jobs[l].y[i]);
+    }
+    return;
+  }
+  int scale_exp[L];
+  for (int l = 0; l < L; ++l) jobs[l].ok = detail::ScaleToUnit(jobs[l].x, p, k, ld, &scale_exp[l]);
+  // (A non-finite matrix goes through the reflectors like the others, its values meaningless, and is not swept.)
+  for (int j = 0; j < q; ++j)
+    for (int l = 0; l < L; ++l) detail::BidiagonalStep(jobs[l], p, k, ld, j);
+  detail::BidiagonalQr qr[L];
+  for (int l = 0; l < L; ++l) {
+    detail::FinishBidiagonal(jobs[l], p, k);
+    qr[l] = detail::BidiagonalQr(jobs[l], q);
+    qr[l].failed = !jobs[l].ok;
+  }
+  for (bool active = true; active;) {
+    active = false;
+    for (int l = 0; l < L; ++l)
+      if (qr[l].Active()) {
+        qr[l].Step();
+        active = true;
+      }
+  }
+  for (int l = 0; l < L; ++l) {
+    jobs[l].ok = !qr[l].failed;
+    if (jobs[l].ok) detail::SortSpectrum(jobs[l], q, scale_exp[l]);
+  }
+}
+
+inline bool SingularSpectrum(Complex* x, int p, int k, int ld, Complex* y, double* s2, double* c, double* perp,
+                             double* work, Complex* v) {
+  SpectrumJob job{x, y, s2, c, perp, work, v};
+  SingularSpectra<1>(&job, p, k, ld);
+  return job.ok;
 }
 
 }  // namespace aosr::bins

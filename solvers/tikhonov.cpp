@@ -499,6 +499,12 @@ void FourierSystem::GatherRun(Index uy, Index ux0, int count, std::size_t stride
 
 template <class Want, class F>
 void FourierSystem::ForGatheredBins(const Want& want, const F& f) const {
+  ForGatheredBins(want, f, [] {}, [] {});
+}
+
+template <class Want, class F, class Begin, class Done>
+void FourierSystem::ForGatheredBins(const Want& want, const F& f, const Begin& block_begin,
+                                    const Done& block_done) const {
   const Index cols = model_.lr_shape().cols;
   // Bin stride: N r² rounded up to a multiple of 4 values plus 4 (64 bytes), so that the bins of a run do not map
   // to one cache set; the run at most kGatherRun bins and ~256 KiB.
@@ -507,6 +513,7 @@ void FourierSystem::ForGatheredBins(const Want& want, const F& f) const {
   ParallelFor((nb_ + kBinBlock - 1) / kBinBlock, [&](Index block) {
     std::vector<Complex> a(stride * run);
     std::vector<double> p(std::size_t(rr_) * run), pinv(p.size());
+    block_begin();
     const Index end = std::min(nb_, (block + 1) * kBinBlock);
     Index i = block * kBinBlock;
     while (i < end) {
@@ -523,6 +530,7 @@ void FourierSystem::ForGatheredBins(const Want& want, const F& f) const {
         f(k, BinPtr{&a[std::size_t(k - i) * stride], &p[std::size_t(k - i) * rr_], &pinv[std::size_t(k - i) * rr_]});
       i = j;
     }
+    block_done();
   });
 }
 
@@ -976,14 +984,35 @@ void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp, BinData* d) const {
   sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
 }
 
-void FourierSystem::DecomposeBinBidiagonal(Index i, Spectral* sp, BinPtr bd, std::vector<double>* scratch) const {
-  DecomposeWhitened(n_, bd.a, bd.pinv, &y_[i * n_], &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max], &sp->q[i],
-                    &sp->perp[i], scratch);
+void FourierSystem::DecomposeBinBidiagonal(Index i, Spectral* sp, BinPtr bd, WhitenedPair* pair) const {
+  // Bins of one shape are decomposed two at a time (bins::SingularSpectra<2>: the same bits as one by one): the
+  // pending one waits in pair->bin[0] until a second of its shape comes, or FinishPair.
+  WhitenedBin& next = pair->bin[pair->pending];
+  PrepareWhitened(n_, bd.a, bd.pinv, &y_[i * n_], &next);
+  next.s2 = &sp->s2[i * sp->q_max];
+  next.c = &sp->c[i * sp->q_max];
+  next.q = &sp->q[i];
+  next.perp = &sp->perp[i];
+  if (pair->pending == 0) {
+    pair->pending = 1;
+    return;
+  }
+  if (pair->bin[0].kept == next.kept) {
+    DecomposePrepared(n_, pair->bin, 2);
+    pair->pending = 0;
+  } else {  // shapes differ: the older alone, the newer waits
+    DecomposePrepared(n_, pair->bin, 1);
+    std::swap(pair->bin[0], pair->bin[1]);
+  }
 }
 
-void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out,
-                                      double* c_out, int* q_out, double* perp_out,
-                                      std::vector<double>* scratch) const {
+void FourierSystem::FinishPair(WhitenedPair* pair) const {
+  if (pair->pending) DecomposePrepared(n_, pair->bin, 1);
+  pair->pending = 0;
+}
+
+void FourierSystem::PrepareWhitened(int n, const Complex* a, const double* pinv, const Complex* y,
+                                    WhitenedBin* out) const {
   // B = A P^(-1/2) (N x r², column-major), and the data Y. GCV, UPRE, the L-curve and the discrepancy rule weigh the
   // small singular values of B too (aliases beyond the optical cutoff, 1e-10 .. 1e-20 of the largest in most bins
   // of the shipped scenes), which an eigen-decomposition of the Gram matrix B Bᴴ would hold only to ~ε s_max²
@@ -997,14 +1026,19 @@ void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pin
   // Scratch (doubles): B 2·n·rr, Y 2n, v 4·max(n, rr), d and e 2qn, norms rr, keep rr.
   const std::size_t need =
       2 * std::size_t(n) * rr + 2 * n + 4 * std::size_t(std::max(n, rr)) + 2 * qn + 2 * std::size_t(rr) + 16;
-  if (scratch->size() < need) scratch->resize(need);
-  double* base = scratch->data();
+  if (out->scratch.size() < need) out->scratch.resize(need);
+  double* base = out->scratch.data();
   Complex* bw = reinterpret_cast<Complex*>(base);
   Complex* yv = bw + std::size_t(n) * rr;
   Complex* v = yv + n;
   double* de = reinterpret_cast<double*>(v + 2 * std::max(n, rr));
   double* norms = de + 2 * qn;
   int* keep = reinterpret_cast<int*>(norms + rr);
+  out->n = n;
+  out->b = bw;
+  out->y = yv;
+  out->v = v;
+  out->work = de;
   // B and its column norms; columns below ε² ||B||²_F in total dropped (ascending, ties by index).
   double total = 0;
   for (int c = 0; c < rr; ++c) {
@@ -1043,10 +1077,34 @@ void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pin
     if (keep[k] != k)
       for (int f = 0; f < n; ++f) bw[k * n + f] = bw[keep[k] * n + f];
   for (int f = 0; f < n; ++f) yv[f] = y[f];
-  // q = min(N, kept) singular values of the N x kept matrix B and the projections of Y.
-  *q_out = std::min(n, kept);
-  if (!bins::SingularSpectrum(bw, n, kept, n, yv, s2_out, c_out, perp_out, de, v))
-    throw NumericalError("Tikhonov spectral decomposition: the SVD did not converge (non-finite data?)");
+  out->kept = kept;
+}
+
+void FourierSystem::DecomposePrepared(int n, WhitenedBin* bins, int count) const {
+  // q = min(N, kept) singular values of the N x kept matrix B and the projections of Y (count bins of one shape).
+  bins::SpectrumJob jobs[2];
+  for (int l = 0; l < count; ++l) {
+    WhitenedBin& w = bins[l];
+    jobs[l] = bins::SpectrumJob{w.b, w.y, w.s2, w.c, w.perp, w.work, w.v};
+    *w.q = std::min(n, w.kept);
+  }
+  if (count == 2)
+    bins::SingularSpectra<2>(jobs, n, bins[0].kept, n);
+  else
+    bins::SingularSpectra<1>(jobs, n, bins[0].kept, n);
+  for (int l = 0; l < count; ++l)
+    if (!jobs[l].ok)
+      throw NumericalError("Tikhonov spectral decomposition: the SVD did not converge (non-finite data?)");
+}
+
+void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out,
+                                      double* c_out, int* q_out, double* perp_out, WhitenedBin* scratch) const {
+  PrepareWhitened(n, a, pinv, y, scratch);
+  scratch->s2 = s2_out;
+  scratch->c = c_out;
+  scratch->q = q_out;
+  scratch->perp = perp_out;
+  DecomposePrepared(n, scratch, 1);
 }
 
 void FourierSystem::MakeSpectral() const {
@@ -1077,13 +1135,14 @@ void FourierSystem::MakeSpectral() const {
     const bool note_norms = !FloorReady();
     FloorNorms norms;
     if (note_norms) norms = NewFloorNorms();
+    // The decomposition's scratch and pending bin, per thread (grown once), nothing pending across blocks.
+    thread_local WhitenedPair pair;
     ForGatheredBins([&](Index i) { return CanonicalBin(i) && (note_norms || sp->weight[i] != 0); },
                     [&](Index i, BinPtr d) {
                       if (note_norms) NoteNorms(i, d, &norms);
-                      if (!sp->weight[i]) return;
-                      thread_local std::vector<double> scratch;  // the decomposition's (grown once per thread)
-                      DecomposeBinBidiagonal(i, sp.get(), d, &scratch);
-                    });
+                      if (sp->weight[i]) DecomposeBinBidiagonal(i, sp.get(), d, &pair);
+                    },
+                    [&] { pair.pending = 0; }, [&] { FinishPair(&pair); });
     if (note_norms) FinishFloor(norms);
     // The bins whose prior vanishes at aliases Z, where the data see that null space (EnsureZeroPriorRanks): x_Z
     // is fitted without penalty, so with Q_Z from the QR of A(u)_Z the objective is ||Π(Y − A_R x_R)||² +
@@ -1093,7 +1152,7 @@ void FourierSystem::MakeSpectral() const {
     EnsureZeroPriorRanks();
     std::vector<Index> direct;
     BinData d;
-    std::vector<double> scratch;
+    WhitenedBin scratch;
     std::vector<Complex> reduced, yr;
     for (Index i : sp->direct) {
       if (!seen_[i]) {

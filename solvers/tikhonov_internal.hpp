@@ -110,6 +110,10 @@ class FourierSystem {
   // count; tasks in parallel), the wanted bins of each LR row gathered in runs by GatherRun.
   template <class Want, class F>
   void ForGatheredBins(const Want& want, const F& f) const;
+  // The same with block_begin() and block_done() called on the block's thread before its first bin and after its
+  // last.
+  template <class Want, class F, class Begin, class Done>
+  void ForGatheredBins(const Want& want, const F& f, const Begin& block_begin, const Done& block_done) const;
   // Bin `bin` gathered into *d, seen as Eigen matrices: A(u) column-major N x r², the data Y(u) and the prior
   // P(u) on the r² aliases. rank is -1 where not computed (the callers that read it made it first).
   struct BinView {
@@ -171,11 +175,35 @@ class FourierSystem {
   };
   void MakeSpectral() const;
   void DecomposeBinSvd(Index bin, Spectral* sp, BinData* d) const;
-  void DecomposeBinBidiagonal(Index bin, Spectral* sp, BinPtr d, std::vector<double>* scratch) const;
-  // DecomposeBinBidiagonal's decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s²,
-  // |uᴴY|², the count q and the part of Y outside the range.
+  // One bin's whitened system prepared for the decomposition (PrepareWhitened: B with its negligible columns
+  // dropped, N x kept column-major at b, and Y), in its own scratch, and where its results go.
+  struct WhitenedBin {
+    std::vector<double> scratch;
+    int n = 0, kept = 0;
+    Complex* b = nullptr;
+    Complex* y = nullptr;
+    Complex* v = nullptr;
+    double* work = nullptr;
+    double* s2 = nullptr;
+    double* c = nullptr;
+    int* q = nullptr;
+    double* perp = nullptr;
+  };
+  // Up to two prepared bins: bin[0] waits (pending = 1) for a second of its shape, decomposed with it.
+  struct WhitenedPair {
+    WhitenedBin bin[2];
+    int pending = 0;
+  };
+  // Bin `bin` into *sp (through *pair: its results may be written at the next call or at FinishPair).
+  void DecomposeBinBidiagonal(Index bin, Spectral* sp, BinPtr d, WhitenedPair* pair) const;
+  void FinishPair(WhitenedPair* pair) const;
+  void PrepareWhitened(int n, const Complex* a, const double* pinv, const Complex* y, WhitenedBin* out) const;
+  // count (1 or 2) prepared bins of one shape decomposed, their s², |uᴴY|², q and perp written.
+  void DecomposePrepared(int n, WhitenedBin* bins, int count) const;
+  // The decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s², |uᴴY|², the count
+  // q and the part of Y outside the range.
   void DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out, double* c_out,
-                         int* q_out, double* perp_out, std::vector<double>* scratch) const;
+                         int* q_out, double* perp_out, WhitenedBin* scratch) const;
   SpectralMethod spectral_method_ = SpectralMethod::kBidiagonal;
   // The bin of −u (LR frequencies), and whether `bin` is the one of its pair {u, −u} that is computed (the
   // other is its conjugate: real frames, real PSFs, an even prior).

@@ -679,7 +679,8 @@ TEST(TikhonovTest, HermitianEigenSolverIsExactToRounding) {
 // duplicate row (an exact zero σ), with one dominant column and the zero matrix: every σ within 1e-14 σ_max of the
 // SVD's (an SVD's accuracy: absolute, so σ² to ~ε σ_max σ), the residual Σ (w/(σ² + w))² |uᴴy|² + perp and the trace
 // Σ w/(σ² + w) within 1e-11 of the SVD's for w >= 1e-8 σ_max² (σ² errors of ε σ_max σ move w/(σ² + w) by at most
-// ~ε σ_max/√w <= 1e4 ε there), and Σ |uᴴy|² + perp = ||y||² to rounding. Non-finite input is refused.
+// ~ε σ_max/√w <= 1e4 ε there), and Σ |uᴴy|² + perp = ||y||² to rounding; two matrices at once give the same bits
+// as each alone. Non-finite input is refused (alone, or beside a good matrix, which is not disturbed).
 TEST(TikhonovTest, SingularSpectrumMatchesAnSvd) {
   std::mt19937_64 rng(11);
   std::normal_distribution<double> n01;
@@ -702,8 +703,27 @@ TEST(TikhonovTest, SingularSpectrumMatchesAnSvd) {
         std::vector<Complex> xa(x.data(), x.data() + x.size()), ya(y.data(), y.data() + p), v(2 * std::max(p, k));
         std::vector<double> s2(q), c(q), work(2 * q);
         double perp = -1;
+        // Two at once (SingularSpectra<2>, the bins' interleaved path), this one with a random other: the same bits.
+        std::vector<Complex> x2(2 * xa.size()), yp(2 * p), v2(2 * v.size());
+        std::vector<double> s2p(2 * q), cp(2 * q), work2(4 * q);
+        double perp2[2] = {-1, -1};
+        std::copy(xa.begin(), xa.end(), x2.begin());
+        std::copy(ya.begin(), ya.end(), yp.begin());
+        for (std::size_t i = xa.size(); i < x2.size(); ++i) x2[i] = Complex(n01(rng), n01(rng));
+        for (int i = p; i < 2 * p; ++i) yp[i] = Complex(n01(rng), n01(rng));
+        bins::SpectrumJob jobs[2];
+        for (int l = 0; l < 2; ++l)
+          jobs[l] = bins::SpectrumJob{&x2[l * xa.size()], &yp[l * p], &s2p[l * q], &cp[l * q], &perp2[l],
+                                      &work2[2 * l * q], &v2[l * v.size()]};
+        bins::SingularSpectra<2>(jobs, p, k, p);
         ASSERT_TRUE(bins::SingularSpectrum(xa.data(), p, k, p, ya.data(), s2.data(), c.data(), &perp, work.data(),
                                            v.data()));
+        EXPECT_TRUE(jobs[0].ok && jobs[1].ok);
+        for (int j = 0; j < q; ++j) {
+          EXPECT_EQ(s2p[j], s2[j]);
+          EXPECT_EQ(cp[j], c[j]);
+        }
+        EXPECT_EQ(perp2[0], perp);
         const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(x, Eigen::ComputeFullU);
         const Eigen::VectorXd sv = svd.singularValues();  // descending
         const Eigen::VectorXcd uy = svd.matrixU().adjoint() * y;
@@ -740,6 +760,20 @@ TEST(TikhonovTest, SingularSpectrumMatchesAnSvd) {
   std::vector<double> s2(2), c(2), work(4);
   double perp = 0;
   EXPECT_FALSE(bins::SingularSpectrum(bad.data(), 2, 2, 2, yb.data(), s2.data(), c.data(), &perp, work.data(), v.data()));
+  // ... also beside a good one, which is not disturbed.
+  std::vector<Complex> pair_x = {Complex(1.0), Complex(0.0), Complex(0.0), Complex(2.0), 1.0, 1.0, 1.0,
+                                 Complex(std::numeric_limits<double>::infinity(), 0.0)};
+  std::vector<Complex> pair_y(4, Complex(1.0)), pair_v(8);
+  std::vector<double> pair_s2(4), pair_c(4), pair_work(8);
+  double pair_perp[2];
+  bins::SpectrumJob jobs[2] = {
+      bins::SpectrumJob{&pair_x[0], &pair_y[0], &pair_s2[0], &pair_c[0], &pair_perp[0], &pair_work[0], &pair_v[0]},
+      bins::SpectrumJob{&pair_x[4], &pair_y[2], &pair_s2[2], &pair_c[2], &pair_perp[1], &pair_work[4], &pair_v[4]}};
+  bins::SingularSpectra<2>(jobs, 2, 2, 2);
+  EXPECT_TRUE(jobs[0].ok);
+  EXPECT_FALSE(jobs[1].ok);
+  EXPECT_NEAR(pair_s2[0], 1.0, 1e-15);  // diag(1, 2)
+  EXPECT_NEAR(pair_s2[1], 4.0, 4e-15);
 }
 
 // The λ rules' per-bin decomposition by bidiagonalisation and QR sweeps (bins::SingularSpectrum, the default)
