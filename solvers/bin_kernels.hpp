@@ -331,7 +331,7 @@ inline void ReflectRows(Complex tau, const Complex* v, int m, Complex* a, int ld
 
 // A plane rotation (c, s) with c f + s g = r >= 0 and −s f + c g = 0; (1, 0) where f and g are both zero (or
 // both below the square root of the smallest normal number: entries far below the convergence tolerance of
-// SingularSpectrum, whose matrix is scaled so that its largest entry is O(1)).
+// SingularSpectrum, whose matrix's largest entry is within 2^±256 of 1).
 inline double Rotation(double f, double g, double* c, double* s) {
   const double r = std::sqrt(f * f + g * g);
   if (!(r > 0)) {
@@ -354,8 +354,10 @@ inline double Rotation(double f, double g, double* c, double* s) {
 // only. Backward stable on X: every σ carries an absolute error of a few ε ||X||₂ (the accuracy of an SVD of X),
 // so σ² is exact to ~ε σ_max σ, unlike an eigen-decomposition of X Xᴴ (~ε σ_max²). The sweeps converge when an
 // off-diagonal entry is at most ε ||B|| (that absolute accuracy; no relative accuracy is claimed). X is scaled
-// by a power of two first (exact) so that its largest entry is O(1). False if the sweeps do not converge (60
+// by a power of two first (exact) where its largest entry is far from 1. False if the sweeps do not converge (60
 // per singular value; non-finite input).
+//
+// Two rows (p = 2, the bins of N = 2 frames) take a closed form instead (TwoRowSpectrum, the same accuracy).
 //
 // SingularSpectra<L> does the same for L matrices of one shape at once, their steps interleaved (each matrix's
 // arithmetic exactly as alone, so the same bits): the bidiagonalisations reflector by reflector and the QR sweeps
@@ -373,19 +375,21 @@ struct SpectrumJob {
 
 namespace detail {
 
-// X scaled by a power of two so that its largest entry is O(1); false if X holds a non-finite value.
+// X scaled by a power of two (exact) where its largest entry lies outside [2⁻²⁵⁶, 2²⁵⁶], so that the squares below
+// neither overflow nor underflow where it matters; false if X holds a non-finite value. (Scaling by a power of two
+// changes no bit of the results but the exponents: within that range it is skipped.)
 inline bool ScaleToUnit(Complex* x, int p, int k, int ld, int* scale_exp) {
   double big = 0;
-  bool finite = true;
+  bool nan = false;
   for (int j = 0; j < k; ++j)
     for (int i = 0; i < p; ++i) {
-      const Complex z = x[j * ld + i];
-      finite = finite && std::isfinite(z.real()) && std::isfinite(z.imag());
-      big = std::max(big, std::max(std::abs(z.real()), std::abs(z.imag())));
+      const double re = x[j * ld + i].real(), im = x[j * ld + i].imag();
+      nan |= (re != re) | (im != im);
+      big = std::max(big, std::max(std::abs(re), std::abs(im)));
     }
   *scale_exp = 0;
-  if (!finite) return false;
-  if (big > 0) {
+  if (nan || !(big <= std::numeric_limits<double>::max())) return false;
+  if (big > 0 && (big < 0x1p-256 || big > 0x1p256)) {
     *scale_exp = -std::ilogb(big);
     const double scale = std::ldexp(1.0, *scale_exp);
     for (int j = 0; j < k; ++j)
@@ -431,6 +435,50 @@ inline void BidiagonalStep(SpectrumJob& job, int p, int k, int ld, int j) {
       }
     }
   }
+}
+
+// Two rows (p = 2, k >= 2), in closed form: the reflector from the right that makes row 0 β₀e₀ᵀ, applied to row 1,
+// gives X = [L 0] Q with L = [β₀ 0; l₁₀ n₁] (n₁ = ||row 1 past column 0||, without forming its reflector). The
+// eigenvalues of M = L Lᴴ = [a z; z̄ c] are λ₊ = (a + c)/2 + √(((a − c)/2)² + |z|²) (a sum of positive terms) and
+// λ₋ = det M/λ₊ = (β₀ n₁)²/λ₊ (a product: no cancellation), as accurate as L, i.e. as an SVD of X; u₊ is the
+// eigenvector column of M − λ₊I without cancellation, u₋ ⊥ u₊, and y is untouched by Q.
+inline void TwoRowSpectrum(SpectrumJob& job, int k, int ld, int scale_exp) {
+  Complex* x = job.x;
+  Complex* v = job.v;
+  Complex* w = v + k;
+  Complex tau;
+  for (int t = 0; t < k; ++t) v[t] = std::conj(x[t * ld]);
+  const double beta = Reflector(v, k, &tau);
+  if (tau != Complex(0)) ReflectRows(tau, v, k, x + 1, ld, 1, w);
+  const Complex l10 = x[1];
+  double n1sq = 0;  // n₁²
+  for (int t = 1; t < k; ++t) n1sq += Norm2(x[t * ld + 1]);
+  const double a = beta * beta, c = Norm2(l10) + n1sq;
+  const Complex z(beta * l10.real(), -beta * l10.imag());  // M(0, 1) = β₀ conj(l₁₀)
+  const double half = 0.5 * (a - c);
+  const double plus = 0.5 * (a + c) + std::sqrt(half * half + Norm2(z));
+  const double minus = plus > 0 ? a * n1sq / plus : 0.0;  // (β₀ n₁)²/λ₊
+  Complex u0, u1;  // u₊
+  if (a >= c) {
+    u0 = plus - c, u1 = std::conj(z);
+  } else {
+    u0 = z, u1 = plus - a;
+  }
+  const double norm = std::sqrt(Norm2(u0) + Norm2(u1));
+  if (norm > 0) {
+    u0 /= norm, u1 /= norm;
+  } else {  // M = a I: any basis
+    u0 = 1, u1 = 0;
+  }
+  const Complex y0 = job.y[0], y1 = job.y[1];
+  const Complex p_plus = std::conj(u0) * y0 + std::conj(u1) * y1;  // u₊ᴴy
+  const Complex p_minus = -u1 * y0 + u0 * y1;                        // u₋ᴴy, u₋ = (−conj(u₁), conj(u₀))
+  const double unscale = std::ldexp(1.0, -scale_exp);
+  job.s2[0] = minus * unscale * unscale;
+  job.s2[1] = plus * unscale * unscale;
+  job.c[0] = Norm2(p_minus);
+  job.c[1] = Norm2(p_plus);
+  *job.perp = 0;
 }
 
 // After the bidiagonalisation: the part of y outside the range, the lower bidiagonal turned upper, e[q-1] = 0.
@@ -594,6 +642,11 @@ inline void SingularSpectra(SpectrumJob* jobs, int p, int k, int ld) {
   }
   int scale_exp[L];
   for (int l = 0; l < L; ++l) jobs[l].ok = detail::ScaleToUnit(jobs[l].x, p, k, ld, &scale_exp[l]);
+  if (p == 2 && k >= 2) {
+    for (int l = 0; l < L; ++l)
+      if (jobs[l].ok) detail::TwoRowSpectrum(jobs[l], k, ld, scale_exp[l]);
+    return;
+  }
   // (A non-finite matrix goes through the reflectors like the others, its values meaningless, and is not swept.)
   for (int j = 0; j < q; ++j)
     for (int l = 0; l < L; ++l) detail::BidiagonalStep(jobs[l], p, k, ld, j);
