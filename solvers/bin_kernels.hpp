@@ -481,6 +481,21 @@ inline void TwoRowSpectrum(SpectrumJob& job, int k, int ld, int scale_exp) {
   *job.perp = 0;
 }
 
+// Step j of the LQ factorisation X = [L 0] Q of a wide X (p < k): a reflector from the right on row j (columns j..)
+// applied to the rows below; L (p x p, lower triangular, real diagonal) is left in X's first p columns, zeros above.
+inline void LqStep(SpectrumJob& job, int p, int k, int ld, int j) {
+  Complex* x = job.x;
+  Complex* v = job.v;
+  Complex* w = v + std::max(p, k);
+  Complex tau;
+  const int m = k - j;
+  for (int t = 0; t < m; ++t) v[t] = std::conj(x[(j + t) * ld + j]);
+  const double beta = Reflector(v, m, &tau);
+  if (tau != Complex(0)) ReflectRows(tau, v, m, x + j * ld + j + 1, ld, p - j - 1, w);
+  x[j * ld + j] = beta;
+  for (int c = j + 1; c < p; ++c) x[c * ld + j] = 0;
+}
+
 // After the bidiagonalisation: the part of y outside the range, the lower bidiagonal turned upper, e[q-1] = 0.
 inline void FinishBidiagonal(SpectrumJob& job, int p, int k) {
   const int q = std::min(p, k);
@@ -648,11 +663,19 @@ inline void SingularSpectra(SpectrumJob* jobs, int p, int k, int ld) {
     return;
   }
   // (A non-finite matrix goes through the reflectors like the others, its values meaningless, and is not swept.)
+  // A much wider X (k > 4p) is first reduced to the square L of X = [L 0] Q (2p²k operations; bidiagonalising X
+  // itself costs 4p²k), then L is bidiagonalised (narrower ones gain nothing: more reflectors in the chain).
+  int kb = k;
+  if (k > 4 * p) {
+    for (int j = 0; j < p; ++j)
+      for (int l = 0; l < L; ++l) detail::LqStep(jobs[l], p, k, ld, j);
+    kb = p;
+  }
   for (int j = 0; j < q; ++j)
-    for (int l = 0; l < L; ++l) detail::BidiagonalStep(jobs[l], p, k, ld, j);
+    for (int l = 0; l < L; ++l) detail::BidiagonalStep(jobs[l], p, kb, ld, j);
   detail::BidiagonalQr qr[L];
   for (int l = 0; l < L; ++l) {
-    detail::FinishBidiagonal(jobs[l], p, k);
+    detail::FinishBidiagonal(jobs[l], p, kb);
     qr[l] = detail::BidiagonalQr(jobs[l], q);
     qr[l].failed = !jobs[l].ok;
   }
