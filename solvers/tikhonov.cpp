@@ -1034,7 +1034,6 @@ void FourierSystem::PrepareWhitened(int n, const Complex* a, const double* pinv,
   double* de = reinterpret_cast<double*>(v + 2 * std::max(n, rr));
   double* norms = de + 2 * qn;
   int* keep = reinterpret_cast<int*>(norms + rr);
-  out->n = n;
   out->b = bw;
   out->y = yv;
   out->v = v;

@@ -179,7 +179,7 @@ class FourierSystem {
   // dropped, N x kept column-major at b, and Y), in its own scratch, and where its results go.
   struct WhitenedBin {
     std::vector<double> scratch;
-    int n = 0, kept = 0;
+    int kept = 0;
     Complex* b = nullptr;
     Complex* y = nullptr;
     Complex* v = nullptr;
