@@ -286,7 +286,43 @@ inline double Reflector(Complex* x, int m, Complex* tau) {
 // The columns a_t (t < cols; rows values each, column stride ld) ← Hᴴ a_t = a_t − conj(τ) v (vᴴ a_t), for the
 // reflector (τ, v) of Reflector (v₀ = 1 implicit, v₁.. at v). The columns' dot products accumulate side by side
 // (independent chains, each in the order of i). `w`: cols complex scratch.
+// ReflectColumns for a fixed number of columns C (the few columns right of a reflector of the tall bins, and y):
+// the column loop unrolled.
+template <int C>
+inline void ReflectFewColumns(Complex tau, const Complex* v, int rows, Complex* a, int ld) {
+  double wr[C], wi[C];
+  for (int t = 0; t < C; ++t) wr[t] = a[t * ld].real(), wi[t] = a[t * ld].imag();
+  for (int i = 1; i < rows; ++i) {
+    const double vr = v[i].real(), vi = v[i].imag();
+    for (int t = 0; t < C; ++t) {
+      const Complex z = a[t * ld + i];
+      wr[t] += vr * z.real() + vi * z.imag();
+      wi[t] += vr * z.imag() - vi * z.real();
+    }
+  }
+  for (int t = 0; t < C; ++t) {
+    const double fr = tau.real() * wr[t] + tau.imag() * wi[t];
+    const double fi = tau.real() * wi[t] - tau.imag() * wr[t];
+    Complex* col = a + t * ld;
+    col[0] -= Complex(fr, fi);
+    for (int i = 1; i < rows; ++i)
+      col[i] -= Complex(fr * v[i].real() - fi * v[i].imag(), fr * v[i].imag() + fi * v[i].real());
+  }
+}
+
 inline void ReflectColumns(Complex tau, const Complex* v, int rows, Complex* a, int ld, int cols, Complex* w) {
+  switch (cols) {
+    case 0:
+      return;
+    case 1:
+      return ReflectFewColumns<1>(tau, v, rows, a, ld);
+    case 2:
+      return ReflectFewColumns<2>(tau, v, rows, a, ld);
+    case 3:
+      return ReflectFewColumns<3>(tau, v, rows, a, ld);
+    default:
+      break;
+  }
   for (int t = 0; t < cols; ++t) w[t] = a[t * ld];
   for (int i = 1; i < rows; ++i) {
     const double vr = v[i].real(), vi = v[i].imag();
@@ -308,7 +344,45 @@ inline void ReflectColumns(Complex tau, const Complex* v, int rows, Complex* a, 
 
 // The rows a_r (r < rows; m values each at column stride ld, rows contiguous) ← a_r H = a_r − τ (a_r v) vᴴ. The
 // rows' products accumulate side by side, each in the order of i. `s`: rows complex scratch.
+// ReflectRows for a fixed number of rows R (the few rows below a reflector of the wide bins): the row loop unrolled.
+template <int R>
+inline void ReflectFewRows(Complex tau, const Complex* v, int m, Complex* a, int ld) {
+  double sr[R], si[R];
+  for (int r = 0; r < R; ++r) sr[r] = a[r].real(), si[r] = a[r].imag();
+  for (int i = 1; i < m; ++i) {
+    const double vr = v[i].real(), vi = v[i].imag();
+    const Complex* col = a + i * ld;
+    for (int r = 0; r < R; ++r) {
+      sr[r] += col[r].real() * vr - col[r].imag() * vi;
+      si[r] += col[r].real() * vi + col[r].imag() * vr;
+    }
+  }
+  for (int r = 0; r < R; ++r) {
+    const double zr = sr[r], zi = si[r];
+    sr[r] = tau.real() * zr - tau.imag() * zi;
+    si[r] = tau.real() * zi + tau.imag() * zr;
+    a[r] -= Complex(sr[r], si[r]);
+  }
+  for (int i = 1; i < m; ++i) {  // f conj(v_i)
+    const double vr = v[i].real(), vi = v[i].imag();
+    Complex* col = a + i * ld;
+    for (int r = 0; r < R; ++r) col[r] -= Complex(sr[r] * vr + si[r] * vi, si[r] * vr - sr[r] * vi);
+  }
+}
+
 inline void ReflectRows(Complex tau, const Complex* v, int m, Complex* a, int ld, int rows, Complex* s) {
+  switch (rows) {
+    case 0:
+      return;
+    case 1:
+      return ReflectFewRows<1>(tau, v, m, a, ld);
+    case 2:
+      return ReflectFewRows<2>(tau, v, m, a, ld);
+    case 3:
+      return ReflectFewRows<3>(tau, v, m, a, ld);
+    default:
+      break;
+  }
   for (int r = 0; r < rows; ++r) s[r] = a[r];
   for (int i = 1; i < m; ++i) {
     const double vr = v[i].real(), vi = v[i].imag();
