@@ -401,73 +401,6 @@ int PivotedQrRank(Complex* a, int n, int k, double floor, double* work, Complex*
   return inv2 > 0 && 1.0 / inv2 >= 4.0 * floor * floor ? j : -1;
 }
 
-// The eigen-decomposition of X Xᴴ (X p x k, element (i, c) at x[c ld + i]) into ascending eigenvalues d and
-// eigenvectors u (row-major p x p: u[i p + j] is component i of eigenvector j), the small eigenvalues refined by
-// Rayleigh-Ritz on X itself to the accuracy of an SVD of X (absolute error ~ε σ_max σ in each σ² = d):
-// FourierSystem::DecomposeBinEigen says why. Scratch: m, rot p x p, w k x p, tmp p (complex); work 3p² + 2p.
-// False if the eigen-solver did not converge (non-finite data).
-bool RefinedGramEigen(const Complex* x, int p, int k, int ld, double* d, Complex* u, Complex* m, Complex* rot,
-                      Complex* w, Complex* tmp, double* work) {
-  for (int i = 0; i < p; ++i)
-    for (int j = 0; j <= i; ++j) {
-      Complex sum = 0;
-      for (int c = 0; c < k; ++c) sum += MulConj(x[c * ld + i], x[c * ld + j]);
-      m[i * p + j] = sum;
-      m[j * p + i] = std::conj(sum);
-    }
-  if (!bins::HermitianEigen(m, p, d, u, work)) return false;
-  // Refinement of the small eigenvalues (a prefix of the ascending d): U_S the eigenvectors below kSplit of the
-  // largest (the split moved up to a gap of kGap), W = Xᴴ U_S from X, and the eigenvalues of Wᴴ W.
-  constexpr double kSplit = 1e-3, kGap = 10.0;
-  int t = p;
-  for (int depth = 0; depth < 16 && t > 1; ++depth) {
-    const double top = d[t - 1];
-    if (!(top > 0)) break;
-    int cut = 0;
-    while (cut < t && d[cut] < kSplit * top) ++cut;
-    while (cut > 0 && cut < t && d[cut] < kGap * std::max(d[cut - 1], 0.0)) ++cut;
-    if (cut == 0 || cut == t) break;
-    for (int j = 0; j < cut; ++j)
-      for (int c = 0; c < k; ++c) {
-        Complex sum = 0;
-        for (int i = 0; i < p; ++i) sum += ConjMul(x[c * ld + i], u[i * p + j]);
-        w[j * k + c] = sum;
-      }
-    for (int j = 0; j < cut; ++j)
-      for (int l = 0; l <= j; ++l) {
-        Complex sum = 0;
-        for (int c = 0; c < k; ++c) sum += ConjMul(w[j * k + c], w[l * k + c]);
-        m[j * cut + l] = sum;
-        m[l * cut + j] = std::conj(sum);
-      }
-    if (!bins::HermitianEigen(m, cut, d, rot, work)) return false;
-    // U_S ← U_S R.
-    for (int i = 0; i < p; ++i) {
-      for (int j = 0; j < cut; ++j) {
-        Complex sum = 0;
-        for (int l = 0; l < cut; ++l) sum += Mul(u[i * p + l], rot[l * cut + j]);
-        tmp[j] = sum;
-      }
-      for (int j = 0; j < cut; ++j) u[i * p + j] = tmp[j];
-    }
-    t = cut;
-  }
-  return true;
-}
-
-// σ² of X (p x k, p <= k, column-major, leading dimension p), ascending in d, to the accuracy of an SVD of X.
-bool RefinedSquaredSingularValues(const Complex* x, int p, int k, double* d, std::vector<Complex>* buffer,
-                                  std::vector<double>* work) {
-  buffer->resize(3 * std::size_t(p) * p + std::size_t(k) * p + p);
-  work->resize(3 * std::size_t(p) * p + 2 * p);
-  Complex* m = buffer->data();
-  Complex* u = m + p * p;
-  Complex* rot = u + p * p;
-  Complex* w = rot + p * p;
-  Complex* tmp = w + std::size_t(k) * p;
-  return RefinedGramEigen(x, p, k, p, d, u, m, rot, w, tmp, work->data());
-}
-
 }  // namespace
 
 void FourierSystem::Gather(Index bin, BinData* d) const {
@@ -566,6 +499,12 @@ void FourierSystem::GatherRun(Index uy, Index ux0, int count, std::size_t stride
 
 template <class Want, class F>
 void FourierSystem::ForGatheredBins(const Want& want, const F& f) const {
+  ForGatheredBins(want, f, [] {}, [] {});
+}
+
+template <class Want, class F, class Begin, class Done>
+void FourierSystem::ForGatheredBins(const Want& want, const F& f, const Begin& block_begin,
+                                    const Done& block_done) const {
   const Index cols = model_.lr_shape().cols;
   // Bin stride: N r² rounded up to a multiple of 4 values plus 4 (64 bytes), so that the bins of a run do not map
   // to one cache set; the run at most kGatherRun bins and ~256 KiB.
@@ -574,6 +513,7 @@ void FourierSystem::ForGatheredBins(const Want& want, const F& f) const {
   ParallelFor((nb_ + kBinBlock - 1) / kBinBlock, [&](Index block) {
     std::vector<Complex> a(stride * run);
     std::vector<double> p(std::size_t(rr_) * run), pinv(p.size());
+    block_begin();
     const Index end = std::min(nb_, (block + 1) * kBinBlock);
     Index i = block * kBinBlock;
     while (i < end) {
@@ -590,6 +530,7 @@ void FourierSystem::ForGatheredBins(const Want& want, const F& f) const {
         f(k, BinPtr{&a[std::size_t(k - i) * stride], &p[std::size_t(k - i) * rr_], &pinv[std::size_t(k - i) * rr_]});
       i = j;
     }
+    block_done();
   });
 }
 
@@ -630,7 +571,9 @@ FourierSystem::FourierSystem(const MultiFrameModel& model, Image prior_symbol, d
     const Index muy = (lr.rows - uy) % lr.rows;
     for (Index ux = 0; ux < lr.cols; ++ux) {
       const Index mux = (lr.cols - ux) % lr.cols;
-      canonical_[uy * lr.cols + ux] = ux < mux || (ux == mux && uy <= muy);
+      // 2 for the computed bin of a pair {u, −u}, 1 for a bin that is its own mirror, 0 for the other of a pair.
+      const bool canonical = ux < mux || (ux == mux && uy <= muy);
+      canonical_[uy * lr.cols + ux] = canonical ? (ux == mux && uy == muy ? 1 : 2) : 0;
     }
   }
 }
@@ -674,7 +617,7 @@ void FourierSystem::FinishFloor(const FloorNorms& fn) const {
   BinData d;
   for (Index i = 0; i < nb_; ++i) {
     if (!CanonicalBin(i)) continue;
-    const double weight = MirrorBin(i) == i ? 1.0 : 2.0;
+    const double weight = MirrorWeight(i);
     trace_ata += weight * fn.trace[i];
     trace_p += weight * fn.prior[i];
     if (n_gram == 0 || fn.trace[i] < lower) continue;
@@ -715,7 +658,7 @@ int FourierSystem::RankOf(const Complex* a, int cols) const {
   // rank of the rest is certified by the Cholesky factor L of its Gram matrix G (n' x n'): λ_min(G) >=
   // 1/tr G⁻¹ = 1/||L⁻¹||²_F, with a margin of 4x over the floor plus the Gram's rounding. Bins it cannot decide
   // (a σ near or below the floor) try a pivoted Householder QR (bounds on σ without squaring), then singular values
-  // to an SVD's accuracy (refined Gram eigenvalues), and an SVD where one lies within 1e-4 of the floor².
+  // to an SVD's accuracy (bins::SingularSpectrum), and an SVD where one lies within 1e-4 of the floor².
   const int rr = cols;
   const double floor2 = sv_floor_ * sv_floor_;
   double norms[256];
@@ -774,22 +717,17 @@ int FourierSystem::RankOf(const Complex* a, int cols) const {
     for (int f = 0; f < n_; ++f) reduced[std::size_t(k) * n_ + f] = a[kp[k] * n_ + f];
   const int qr_rank = PivotedQrRank(reduced.data(), n_, kept, sv_floor_, qr_work.data(), v.data());
   if (qr_rank >= 0) return qr_rank;
-  // The singular values of the reduced A(u) to an SVD's accuracy (refined Gram eigenvalues); an SVD only where
+  // The singular values of the reduced A(u) to an SVD's accuracy (bins::SingularSpectrum); an SVD only where
   // one lies within 1e-4 of the floor², closer than that accuracy can be trusted to classify.
-  const int p = std::min(n_, kept), k = std::max(n_, kept);
-  std::vector<Complex> x(std::size_t(p) * k), buffer;
-  std::vector<double> dv(p), eig_work;
+  const int p = std::min(n_, kept);
+  std::vector<Complex> x(std::size_t(n_) * kept), y(n_, Complex(0)), sv_v(2 * std::size_t(std::max(n_, kept)));
+  std::vector<double> dv(p), cv(p), sv_work(2 * std::size_t(p));
   for (int c = 0; c < kept; ++c)
-    for (int f = 0; f < n_; ++f) {
-      const Complex z = a[kp[c] * n_ + f];
-      if (n_ <= kept) {
-        x[std::size_t(c) * p + f] = z;  // X = A (N x kept)
-      } else {
-        x[std::size_t(f) * p + c] = std::conj(z);  // X = Aᴴ (kept x N)
-      }
-    }
+    for (int f = 0; f < n_; ++f) x[std::size_t(c) * n_ + f] = a[kp[c] * n_ + f];
   Eigen::VectorXd sv2 = Eigen::Map<Eigen::VectorXd>(dv.data(), p);
-  bool decided = RefinedSquaredSingularValues(x.data(), p, k, dv.data(), &buffer, &eig_work);
+  double perp = 0;
+  bool decided = bins::SingularSpectrum(x.data(), n_, kept, n_, y.data(), dv.data(), cv.data(), &perp,
+                                        sv_work.data(), sv_v.data());
   if (decided) {
     sv2 = Eigen::Map<Eigen::VectorXd>(dv.data(), p);
     decided = !((sv2.array() - floor2).abs() <= 1e-4 * floor2).any();
@@ -1046,47 +984,60 @@ void FourierSystem::DecomposeBinSvd(Index i, Spectral* sp, BinData* d) const {
   sp->perp[i] = uy.tail(uy.size() - q).squaredNorm();
 }
 
-void FourierSystem::DecomposeBinEigen(Index i, Spectral* sp, BinPtr bd, std::vector<double>* scratch) const {
-  DecomposeWhitened(n_, bd.a, bd.pinv, &y_[i * n_], &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max], &sp->q[i],
-                    &sp->perp[i], scratch);
+void FourierSystem::DecomposeBinBidiagonal(Index i, Spectral* sp, BinPtr bd, WhitenedPair* pair) const {
+  // Bins of one shape are decomposed two at a time (bins::SingularSpectra<2>: the same bits as one by one): the
+  // pending one waits in pair->bin[0] until a second of its shape comes, or FinishPair.
+  WhitenedBin& next = pair->bin[pair->pending];
+  PrepareWhitened(n_, bd.a, bd.pinv, &y_[i * n_], &next);
+  next.s2 = &sp->s2[i * sp->q_max];
+  next.c = &sp->c[i * sp->q_max];
+  next.q = &sp->q[i];
+  next.perp = &sp->perp[i];
+  if (pair->pending == 0) {
+    pair->pending = 1;
+    return;
+  }
+  if (pair->bin[0].kept == next.kept) {
+    DecomposePrepared(n_, pair->bin, 2);
+    pair->pending = 0;
+  } else {  // shapes differ: the older alone, the newer waits
+    DecomposePrepared(n_, pair->bin, 1);
+    std::swap(pair->bin[0], pair->bin[1]);
+  }
 }
 
-void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out,
-                                      double* c_out, int* q_out, double* perp_out,
-                                      std::vector<double>* scratch) const {
-  // B = A P^(-1/2) (N x r², column-major), and the data Y. The singular values of B and the projections of Y on
-  // its left singular vectors come from the eigen-decomposition of the q x q Gram matrix M = B Bᴴ, which is
-  // exact for the large ones but holds each eigenvalue only to ~ q ε ||M|| absolutely: the small s² (aliases
-  // beyond the optical cutoff, 1e-10 .. 1e-20 of the largest in most bins of the shipped scenes) would be lost,
-  // and GCV at small λ weighs exactly those. So they are refined by Rayleigh-Ritz on B itself: with U_S the
-  // eigenvectors of the eigenvalues below 1e-3 of the largest (the split moved up to a gap of 10x, so that U_S
-  // spans the small invariant subspace to an angle θ ~ ε), W = Bᴴ U_S is formed from B (rounding ε s_max per
-  // column, as in an SVD of B) and the m x m matrix Wᴴ W = U_Sᴴ B Bᴴ U_S, whose eigenvalues are the small s²
-  // to ~ε s_max s + θ² s_max², is decomposed again; repeated while its own eigenvalues span more than 1e3.
-  // That is the accuracy of an SVD of B (absolute error ~ε s_max in s). Columns of B whose squared norms sum
-  // to at most ε² ||B||²_F (below the rounding of any factorisation of B) are dropped first. Where N > r² the
-  // Householder QR B = Q [R; 0] comes first: the Gram matrix is then R Rᴴ and ||Y||² − ||UᴴY||² is the sum of
-  // squares of the trailing entries of QᴴY (no cancellation).
+void FourierSystem::FinishPair(WhitenedPair* pair) const {
+  if (pair->pending) DecomposePrepared(n_, pair->bin, 1);
+  pair->pending = 0;
+}
+
+void FourierSystem::PrepareWhitened(int n, const Complex* a, const double* pinv, const Complex* y,
+                                    WhitenedBin* out) const {
+  // B = A P^(-1/2) (N x r², column-major), and the data Y. GCV, UPRE, the L-curve and the discrepancy rule weigh the
+  // small singular values of B too (aliases beyond the optical cutoff, 1e-10 .. 1e-20 of the largest in most bins
+  // of the shipped scenes), which an eigen-decomposition of the Gram matrix B Bᴴ would hold only to ~ε s_max²
+  // absolutely. So they come from B itself (bins::SingularSpectrum: Householder bidiagonalisation and implicit QR
+  // sweeps, the left transformations applied to Y alone), to the accuracy of an SVD of B: s² to ~ε s_max s, and
+  // |uᴴY|² without forming U. Columns of B whose squared norms sum to at most ε² ||B||²_F (below the rounding of
+  // any factorisation of B) are dropped first. Where N > kept columns, the part of Y no λ fits is the sum of
+  // squares of the trailing entries of PᴴY (no cancellation).
   const int rr = rr_;
   const int qn = std::min(n, rr);
-  // Scratch (doubles): B 2·n·rr, Y 2n, M 2qn², U 2qn², d qn, eigen work 3qn² + 2qn, W 2·rr·qn, M_S 2qn², R 2qn²,
-  // rotated 2·n·qn, v 2n, norms rr, keep rr.
-  const std::size_t need = 2 * std::size_t(n) * rr + 2 * n + 8 * std::size_t(qn) * qn + qn + 3 * qn * qn + 2 * qn +
-                           2 * std::size_t(rr) * qn + 2 * std::size_t(n) * qn + 2 * n + 2 * std::size_t(rr) + 16;
-  if (scratch->size() < need) scratch->resize(need);
-  double* base = scratch->data();
+  // Scratch (doubles): B 2·n·rr, Y 2n, v 4·max(n, rr), d and e 2qn, norms rr, keep rr.
+  const std::size_t need =
+      2 * std::size_t(n) * rr + 2 * n + 4 * std::size_t(std::max(n, rr)) + 2 * qn + 2 * std::size_t(rr) + 16;
+  if (out->scratch.size() < need) out->scratch.resize(need);
+  double* base = out->scratch.data();
   Complex* bw = reinterpret_cast<Complex*>(base);
   Complex* yv = bw + std::size_t(n) * rr;
-  Complex* m = yv + n;
-  Complex* u = m + qn * qn;
-  Complex* rot = u + 2 * qn * qn;  // (one q x q slot unused since the refinement reuses M)
-  Complex* w = rot + qn * qn;
-  Complex* tmp = w + std::size_t(rr) * qn;
-  Complex* v = tmp + std::size_t(n) * qn;
-  double* d = reinterpret_cast<double*>(v + n);
-  double* ework = d + qn;
-  double* norms = ework + 3 * qn * qn + 2 * qn;
+  Complex* v = yv + n;
+  double* de = reinterpret_cast<double*>(v + 2 * std::max(n, rr));
+  double* norms = de + 2 * qn;
   int* keep = reinterpret_cast<int*>(norms + rr);
+  out->b = bw;
+  out->y = yv;
+  out->v = v;
+  out->work = de;
   // B and its column norms; columns below ε² ||B||²_F in total dropped (ascending, ties by index).
   double total = 0;
   for (int c = 0; c < rr; ++c) {
@@ -1125,47 +1076,34 @@ void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pin
     if (keep[k] != k)
       for (int f = 0; f < n; ++f) bw[k * n + f] = bw[keep[k] * n + f];
   for (int f = 0; f < n; ++f) yv[f] = y[f];
-  // Rows of the (q x kept) matrix whose Gram is taken: B itself (q = N), or R of B = QR (q = kept < N).
-  int q = n;
-  double perp = 0;
-  if (kept < n) {
-    q = kept;
-    for (int j = 0; j < kept; ++j) {
-      Complex* x = bw + j * n + j;
-      const int len = n - j;
-      double alpha2 = 0;
-      for (int t = 0; t < len; ++t) alpha2 += Norm2(x[t]);
-      const double alpha = std::sqrt(alpha2), a0 = std::sqrt(Norm2(x[0]));
-      if (!(alpha > 0)) continue;
-      const Complex phase = a0 > 0 ? x[0] / a0 : Complex(1.0);
-      for (int t = 0; t < len; ++t) v[t] = x[t];
-      v[0] += phase * alpha;
-      const double scale = 1.0 / (alpha * (alpha + a0));  // 2 / ||v||²
-      x[0] = -phase * alpha;
-      for (int t = 1; t < len; ++t) x[t] = 0;
-      const auto reflect = [&](Complex* col) {
-        Complex dot = 0;
-        for (int t = 0; t < len; ++t) dot += ConjMul(v[t], col[t]);
-        dot *= scale;
-        for (int t = 0; t < len; ++t) col[t] -= Mul(v[t], dot);
-      };
-      for (int c = j + 1; c < kept; ++c) reflect(bw + c * n + j);
-      reflect(yv + j);
-    }
-    for (int f = kept; f < n; ++f) perp += Norm2(yv[f]);
+  out->kept = kept;
+}
+
+void FourierSystem::DecomposePrepared(int n, WhitenedBin* bins, int count) const {
+  // q = min(N, kept) singular values of the N x kept matrix B and the projections of Y (count bins of one shape).
+  bins::SpectrumJob jobs[2];
+  for (int l = 0; l < count; ++l) {
+    WhitenedBin& w = bins[l];
+    jobs[l] = bins::SpectrumJob{w.b, w.y, w.s2, w.c, w.perp, w.work, w.v};
+    *w.q = std::min(n, w.kept);
   }
-  *q_out = q;
-  *perp_out = perp;
-  if (q == 0) return;
-  // M = Bw Bwᴴ (q x q), Bw(p, c) = bw[c n + p], its small eigenvalues refined on Bw.
-  if (!RefinedGramEigen(bw, q, kept, n, d, u, m, rot, w, tmp, ework))
-    throw NumericalError("Tikhonov spectral decomposition: the eigen-solver did not converge (non-finite data?)");
-  for (int k = 0; k < q; ++k) {
-    Complex proj = 0;
-    for (int p = 0; p < q; ++p) proj += ConjMul(u[p * q + k], yv[p]);
-    s2_out[k] = std::max(d[k], 0.0);
-    c_out[k] = Norm2(proj);
-  }
+  if (count == 2)
+    bins::SingularSpectra<2>(jobs, n, bins[0].kept, n);
+  else
+    bins::SingularSpectra<1>(jobs, n, bins[0].kept, n);
+  for (int l = 0; l < count; ++l)
+    if (!jobs[l].ok)
+      throw NumericalError("Tikhonov spectral decomposition: the SVD did not converge (non-finite data?)");
+}
+
+void FourierSystem::DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out,
+                                      double* c_out, int* q_out, double* perp_out, WhitenedBin* scratch) const {
+  PrepareWhitened(n, a, pinv, y, scratch);
+  scratch->s2 = s2_out;
+  scratch->c = c_out;
+  scratch->q = q_out;
+  scratch->perp = perp_out;
+  DecomposePrepared(n, scratch, 1);
 }
 
 void FourierSystem::MakeSpectral() const {
@@ -1183,7 +1121,7 @@ void FourierSystem::MakeSpectral() const {
     } else if (CanonicalBin(i)) {
       // Bins u and −u have conjugate systems and data (real frames, real PSFs, an even prior), hence the same
       // singular values and |UᴴY|²: one of each pair is decomposed and counted twice.
-      sp->weight[i] = MirrorBin(i) == i ? 1 : 2;
+      sp->weight[i] = char(MirrorWeight(i));
     }
   }
   // One decomposition per counted bin, on fixed blocks of bins: each writes only its own slots.
@@ -1196,13 +1134,14 @@ void FourierSystem::MakeSpectral() const {
     const bool note_norms = !FloorReady();
     FloorNorms norms;
     if (note_norms) norms = NewFloorNorms();
+    // The decomposition's scratch and pending bin, per thread (grown once), nothing pending across blocks.
+    thread_local WhitenedPair pair;
     ForGatheredBins([&](Index i) { return CanonicalBin(i) && (note_norms || sp->weight[i] != 0); },
                     [&](Index i, BinPtr d) {
                       if (note_norms) NoteNorms(i, d, &norms);
-                      if (!sp->weight[i]) return;
-                      thread_local std::vector<double> scratch;  // the decomposition's (grown once per thread)
-                      DecomposeBinEigen(i, sp.get(), d, &scratch);
-                    });
+                      if (sp->weight[i]) DecomposeBinBidiagonal(i, sp.get(), d, &pair);
+                    },
+                    [&] { pair.pending = 0; }, [&] { FinishPair(&pair); });
     if (note_norms) FinishFloor(norms);
     // The bins whose prior vanishes at aliases Z, where the data see that null space (EnsureZeroPriorRanks): x_Z
     // is fitted without penalty, so with Q_Z from the QR of A(u)_Z the objective is ||Π(Y − A_R x_R)||² +
@@ -1212,7 +1151,7 @@ void FourierSystem::MakeSpectral() const {
     EnsureZeroPriorRanks();
     std::vector<Index> direct;
     BinData d;
-    std::vector<double> scratch;
+    WhitenedBin scratch;
     std::vector<Complex> reduced, yr;
     for (Index i : sp->direct) {
       if (!seen_[i]) {
@@ -1256,17 +1195,24 @@ void FourierSystem::MakeSpectral() const {
       DecomposeWhitened(nr, reduced.data(), d.pinv.data(), yr.data(), &sp->s2[i * sp->q_max], &sp->c[i * sp->q_max],
                         &sp->q[i], &sp->perp[i], &scratch);
       sp->zeros[i] = z;
-      sp->weight[i] = MirrorBin(i) == i ? 1 : 2;
+      sp->weight[i] = char(MirrorWeight(i));
     }
     sp->direct = std::move(direct);
   }
+  std::size_t terms = 0;
+  for (Index i = 0; i < nb_; ++i)
+    if (sp->weight[i]) terms += std::size_t(sp->q[i]);
+  sp->term_s2.resize(terms);
+  sp->term_wc.resize(terms);
+  sp->term_weight.resize(terms);
+  std::size_t t = 0;
   for (Index i = 0; i < nb_; ++i) {
     const int weight = sp->weight[i];
     if (!weight) continue;
-    for (int k = 0; k < sp->q[i]; ++k) {
-      sp->term_s2.push_back(sp->s2[i * sp->q_max + k]);
-      sp->term_wc.push_back(weight * sp->c[i * sp->q_max + k]);
-      sp->term_weight.push_back(weight);
+    for (int k = 0; k < sp->q[i]; ++k, ++t) {
+      sp->term_s2[t] = sp->s2[i * sp->q_max + k];
+      sp->term_wc[t] = weight * sp->c[i * sp->q_max + k];
+      sp->term_weight[t] = weight;
     }
     sp->fixed_residual += weight * sp->perp[i];
     sp->fixed_dof += weight * double(n_ - sp->zeros[i] - sp->q[i]);

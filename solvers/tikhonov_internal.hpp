@@ -56,12 +56,12 @@ class FourierSystem {
   // want_prior adds η = ||Γx||² = (1/(m² r²)) Σ_u Σ_k s_k² c_k/(s_k² + w)² and its derivative by λ,
   // dη/dλ = −(2/(m² r⁴)) Σ_u Σ_k s_k² c_k/(s_k² + w)³ (direct bins: −2 Re (Px)ᴴ G⁻¹ (Px) per bin).
   Fit EvaluateSpectral(double lambda, bool want_prior = false) const;
-  // How EvaluateSpectral's per-bin decomposition is made. kEigen (default): the eigen-decomposition of the
-  // whitened Gram matrix B Bᴴ (q x q, q = min(N, r²), after a Householder QR of B when N > r² so that the part of
-  // Y no λ fits is a sum of squares), its small eigenvalues refined by Rayleigh-Ritz on B itself (tikhonov.cpp
-  // says why that is as accurate as an SVD of B). kSvd: the SVD of B (the reference the tests compare with).
-  // Setting it discards a decomposition already made.
-  enum class SpectralMethod { kEigen, kSvd };
+  // How EvaluateSpectral's per-bin decomposition is made. kBidiagonal (default): the singular values of the
+  // whitened B and the projections UᴴY from its Householder bidiagonalisation and implicit QR sweeps, the left
+  // transformations applied to Y alone (bins::SingularSpectrum: an SVD's accuracy without forming U; where N > r²
+  // the part of Y no λ fits is a sum of squares). kSvd: Eigen's JacobiSVD of B with the full U (the reference the
+  // tests compare with). Setting it discards a decomposition already made.
+  enum class SpectralMethod { kBidiagonal, kSvd };
   // Makes EvaluateSpectral's decomposition now (and, where not made yet, the floor and λ₀ from the same pass):
   // the λ rules call it before lambda0() so that one pass over the bins serves both.
   void PrepareSpectral() const {
@@ -110,6 +110,10 @@ class FourierSystem {
   // count; tasks in parallel), the wanted bins of each LR row gathered in runs by GatherRun.
   template <class Want, class F>
   void ForGatheredBins(const Want& want, const F& f) const;
+  // The same with block_begin() and block_done() called on the block's thread before its first bin and after its
+  // last.
+  template <class Want, class F, class Begin, class Done>
+  void ForGatheredBins(const Want& want, const F& f, const Begin& block_begin, const Done& block_done) const;
   // Bin `bin` gathered into *d, seen as Eigen matrices: A(u) column-major N x r², the data Y(u) and the prior
   // P(u) on the r² aliases. rank is -1 where not computed (the callers that read it made it first).
   struct BinView {
@@ -171,16 +175,43 @@ class FourierSystem {
   };
   void MakeSpectral() const;
   void DecomposeBinSvd(Index bin, Spectral* sp, BinData* d) const;
-  void DecomposeBinEigen(Index bin, Spectral* sp, BinPtr d, std::vector<double>* scratch) const;
-  // DecomposeBinEigen's decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s²,
-  // |uᴴY|², the count q and the part of Y outside the range.
+  // One bin's whitened system prepared for the decomposition (PrepareWhitened: B with its negligible columns
+  // dropped, N x kept column-major at b, and Y), in its own scratch, and where its results go.
+  struct WhitenedBin {
+    std::vector<double> scratch;
+    int kept = 0;
+    Complex* b = nullptr;
+    Complex* y = nullptr;
+    Complex* v = nullptr;
+    double* work = nullptr;
+    double* s2 = nullptr;
+    double* c = nullptr;
+    int* q = nullptr;
+    double* perp = nullptr;
+  };
+  // Up to two prepared bins: bin[0] waits (pending = 1) for a second of its shape, decomposed with it.
+  struct WhitenedPair {
+    WhitenedBin bin[2];
+    int pending = 0;
+  };
+  // Bin `bin` into *sp (through *pair: its results may be written at the next call or at FinishPair).
+  void DecomposeBinBidiagonal(Index bin, Spectral* sp, BinPtr d, WhitenedPair* pair) const;
+  void FinishPair(WhitenedPair* pair) const;
+  void PrepareWhitened(int n, const Complex* a, const double* pinv, const Complex* y, WhitenedBin* out) const;
+  // count (1 or 2) prepared bins of one shape decomposed, their s², |uᴴY|², q and perp written.
+  void DecomposePrepared(int n, WhitenedBin* bins, int count) const;
+  // The decomposition of the n x r² system a (column-major), whitened by pinv, with data y: s², |uᴴY|², the count
+  // q and the part of Y outside the range.
   void DecomposeWhitened(int n, const Complex* a, const double* pinv, const Complex* y, double* s2_out, double* c_out,
-                         int* q_out, double* perp_out, std::vector<double>* scratch) const;
-  SpectralMethod spectral_method_ = SpectralMethod::kEigen;
+                         int* q_out, double* perp_out, WhitenedBin* scratch) const;
+  SpectralMethod spectral_method_ = SpectralMethod::kBidiagonal;
   // The bin of −u (LR frequencies), and whether `bin` is the one of its pair {u, −u} that is computed (the
   // other is its conjugate: real frames, real PSFs, an even prior).
   Index MirrorBin(Index bin) const;
   bool CanonicalBin(Index bin) const;
+  // How often a canonical bin counts in sums over all bins: 2 (itself and its mirror), 1 (its own mirror); 0 for
+  // the non-canonical bin of a pair.
+  int MirrorWeight(Index bin) const { return canonical_[bin]; }
   mutable std::unique_ptr<Spectral> spectral_;
 
   const MultiFrameModel& model_;
@@ -191,7 +222,7 @@ class FourierSystem {
   Index nb_ = 0;                    // LR bins
   std::vector<Complex> y_;          // Y(u): bin i at i·N
   std::vector<char> prior_positive_;
-  std::vector<char> canonical_;     // CanonicalBin, per bin
+  std::vector<char> canonical_;     // MirrorWeight per bin (CanonicalBin: nonzero)
   std::vector<Index> zero_prior_bins_;  // bins whose prior vanishes at some alias
   // Lazily made (lazy_mutex_): the floor and λ₀; the ranks (-1 until made).
   mutable std::mutex lazy_mutex_;

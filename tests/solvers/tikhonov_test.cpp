@@ -673,14 +673,121 @@ TEST(TikhonovTest, HermitianEigenSolverIsExactToRounding) {
     }
 }
 
-// The λ rules' per-bin decomposition by the eigen-decomposition of the whitened Gram matrix with Rayleigh-Ritz
-// refinement (the default) against the SVD of the whitened bins (the former path): the GCV curve, its residual and
-// its trace agree to 1e-10 relative over twelve decades of λ, the GCV search picks the same λ (to 1e-9 decades:
+// The λ rules' per-bin kernel (Householder bidiagonalisation and implicit QR sweeps, Uᴴy without U; the closed form
+// of two rows; the LQ reduction first of a much wider matrix) against Eigen's JacobiSVD with the full U, at the
+// shapes the bins use (p x k with p, k in 1 .. 16: wide, square and tall; and k = 64, r = 8's), on
+// random matrices, with graded columns (σ from 1 down to ~1e-20, as aliases beyond the optical cutoff give), with a
+// duplicate row (an exact zero σ), with one dominant column and the zero matrix: every σ within 1e-14 σ_max of the
+// SVD's (an SVD's accuracy: absolute, so σ² to ~ε σ_max σ), the residual Σ (w/(σ² + w))² |uᴴy|² + perp and the trace
+// Σ w/(σ² + w) within 1e-11 of the SVD's for w >= 1e-8 σ_max² (σ² errors of ε σ_max σ move w/(σ² + w) by at most
+// ~ε σ_max/√w <= 1e4 ε there), and Σ |uᴴy|² + perp = ||y||² to rounding; two matrices at once give the same bits
+// as each alone. Non-finite input is refused (alone, or beside a good matrix, which is not disturbed).
+TEST(TikhonovTest, SingularSpectrumMatchesAnSvd) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> n01;
+  int cases = 0;
+  std::vector<std::pair<int, int>> shapes;  // a spread of p, k in 1 .. 16, and r = 8's wide ones (k = 64)
+  for (int p = 1; p <= 16; ++p)
+    for (int k = 1; k <= 16; ++k)
+      if ((p + k) % 3 == 0 || p == k || p == 16 || k == 16 || p == 1 || k == 1) shapes.push_back({p, k});
+  for (int p : {2, 3, 4, 8, 16}) shapes.push_back({p, 64});
+  for (const auto& [p, k] : shapes)
+    for (int variant = 0; variant < 5; ++variant) {
+      Eigen::MatrixXcd x(p, k);
+      for (Index i = 0; i < x.size(); ++i) x.data()[i] = Complex(n01(rng), n01(rng));
+      if (variant == 1)
+        for (int j = 0; j < k; ++j) x.col(j) *= std::pow(10.0, -20.0 * j / std::max(1, k - 1));
+      if (variant == 2 && p > 1) x.row(p - 1) = x.row(0);
+      if (variant == 3) x.col(0) *= 1e6;
+      if (variant == 4) x.setZero();
+      x *= 1e-3;  // not O(1): the kernel scales internally
+      Eigen::VectorXcd y(p);
+      for (int i = 0; i < p; ++i) y[i] = Complex(n01(rng), n01(rng));
+      const int q = std::min(p, k);
+      std::vector<Complex> xa(x.data(), x.data() + x.size()), ya(y.data(), y.data() + p), v(2 * std::max(p, k));
+      std::vector<double> s2(q), c(q), work(2 * q);
+      double perp = -1;
+      // Two at once (SingularSpectra<2>, the bins' interleaved path), this one with a random other: the same bits.
+      std::vector<Complex> x2(2 * xa.size()), yp(2 * p), v2(2 * v.size());
+      std::vector<double> s2p(2 * q), cp(2 * q), work2(4 * q);
+      double perp2[2] = {-1, -1};
+      std::copy(xa.begin(), xa.end(), x2.begin());
+      std::copy(ya.begin(), ya.end(), yp.begin());
+      for (std::size_t i = xa.size(); i < x2.size(); ++i) x2[i] = Complex(n01(rng), n01(rng));
+      for (int i = p; i < 2 * p; ++i) yp[i] = Complex(n01(rng), n01(rng));
+      bins::SpectrumJob jobs[2];
+      for (int l = 0; l < 2; ++l)
+        jobs[l] = bins::SpectrumJob{&x2[l * xa.size()], &yp[l * p], &s2p[l * q], &cp[l * q], &perp2[l],
+                                    &work2[2 * l * q], &v2[l * v.size()]};
+      bins::SingularSpectra<2>(jobs, p, k, p);
+      ASSERT_TRUE(bins::SingularSpectrum(xa.data(), p, k, p, ya.data(), s2.data(), c.data(), &perp, work.data(),
+                                         v.data()));
+      EXPECT_TRUE(jobs[0].ok && jobs[1].ok);
+      for (int j = 0; j < q; ++j) {
+        EXPECT_EQ(s2p[j], s2[j]);
+        EXPECT_EQ(cp[j], c[j]);
+      }
+      EXPECT_EQ(perp2[0], perp);
+      const Eigen::JacobiSVD<Eigen::MatrixXcd> svd(x, Eigen::ComputeFullU);
+      const Eigen::VectorXd sv = svd.singularValues();  // descending
+      const Eigen::VectorXcd uy = svd.matrixU().adjoint() * y;
+      const double ref_perp = uy.tail(p - q).squaredNorm();
+      const double smax = sv.size() ? sv[0] : 0.0;
+      const std::string what = std::to_string(p) + " x " + std::to_string(k) + ", variant " + std::to_string(variant);
+      for (int j = 0; j < q; ++j) {
+        if (j > 0) EXPECT_LE(s2[j - 1], s2[j]) << what;
+        EXPECT_LE(std::abs(std::sqrt(s2[j]) - sv[q - 1 - j]), 1e-14 * smax) << what << ", sigma " << j;
+      }
+      const double y2 = y.squaredNorm();
+      double csum = perp;
+      for (int j = 0; j < q; ++j) csum += c[j];
+      EXPECT_NEAR(csum, y2, 1e-13 * y2) << what;
+      EXPECT_NEAR(perp, ref_perp, 1e-13 * y2) << what;
+      for (double t = -8; t <= 2; t += 0.5) {
+        const double w = smax > 0 ? smax * smax * std::pow(10.0, t) : 1.0;
+        double res = perp, dof = 0, ref_res = ref_perp, ref_dof = 0;
+        for (int j = 0; j < q; ++j) {
+          const double g = w / (s2[j] + w), gr = w / (sv[j] * sv[j] + w);
+          res += g * g * c[j];
+          dof += g;
+          ref_res += gr * gr * std::norm(uy[j]);
+          ref_dof += gr;
+        }
+        EXPECT_NEAR(res, ref_res, 1e-11 * y2) << what << ", log10(w/smax²) = " << t;
+        EXPECT_NEAR(dof, ref_dof, 1e-11 * q) << what << ", log10(w/smax²) = " << t;
+      }
+      ++cases;
+    }
+  EXPECT_GT(cases, 500);
+  std::vector<Complex> bad(4, Complex(1.0)), yb(2, Complex(1.0)), v(4);
+  bad[3] = Complex(std::numeric_limits<double>::quiet_NaN(), 0.0);
+  std::vector<double> s2(2), c(2), work(4);
+  double perp = 0;
+  EXPECT_FALSE(bins::SingularSpectrum(bad.data(), 2, 2, 2, yb.data(), s2.data(), c.data(), &perp, work.data(), v.data()));
+  // ... also beside a good one, which is not disturbed.
+  std::vector<Complex> pair_x = {Complex(1.0), Complex(0.0), Complex(0.0), Complex(2.0), 1.0, 1.0, 1.0,
+                                 Complex(std::numeric_limits<double>::infinity(), 0.0)};
+  std::vector<Complex> pair_y(4, Complex(1.0)), pair_v(8);
+  std::vector<double> pair_s2(4), pair_c(4), pair_work(8);
+  double pair_perp[2];
+  bins::SpectrumJob jobs[2] = {
+      bins::SpectrumJob{&pair_x[0], &pair_y[0], &pair_s2[0], &pair_c[0], &pair_perp[0], &pair_work[0], &pair_v[0]},
+      bins::SpectrumJob{&pair_x[4], &pair_y[2], &pair_s2[2], &pair_c[2], &pair_perp[1], &pair_work[4], &pair_v[4]}};
+  bins::SingularSpectra<2>(jobs, 2, 2, 2);
+  EXPECT_TRUE(jobs[0].ok);
+  EXPECT_FALSE(jobs[1].ok);
+  EXPECT_NEAR(pair_s2[0], 1.0, 1e-15);  // diag(1, 2)
+  EXPECT_NEAR(pair_s2[1], 4.0, 4e-15);
+}
+
+// The λ rules' per-bin decomposition by bidiagonalisation and QR sweeps (bins::SingularSpectrum, the default)
+// against Eigen's JacobiSVD of the whitened bins: the GCV curve, its residual and its trace agree to 1e-10
+// relative over twelve decades of λ, the GCV search picks the same λ (to 1e-9 decades:
 // the curves agree far below the golden-section search's 1e-4-decade resolution) and so the same image, at
 // r = 2, 4, 8 with N < r², N = r² and N > r², with a wide PSF (aliases beyond the optical cutoff: singular values
 // 1e-10 .. 1e-20 of the largest in most bins, as in the shipped scenes) and with duplicate frames (rank-deficient
 // bins).
-TEST(TikhonovTest, SpectralEigenPathMatchesTheSvdPath) {
+TEST(TikhonovTest, SpectralBidiagonalPathMatchesTheSvdPath) {
   struct Case {
     int r;
     std::vector<std::pair<double, double>> shifts;

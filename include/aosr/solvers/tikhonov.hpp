@@ -106,9 +106,9 @@
 //                 the singular values of the whitened bins B(u) = A(u) P(u)^(−½) (one decomposition per bin for
 //                 the whole search, then O(min(N, r²)) per bin and λ; a bin whose prior vanishes at z aliases the
 //                 data see is first reduced to the N − z dimensions outside those aliases' columns; the
-//                 decomposition is the eigen-decomposition of the small Gram matrix B Bᴴ with its small
-//                 eigenvalues refined on B itself, as accurate as an SVD of B: tested against one to 1e-10 in
-//                 the GCV curve), so the search is a log grid (gcv_decades x
+//                 decomposition is a Householder bidiagonalisation of B and implicit QR sweeps, applied to the
+//                 data alone, as accurate as an SVD of B: tested against one to 1e-10 in the GCV curve), so the
+//                 search is a log grid (gcv_decades x
 //                 gcv_steps_per_decade) to find the basin and a golden-section search on log λ between the
 //                 best point's neighbours to 1e-4 decades: a continuous minimiser, not a grid point. Needs a
 //                 Fourier-exact problem (uniform weights, periodic boundary: tr H exactly, per bin; a CG
