@@ -145,8 +145,9 @@ TEST_F(DesignCliTest, ObjectiveAWithTrainingFitsTheSpectrumAndValidates) {
     ASSERT_FALSE(j["validation"].is_null());
     const bool kept_design = j["validation"]["kept"] == "design";
     // The design is kept only when it wins on the fresh sample by at least --min-gain (0.2 dB).
-    if (kept_design)
+    if (kept_design) {
       EXPECT_LT(j["validation"]["objective_design"].get<double>(), j["validation"]["objective_raster"].get<double>());
+    }
     EXPECT_EQ(kept_design, j["gain"]["advice"] == "design");
     EXPECT_EQ(kept_design, j["improved"].get<bool>());
   }
@@ -168,8 +169,9 @@ TEST_F(DesignCliTest, ObjectiveBDesignIsValidatedOnFreshScenes) {
     EXPECT_EQ(j["validation"]["scenes"], "3 dead-leaves scenes (fresh seed), fresh noise");
     const bool kept_design = j["validation"]["kept"] == "design";
     // The design is kept only when it wins on the fresh sample by at least --min-gain (0.2 dB).
-    if (kept_design)
+    if (kept_design) {
       EXPECT_LT(j["validation"]["objective_design"].get<double>(), j["validation"]["objective_raster"].get<double>());
+    }
     EXPECT_EQ(kept_design, j["gain"]["advice"] == "design");
     EXPECT_EQ(kept_design, j["improved"].get<bool>());
     EXPECT_EQ(j["design"]["design"]["validation"], j["validation"]);

@@ -317,7 +317,9 @@ TEST(EmpiricalDesignObjectiveTest, PerturbedStartsRunAndTheUndersampledHrGridGai
       best = std::min(best, j);
     }
     EXPECT_LE(r.summary.final_objective, r.summary.initial_objective);
-    if (r.summary.improved) EXPECT_DOUBLE_EQ(r.summary.final_objective, best);
+    if (r.summary.improved) {
+      EXPECT_DOUBLE_EQ(r.summary.final_objective, best);
+    }
     EXPECT_LT(r.summary.final_objective, r.summary.raster_objective);
     relative[i++] = r.summary.final_objective / r.summary.raster_objective;
   }

@@ -735,7 +735,9 @@ TEST(TikhonovTest, SingularSpectrumMatchesAnSvd) {
       const double smax = sv.size() ? sv[0] : 0.0;
       const std::string what = std::to_string(p) + " x " + std::to_string(k) + ", variant " + std::to_string(variant);
       for (int j = 0; j < q; ++j) {
-        if (j > 0) EXPECT_LE(s2[j - 1], s2[j]) << what;
+        if (j > 0) {
+          EXPECT_LE(s2[j - 1], s2[j]) << what;
+        }
         EXPECT_LE(std::abs(std::sqrt(s2[j]) - sv[q - 1 - j]), 1e-14 * smax) << what << ", sigma " << j;
       }
       const double y2 = y.squaredNorm();
