@@ -33,6 +33,11 @@ constexpr Index kBlockedMinPixels = 192 * 192;
 // At most this many blocks per pass (enough for 8 threads), and at least kMinLinesPerBlock lines each.
 constexpr Index kMaxBlocks = 8;
 constexpr Index kMinLinesPerBlock = 32;
+// The blocks of a pass run on DefaultThreads() threads from this many real values per pass on (a 320 x 320
+// image), on one thread below it: at 192^2 and 256^2 handing blocks to a second thread cost more than it saved
+// (0.69x and 0.98x, bench/results/fft.md). Which thread runs a block never changes its bytes.
+constexpr Index kThreadedMinValues = 320 * 320;
+int PassThreads(Index values) { return values >= kThreadedMinValues ? DefaultThreads() : 1; }
 
 enum class Kind { kR2C, kC2R, kForward, kInverse };
 
@@ -283,7 +288,7 @@ template <typename In, typename Out>
 void RowPass(Kind kind, Index n, Index rows, const In* in, Index in_len, Out* out, Index out_len,
              const FftSettings& fs, double scale) {
   const Partition part(rows);
-  ParallelFor(part.count, DefaultThreads(), [&](Index b) {
+  ParallelFor(part.count, PassThreads(n * rows), [&](Index b) {
     const Index r0 = part.Begin(b), nb = part.Size(b, rows);
     const fftw_plan p = PlanCache::Get().Plan(
         {kind, 1, n, 0, nb, 1, in_len, 1, out_len, false, fs.planner, fs.shipped_wisdom});
@@ -311,7 +316,7 @@ constexpr Index kInPlaceC2RMinCols = 900;
 void RowPassC2RInPlace(Index n, Index rows, Complex* work, Index half, double* out, const FftSettings& fs,
                        double scale) {
   const Partition part(rows);
-  ParallelFor(part.count, DefaultThreads(), [&](Index b) {
+  ParallelFor(part.count, PassThreads(n * rows), [&](Index b) {
     const Index r0 = part.Begin(b), nb = part.Size(b, rows);
     const fftw_plan p = PlanCache::Get().Plan(
         {Kind::kC2R, 1, n, 0, nb, 1, half, 1, 2 * half, true, fs.planner, fs.shipped_wisdom});
@@ -347,7 +352,7 @@ bool BufferedColumns(Index rows, Index cols) {
 void ColumnPass(Kind kind, Index rows, Index cols, const Complex* in, Complex* out, const FftSettings& fs) {
   if (BufferedColumns(rows, cols)) {
     const Index chunks = (cols + kChunkColumns - 1) / kChunkColumns;
-    ParallelFor(chunks, DefaultThreads(), [&](Index b) {
+    ParallelFor(chunks, PassThreads(2 * rows * cols), [&](Index b) {
       const Index c0 = b * kChunkColumns, nb = std::min(kChunkColumns, cols - c0);
       const fftw_plan p = PlanCache::Get().Plan(
           {kind, 1, rows, 0, nb, 1, rows, 1, rows, true, fs.planner, fs.shipped_wisdom});
@@ -367,7 +372,7 @@ void ColumnPass(Kind kind, Index rows, Index cols, const Complex* in, Complex* o
   }
   const Partition part(cols);
   const bool in_place = in == out;
-  ParallelFor(part.count, DefaultThreads(), [&](Index b) {
+  ParallelFor(part.count, PassThreads(2 * rows * cols), [&](Index b) {
     const Index c0 = part.Begin(b), nb = part.Size(b, cols);
     const fftw_plan p = PlanCache::Get().Plan(
         {kind, 1, rows, 0, nb, cols, 1, cols, 1, in_place, fs.planner, fs.shipped_wisdom});
