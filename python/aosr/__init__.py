@@ -51,6 +51,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     set_fft_planner,
     fft_wisdom_loaded,
     allocator_tuned,
+    tune_allocator,
     set_memory_limit,
     set_threads,
     simulate,
@@ -65,7 +66,7 @@ __all__ = [
     "ResourceError", "Scene", "calibrate", "compare_images", "compare_images_aligned", "data_path", "design",
     "evaluate", "fourier_shift", "load_scene",
     "methods", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
-    "scene_from_dict", "set_fft_planner", "fft_wisdom_loaded", "allocator_tuned", "set_memory_limit", "set_threads", "simulate", "stars_psf",
+    "scene_from_dict", "set_fft_planner", "fft_wisdom_loaded", "allocator_tuned", "tune_allocator", "set_memory_limit", "set_threads", "simulate", "stars_psf",
     "synthesize_calibration", "threads", "write_fits",
 ]
 

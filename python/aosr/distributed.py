@@ -112,9 +112,19 @@ def _dataset_name(dataset, index):
     return f"dataset-{index:04d}"
 
 
+def _prepare_worker(threads):
+    """Per task: aosr's thread count, and glibc's malloc thresholds as aosr's import sets them. Dask's nanny starts
+    workers with MALLOC_TRIM_THRESHOLD_=65536 (``distributed.nanny.pre-spawn-environ``), under which every image a
+    solver frees is handed back to the kernel and faulted in again on its next use: 16 TV reconstructions at 512²
+    on 2 workers ran 1.43x the serial loop with it and ~1.8x without (bench/results/python.md).
+    AOSR_MALLOC_TUNING=0 keeps Dask's setting."""
+    aosr.set_threads(threads)
+    aosr.tune_allocator(override_environment=True)
+
+
 def _reconstruct_task(task):
     """One dataset: reconstruct, write ``<output>.fits`` (and the aux map) atomically, return its record."""
-    aosr.set_threads(task["threads"])
+    _prepare_worker(task["threads"])
     dataset = task["dataset"]
     ds = dataset if isinstance(dataset, aosr.Dataset) else aosr.open_dataset(dataset)
     rec = aosr.reconstruct(ds, task["method"], **task["options"])
@@ -235,7 +245,7 @@ def reconstruct_many(datasets, output_dir, method="tikhonov", *, client=None, na
 def _design_task(config):
     config = dict(config)
     config.setdefault("threads", 1)
-    aosr.set_threads(1)
+    _prepare_worker(1)
     scene = config.pop("scene")
     return {"config": {"scene": os.fspath(scene) if isinstance(scene, (str, os.PathLike)) else scene.source,
                        **{k: v for k, v in config.items() if k != "output"}},
@@ -259,7 +269,7 @@ def design_sweep(configs, *, client=None, progress=False, n_workers=2):
 # ---- Calibration Monte-Carlo -------------------------------------------------------------------------------
 
 def _calibration_task(task):
-    aosr.set_threads(1)
+    _prepare_worker(1)
     s = aosr.synthesize_calibration(task["spec"], seed=task["seed"], **task["synthesize"])
     result = aosr.calibrate(s, **task["calibrate"])
     return {"seed": task["seed"], "truth": s.truth, "calibration": result}

@@ -186,10 +186,22 @@ PYBIND11_MODULE(_aosr, m) {
       "Use the package `aosr`, which re-exports this module; see docs/python.md.";
   // The same allocator settings as the CLI (memory.hpp): freed image-sized arrays are reused instead of being
   // page-faulted in again; AOSR_MALLOC_TUNING=0 before the import keeps the interpreter's own settings.
-  static const bool tuned = aosr::TuneAllocatorForLargeArrays();
+  static bool tuned = aosr::TuneAllocatorForLargeArrays();
   m.def("allocator_tuned", [] { return tuned; },
-        "Whether importing aosr set glibc's malloc thresholds (freed image-sized arrays reused; aosr's\n"
-        "core/memory.hpp). False outside glibc, or when AOSR_MALLOC_TUNING=0 or malloc tunables were set.");
+        "Whether aosr set glibc's malloc thresholds (on import, or by tune_allocator): freed image-sized arrays\n"
+        "reused instead of returned to the kernel (core/memory.hpp). False outside glibc, or when\n"
+        "AOSR_MALLOC_TUNING=0 or the environment's malloc settings were left alone.");
+  m.def(
+      "tune_allocator",
+      [](bool override_environment) {
+        if (aosr::TuneAllocatorForLargeArrays(override_environment)) tuned = true;
+        return tuned;
+      },
+      pybind11::arg("override_environment") = false,
+      "Sets glibc's malloc thresholds as the import does; override_environment=True also over malloc settings in\n"
+      "the environment (not AOSR_MALLOC_TUNING=0). aosr.distributed's tasks call it with True: Dask's nanny starts\n"
+      "workers with MALLOC_TRIM_THRESHOLD_=65536, which returns every freed image to the kernel. Returns\n"
+      "allocator_tuned().");
   BindCore(m);
   BindIo(m);
   BindOptics(m);

@@ -62,6 +62,22 @@ def test_fft_planner_settings_and_shipped_wisdom(demo_dir):
         aosr.set_fft_planner("estimate")
 
 
+def test_allocator_tuning_defers_to_the_environment_unless_overridden():
+    # Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536: the import leaves it alone, aosr.distributed's
+    # tasks override it (tune_allocator(override_environment=True)); AOSR_MALLOC_TUNING=0 is never overridden.
+    import subprocess
+    import sys
+    code = ("import aosr; a = aosr.allocator_tuned(); b = aosr.tune_allocator(); "
+            "c = aosr.tune_allocator(override_environment=True); print(a, b, c)")
+    env = dict(os.environ, MALLOC_TRIM_THRESHOLD_="65536", PYTHONPATH=os.pathsep.join(sys.path))
+    env.pop("AOSR_MALLOC_TUNING", None)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "False", "True"]
+    env["AOSR_MALLOC_TUNING"] = "0"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "False", "False"]
+
+
 def test_evaluate_matches_cli(demo_dir, cli, tmp_path):
     rec = aosr.reconstruct(demo_dir, "drizzle")
     aosr.write_fits(tmp_path / "e.fits", rec.image, dtype="float64")

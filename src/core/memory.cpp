@@ -111,19 +111,22 @@ double PeakResidentBytes() {
   return double(usage.ru_maxrss) * 1024.0;  // Linux reports kilobytes
 }
 
-bool TuneAllocatorForLargeArrays() {
+bool TuneAllocatorForLargeArrays(bool override_environment) {
 #if defined(__GLIBC__)
   const char* opt_out = std::getenv("AOSR_MALLOC_TUNING");
   if (opt_out && std::string(opt_out) == "0") return false;
-  const char* tunables = std::getenv("GLIBC_TUNABLES");
-  if (tunables && std::string(tunables).find("glibc.malloc.") != std::string::npos) return false;
-  for (const char* name : {"MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
-    if (std::getenv(name)) return false;
+  if (!override_environment) {
+    const char* tunables = std::getenv("GLIBC_TUNABLES");
+    if (tunables && std::string(tunables).find("glibc.malloc.") != std::string::npos) return false;
+    for (const char* name : {"MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
+      if (std::getenv(name)) return false;
+  }
   // Setting either threshold explicitly also turns glibc's dynamic adjustment off.
   const bool mmap_ok = mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024) == 1;
   const bool trim_ok = mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024) == 1;
   return mmap_ok && trim_ok;
 #else
+  (void)override_environment;
   return false;
 #endif
 }

@@ -57,6 +57,10 @@ double PeakResidentBytes();
 // shrinking between steps. The CLI, the benchmarks and the Python module call it at start; it does nothing
 // when the user already chose malloc settings (GLIBC_TUNABLES with glibc.malloc.*, or MALLOC_*_ variables)
 // or set AOSR_MALLOC_TUNING=0, and outside glibc. Returns whether it changed the settings.
-bool TuneAllocatorForLargeArrays();
+// override_environment ignores the malloc variables (not AOSR_MALLOC_TUNING=0): for processes whose
+// environment a framework set, not the user. Dask's nanny starts every worker with MALLOC_TRIM_THRESHOLD_=65536
+// (distributed.nanny.pre-spawn-environ), which hands every freed image back to the kernel; aosr.distributed's
+// tasks override it (bench/results/python.md measures the difference).
+bool TuneAllocatorForLargeArrays(bool override_environment = false);
 
 }  // namespace aosr
