@@ -15,7 +15,7 @@
 //   time         Reconstruction::seconds_total (TV and MAP include their Tikhonov pilot), one thread
 //   FFTs         FftExecutionCount() after minus before: every transform aosr executed for the run
 //   floor        FFTs x the time of one out-of-place real-to-complex FFTW transform of the HR grid
-//                (FFTW_MEASURE plan, minimum over 15 batches, measured here). The solvers also do LR-size and
+//                (FFTW_PATIENT's plan from the shipped wisdom, minimum over 15 batches, measured here). The solvers also do LR-size and
 //                complex HR transforms, so this is the floor in units of "one HR real FFT": LR transforms
 //                cost ~r² less, complex ones ~2x more.
 //   time/floor   how far the run is from spending all its time in FFTs
@@ -236,7 +236,7 @@ void RunConfig(const Config& c, bool quick, std::vector<Row>* rows, std::vector<
     std::fprintf(stderr, "%s\n", os.str().c_str());
   }
 
-  // Warm-up, untimed: FFTW_MEASURE plans every shape on first use (tens of ms each); the rows below time
+  // Warm-up, untimed: plans are made for every shape on first use (about 1 ms each); the rows below time
   // the solvers with the plan cache filled, as a long-running program would see them.
   {
     using M = aosr::ReconstructionMethod;
@@ -502,7 +502,7 @@ int main(int argc, char** argv) {
         "FFTW plans cached by an untimed warm-up; tv and map include their Tikhonov (GCV) pilot, which also sets "
         "their weight (reconstruct.hpp). The iteration cap is the knob of tv (ADMM) and map (L-BFGS); "
         "termination max-iterations means the cap stopped it. FFTs = FftExecutionCount() difference; floor = "
-        "FFTs x one out-of-place r2c FFTW transform of the HR grid (FFTW_MEASURE, minimum over 15 batches in the same run), so LR-size transforms are "
+        "FFTs x one out-of-place r2c FFTW transform of the HR grid (FFTW_PATIENT's plan from the shipped wisdom (bench/fft_floor.hpp), minimum over 15 batches in the same run), so LR-size transforms are "
         "over-counted (~r^2 cheaper) and complex HR ones under-counted (~2x dearer). `tikhonov (λ fixed)` reruns "
         "the GCV λ without the search: the difference is the λ search (one SVD per bin, then sums over singular "
         "values). Rows marked (2 threads) rerun a configuration's tikhonov, tv-100 and map-30 on 2 threads and say "

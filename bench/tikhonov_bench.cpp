@@ -16,7 +16,7 @@
 //   summary    FinishSummary (data misfit through the forward model; the prior norm comes from the solve)
 // and end to end: ReconstructTikhonov with λ fixed (at GCV's λ) and with the GCV search, each the minimum of
 // `--repeats` runs (default 5; the machine is shared), on 1 thread and on 2 threads, with the images compared
-// bit for bit, and the 2-thread speed-up in wall time (1- and 2-thread runs alternated, the ratio of the minima). floor = FFTs executed x one out-of-place r2c FFTW transform of the HR grid (FFTW_MEASURE, minimum
+// bit for bit, and the 2-thread speed-up in wall time (1- and 2-thread runs alternated, the ratio of the minima). floor = FFTs executed x one out-of-place r2c FFTW transform of the HR grid (FFTW_PATIENT's plan from the shipped wisdom, minimum
 // of 15 batches), the same unit as bench/results/reconstruct.md. One-thread times (and the floor) are process CPU
 // time, two-thread times wall time: the machine is shared.
 //
