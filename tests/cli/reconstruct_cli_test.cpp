@@ -86,6 +86,23 @@ TEST_F(ReconstructCliTest, EveryMethodWritesAnImageAndATruthfulSummary) {
   EXPECT_GT(psnr[3], psnr[2]);  // TV beats Tikhonov on the bar target
 }
 
+// --fft-planner heuristic plans without the shipped FFTW wisdom: the same image to rounding (the plans differ,
+// the maths does not); an unknown planner is refused with the allowed names.
+TEST_F(ReconstructCliTest, FftPlannerHeuristicGivesTheSameImageToRounding) {
+  for (const std::string planner : {"estimate", "heuristic"}) {
+    const CliRun r = RunCli("reconstruct " + Data() + " -m tv --iterations 20 -o " + Out("tv-" + planner) +
+                            " --fft-planner " + planner);
+    ASSERT_EQ(r.status, 0) << r.out;
+  }
+  const aosr::Image a = aosr::ReadFitsImage(Out("tv-estimate")), b = aosr::ReadFitsImage(Out("tv-heuristic"));
+  ASSERT_EQ(a.rows(), b.rows());
+  EXPECT_LE((a - b).abs().maxCoeff(), 1e-6 * a.abs().maxCoeff());  // float32 output
+  const CliRun bad = RunCli("reconstruct " + Data() + " -m tv -o " + Out("tv-bad") + " --fft-planner fastest");
+  EXPECT_NE(bad.status, 0);  // CLI11 rejects the value (its own exit code)
+  EXPECT_THAT(bad.out, HasSubstr("heuristic"));
+  EXPECT_FALSE(fs::exists(Out("tv-bad")));
+}
+
 TEST_F(ReconstructCliTest, LinearWritesItsEffectivePsfNoiseAndLeakage) {
   // Uniform weights: the exact Fourier path, no probes.
   const nlohmann::json j = Run("linear", "--target-psf gaussian:3 --leakage 1e-3 --noise-sigma 10");

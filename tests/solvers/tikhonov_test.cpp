@@ -24,6 +24,13 @@ using test::RasterModel;
 using ::testing::HasSubstr;
 using ::testing::Not;
 
+// A test model: r, the frames' shifts (HR px) and the prior (the gradient prior unless given).
+struct ModelCase {
+  int r;
+  std::vector<std::pair<double, double>> shifts;
+  TikhonovPrior prior = TikhonovPrior::kGradient;
+};
+
 // The Fourier solution must be the minimiser of the spatial objective: check it against CG on
 // (AᵀA + λΓᵀΓ) x = Aᵀy built from the very same operators.
 TEST(TikhonovTest, FourierSolveMatchesSpatialNormalEquations) {
@@ -113,11 +120,7 @@ TEST(TikhonovTest, ReportsUnconstrainedFrequenciesWhenFramesAreTooFew) {
 // singular value of all bins), for N < r², N = r² and N > r², with a prior that vanishes at the DC alias (whose
 // bin a λ > 0 solve ranks by itself) and one that does not; and the counts are the same bits on 1, 2 and 3 threads.
 TEST(TikhonovTest, RanksOnRequestAgreeWithTheSvdCounts) {
-  struct Case {
-    int r;
-    std::vector<std::pair<double, double>> shifts;
-    TikhonovPrior prior;
-  };
+  using Case = ModelCase;
   const std::vector<Case> cases = {
       {2, {{0, 0}, {0.5, 0.5}}, TikhonovPrior::kGradient},
       {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}, TikhonovPrior::kIdentity},
@@ -397,11 +400,7 @@ TEST(TikhonovTest, DiscrepancyLambdaHitsTheTargetResidual) {
 // The std map is exactly √diag(σ²(AᵀWA + λΓᵀΓ)⁻¹): check against a dense inverse of the spatial normal
 // matrix on tiny grids (r = 2 and 3, N below and above r², uniform weight 2), and its period r.
 TEST(TikhonovTest, PosteriorStdIsTheDiagonalOfTheDenseInverse) {
-  struct Case {
-    int r;
-    std::vector<std::pair<double, double>> shifts;
-    TikhonovPrior prior;
-  };
+  using Case = ModelCase;
   const std::vector<Case> cases = {
       {2, {{0, 0}, {0.5, 1.3}}, TikhonovPrior::kGradient},
       {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.2}}, TikhonovPrior::kIdentity},
@@ -496,10 +495,7 @@ using tikhonov_internal::PriorSymbolImage;
 // to rounding, for every prior (the DC bin of the gradient/Laplacian is solved directly), for N < r², N = r²
 // and N > r², over twelve decades of λ, and with rank-deficient bins (two identical frames).
 TEST(TikhonovTest, SpectralEvaluationMatchesThePerBinSolves) {
-  struct Case {
-    int r;
-    std::vector<std::pair<double, double>> shifts;
-  };
+  using Case = ModelCase;
   const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}},                  // N = 3 < 4
                                    {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}},                    // N = r²
                                    {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}, {0.3, 1.7}}},  // N > r²
@@ -538,10 +534,7 @@ TEST(TikhonovTest, SpectralEvaluationMatchesThePerBinSolves) {
 // Inverses (InverseBin, the old per-bin path), over twelve decades of λ including ill-conditioned bins, and
 // the same residual as Evaluate. Also bit-identical for 1 and 2 threads.
 TEST(TikhonovTest, FastBinKernelsAgreeWithTheDensePath) {
-  struct Case {
-    int r;
-    std::vector<std::pair<double, double>> shifts;
-  };
+  using Case = ModelCase;
   const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}},
                                    {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}}},
                                    {3, {{0, 0}, {0, 0}, {1.5, 0.5}}},
@@ -856,11 +849,7 @@ TEST(TikhonovTest, SpectralBidiagonalPathMatchesTheSvdPath) {
 // normal-equation bins; a prior vanishing at DC, whose bin the solve defers and the decomposition reduces) is the same
 // bits on 1, 2 and 3 threads.
 TEST(TikhonovTest, LazyPartsAndReconstructionsAreBitIdenticalOnOneTwoAndThreeThreads) {
-  struct Case {
-    int r;
-    std::vector<std::pair<double, double>> shifts;
-    TikhonovPrior prior;
-  };
+  using Case = ModelCase;
   const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}, TikhonovPrior::kGradient},
                                    {4, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}, {2.7, 3.1}}, TikhonovPrior::kLaplacian},
                                    {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}}, TikhonovPrior::kPowerSpectrum}};
@@ -912,10 +901,7 @@ TEST(TikhonovTest, LazyPartsAndReconstructionsAreBitIdenticalOnOneTwoAndThreeThr
 }
 
 TEST(TikhonovTest, FlatEngineIsBitIdenticalOnOneAndTwoThreads) {
-  struct Case {
-    int r;
-    std::vector<std::pair<double, double>> shifts;
-  };
+  using Case = ModelCase;
   const std::vector<Case> cases = {{2, {{0, 0}, {0.5, 1.25}, {1.3, 0.2}}},
                                    {2, {{0, 0}, {0, 1}, {1, 0}, {1, 1}, {0.5, 0.5}, {0.3, 1.7}}},
                                    {2, {{0, 0}, {0, 0}, {1.5, 0.5}, {0.5, 1.5}}}};
