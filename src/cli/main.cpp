@@ -33,7 +33,10 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // CLI11 prints the message (or the help/version text) and returns its own code per kind of error
+    // (105 for a failed validator, 106 for a missing option, ...); the documented contract is 1 for any
+    // usage error, so scripts need not know CLI11's numbering.
+    return app.exit(e) == 0 ? 0 : 1;
   } catch (const aosr::InvalidArgument& e) {
     std::fprintf(stderr, "aosr: error: %s\n", e.what());
     return 1;

@@ -100,17 +100,17 @@ TEST(DemoCliTest, WritesEveryOutputAndALabelledMontage) {
 TEST(DemoCliTest, BadArgumentsGiveAClearErrorAndNonZeroExit) {
   using ::testing::HasSubstr;
   CliRun r = RunCli("demo --noise -1");
-  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.out, HasSubstr("--noise"));
   EXPECT_THAT(r.out, HasSubstr(">= 0"));
   r = RunCli("demo -r 12");
-  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.out, HasSubstr("--factor"));
   r = RunCli("demo -o /dev/null/x");
-  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(r.status, 1);
   EXPECT_THAT(r.out, HasSubstr("/dev/null"));
   r = RunCli("no-such-command");
-  EXPECT_NE(r.status, 0);
+  EXPECT_EQ(r.status, 1);
 }
 
 }  // namespace
