@@ -12,7 +12,7 @@ void BindOptics(py::module_& m) {
   m.def(
       "psf",
       [](py::object preset_object, std::optional<std::string> mode, py::object offsets, int r, double pixel_lod,
-         int size, const std::string& sensor, double exposure, double settling, std::uint64_t seed) {
+         int size, const std::string& sensor, double exposure, double settling, std::uint64_t seed, bool antithetic) {
         const std::string preset = PathString(preset_object);
         PresetPsfOptions o;
         o.mode = mode.value_or("");
@@ -32,6 +32,7 @@ void BindOptics(py::module_& m) {
         o.exposure_s = exposure;
         o.settling_s = settling;
         o.seed = seed;
+        o.antithetic = antithetic;
         std::string why;
         if (!o.IsValid(&why)) throw InvalidArgument("aosr.psf: invalid " + why);
         PythonProgress poll;
@@ -56,13 +57,15 @@ void BindOptics(py::module_& m) {
         d["window_sum"] = p.window_sum;
         d["core_centroid_lambda_over_d"] = py::dict(py::arg("y") = p.core_centroid_lod[0], py::arg("x") = p.core_centroid_lod[1]);
         d["residual_rms_nm"] = p.residual_rms_nm;
-        if (!p.loop_report.empty()) d["closed_loop"] = py::dict(py::arg("sensor") = sensor, py::arg("report") = p.loop_report);
+        if (!p.loop_report.empty())
+          d["closed_loop"] = py::dict(py::arg("sensor") = sensor, py::arg("antithetic") = antithetic,
+                                      py::arg("report") = p.loop_report);
         d["psf"] = MoveImage(std::move(p.psf));
         return d;
       },
       py::arg("preset"), py::kw_only(), py::arg("mode") = py::none(), py::arg("offsets") = py::none(), py::arg("r") = 2,
       py::arg("pixel_lod") = 0.0, py::arg("size") = 128, py::arg("sensor") = "diffractive", py::arg("exposure") = 0.5,
-      py::arg("settling") = 0.1, py::arg("seed") = 1,
+      py::arg("settling") = 0.1, py::arg("seed") = 1, py::arg("antithetic") = true,
       R"doc(The science PSF of a telescope preset (a name of data/telescopes/ or a .json path), as `aosr psf`.
 
 mode       'analytic' (long-exposure AO residual) | 'diffraction' | 'closed-loop' (Monte-Carlo); None: analytic
@@ -71,6 +74,8 @@ offsets    DM offsets as {noll: nm RMS} or [(noll, nm), ...] (the CLI's --offset
 r          pixel = camera pixel / r, unless pixel_lod > 0 gives it in lambda/D
 size       PSF side in pixels
 sensor, exposure, settling, seed   closed loop only: WFS model, recorded and settling time [s], seed
+antithetic closed loop only: average the atmosphere's PSF and its negation's (default True; the stretch's
+           random tip/tilt cancels, as in a scene); False: one realisation
 Returns the dict `aosr psf --json` prints (without 'seconds') plus 'psf': the (size, size) PSF, centred,
 normalised so that the whole focal plane sums to 1 (no copy).)doc");
 }

@@ -145,6 +145,19 @@ def test_psf_matches_cli(cli, tmp_path):
         aosr.psf("paper-8m", sensor="magic")
 
 
+def test_closed_loop_psf_antithetic_pair(cli):
+    kw = dict(mode="closed-loop", sensor="ideal", size=32, exposure=0.1, settling=0.05)
+    pair = aosr.psf("paper-8m", **kw)
+    one = aosr.psf("paper-8m", antithetic=False, **kw)
+    assert pair["closed_loop"]["antithetic"] and not one["closed_loop"]["antithetic"]
+    c = pair["core_centroid_lambda_over_d"]
+    assert abs(c["y"]) < 1e-9 and abs(c["x"]) < 1e-9  # the stretch's random tilt cancels in the pair
+    assert max(abs(v) for v in one["core_centroid_lambda_over_d"].values()) > 1e-4
+    j = json.loads(cli("psf", "paper-8m", "--mode", "closed-loop", "--sensor", "ideal", "--size", 32,
+                       "--exposure", 0.1, "--settling", 0.05, "--json").stdout)
+    assert j["core_centroid_lambda_over_d"] == c and j["strehl"] == pair["strehl"]
+
+
 def test_calibrate_matches_cli(cli, tmp_path):
     spec = tmp_path / "small.json"
     spec.write_text(json.dumps({"telescope": "paper-bench", "calibration": {

@@ -88,17 +88,27 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
   const PsfCalculator diffraction(n, diameter, sampling);
   const Image perfect = diffraction.Compute(amplitude, Image::Zero(n, n));
   if (out.mode == "closed-loop") {
-    step("calibrating the AO system (interaction and control matrices)");
-    AoSystem system = BuildAoSystem(preset.ToAoSystemSpec(o.sensor, o.seed));
-    ClosedLoopOptions loop_options;
-    loop_options.science = sampling;
-    std::unique_ptr<ClosedLoop> loop = system.MakeLoop(loop_options);
-    step("running the loop for " + ToString(o.settling_s) + " s settling + " + ToString(o.exposure_s) + " s");
-    // The DM offset is applied as the real-time computer would: through the WFS reference slopes.
-    const ClosedLoopResult r = loop->RunSubExposures({opd}, o.exposure_s, o.settling_s).front();
-    out.psf = r.psf;
-    out.residual_rms_nm = r.RmsResidualM() * 1e9;
-    out.loop_report = r.BriefReport();
+    AoSystemSpec spec = preset.ToAoSystemSpec(o.sensor, o.seed);
+    // Antithetic: the atmosphere, then its negation; the PSFs averaged, the residual variances too.
+    const int runs = o.antithetic && spec.atmosphere ? 2 : 1;
+    double residual_variance = 0.0;
+    for (int run = 0; run < runs; ++run) {
+      if (run == 1) spec.atmosphere->antithetic = true;
+      const std::string which = runs == 2 ? (run == 0 ? " (the atmosphere)" : " (its negation)") : "";
+      step("calibrating the AO system (interaction and control matrices)" + which);
+      AoSystem system = BuildAoSystem(spec);
+      ClosedLoopOptions loop_options;
+      loop_options.science = sampling;
+      std::unique_ptr<ClosedLoop> loop = system.MakeLoop(loop_options);
+      step("running the loop for " + ToString(o.settling_s) + " s settling + " + ToString(o.exposure_s) + " s" + which);
+      // The DM offset is applied as the real-time computer would: through the WFS reference slopes.
+      const ClosedLoopResult r = loop->RunSubExposures({opd}, o.exposure_s, o.settling_s).front();
+      const double w = 1.0 / runs;
+      out.psf = run == 0 ? Image(w * r.psf) : Image(out.psf + w * r.psf);
+      residual_variance += w * r.RmsResidualM() * r.RmsResidualM();
+      out.loop_report += (run == 0 ? "" : "; negated atmosphere: ") + r.BriefReport();
+    }
+    out.residual_rms_nm = std::sqrt(residual_variance) * 1e9;
   } else if (out.mode == "analytic") {
     const AnalyticAoPsfCalculator ao(preset.ToAnalyticAo(), n, sampling);
     const AnalyticAoPsf p = ao.Compute(amplitude, opd);

@@ -41,6 +41,11 @@ struct PresetPsfOptions {
   double exposure_s = 0.5;
   double settling_s = 0.1;
   std::uint64_t seed = 1;
+  // Closed loop only: run the loop on the atmosphere and on its negation (same seed) and average the two PSFs,
+  // as a scene does by default (scene_spec.hpp, AoSpec::antithetic). The stretch's random tip/tilt is odd in
+  // the atmosphere and cancels, so the core centroid shows the sensor's and the offsets' own tilt; Strehl and
+  // halo are even and stay. false: one realisation (half the time).
+  bool antithetic = true;
 
   bool IsValid(std::string* why) const;
 };
@@ -59,7 +64,7 @@ struct PresetPsf {
   // (pixel (size/2, size/2)), in λ/D, (y, x). 0 for an aberration-free PSF; a closed loop whose sensor holds a
   // tilt shows it here (issue 23's Shack-Hartmann bias was 0.13, 0.17).
   double core_centroid_lod[2] = {0.0, 0.0};
-  std::string loop_report;        // closed loop: the loop's BriefReport
+  std::string loop_report;        // closed loop: the loop's BriefReport (each run's, antithetic)
 };
 
 // InvalidArgument (naming the option) for a bad option or a mode the preset cannot run; NumericalError if the
