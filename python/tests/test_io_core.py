@@ -156,6 +156,10 @@ def test_closed_loop_psf_antithetic_pair(cli):
     j = json.loads(cli("psf", "paper-8m", "--mode", "closed-loop", "--sensor", "ideal", "--size", 32,
                        "--exposure", 0.1, "--settling", 0.05, "--json").stdout)
     assert j["core_centroid_lambda_over_d"] == c and j["strehl"] == pair["strehl"]
+    j1 = json.loads(cli("psf", "paper-8m", "--mode", "closed-loop", "--sensor", "ideal", "--size", 32,
+                        "--exposure", 0.1, "--settling", 0.05, "--no-antithetic", "--json").stdout)
+    assert not j1["closed_loop"]["antithetic"]
+    assert j1["core_centroid_lambda_over_d"] == one["core_centroid_lambda_over_d"]
 
 
 def test_calibrate_matches_cli(cli, tmp_path):

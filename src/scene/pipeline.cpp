@@ -742,6 +742,12 @@ ImageStack NominalPsfs(const SceneSpec& scene) {
   SceneSpec analytic = scene;
   analytic.ao.mode = AoSpec::Mode::kAnalytic;
   analytic.ao.dm_gain = 1.0;  // the stroke error is the hardware's, unknown to the model (and analytic has none)
+  // Only the diffractive sensor simulates photon and read noise (shack_hartmann.hpp): with the others the
+  // truth's WFS is noiseless, and so is the model (TelescopePreset::ToAnalyticAo measures the noise otherwise).
+  if (scene.ao.sensor != SensorKind::kDiffractive && analytic.telescope.ao) {
+    analytic.telescope.ao->wfs.photon_noise = false;
+    analytic.telescope.ao->wfs.read_noise_e = 0.0;
+  }
   return ScenePipeline(std::move(analytic)).ComputePsfs(nullptr, nullptr, nullptr);
 }
 

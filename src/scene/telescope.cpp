@@ -82,6 +82,17 @@ AnalyticAoOptions TelescopePreset::ToAnalyticAo() const {
   o.loop_gain = ao->loop.gain;
   o.loop_delay_frames = ao->loop.delay_frames;
   o.science_wavelength_m = science_wavelength_m;
+  if (ao->wfs.photon_noise || ao->wfs.read_noise_e > 0) {
+    // A noisy (diffractive) Shack-Hartmann: the noise term measured through this very sensor, centroiding and
+    // reconstructor (ao_system.hpp MeasureWfsNoiseRad2), on spots as wide as the turbulence's fitting residual
+    // makes them. The loop's delay plays no part in it, so a fractional delay (which only the analytic model
+    // takes) is rounded for the build.
+    TelescopePreset noise_system = *this;
+    noise_system.ao->loop.delay_frames = std::round(ao->loop.delay_frames);
+    AoSystemSpec spec = noise_system.ToAoSystemSpec(SensorKind::kDiffractive, kWfsNoiseSeed);
+    AoSystem system = BuildAoSystem(spec);
+    o.wfs_noise_rad2 = MeasureWfsNoiseRad2(system, o.reference_wavelength_m, kWfsNoiseSamples);
+  }
   return o;
 }
 

@@ -1,6 +1,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "aosr/ao/ao_system.hpp"
 #include "aosr/optics/pupil.hpp"
 #include "support/testing.hpp"
@@ -36,6 +38,16 @@ TEST(AoSystemErrorsTest, BadPartsAreNamed) {
   s = SmallSpec();
   s.wfs.subapertures_across = 0;
   EXPECT_THAT(ErrorOf([&] { BuildAoSystem(s); }), HasSubstr("subapertures_across"));
+}
+
+TEST(AoSystemErrorsTest, WfsNoiseMeasurementArgumentsAreNamed) {
+  AoSystem system = BuildAoSystem(SmallSpec());
+  EXPECT_EQ(MeasureWfsNoiseRad2(system, 550e-9, 2), 0.0);  // a noiseless sensor
+  EXPECT_THAT(ErrorOf([&] { MeasureWfsNoiseRad2(system, 0.0, 2); }), HasSubstr("wavelength_m"));
+  EXPECT_THAT(ErrorOf([&] { MeasureWfsNoiseRad2(system, std::nan(""), 2); }), HasSubstr("wavelength_m"));
+  EXPECT_THAT(ErrorOf([&] { MeasureWfsNoiseRad2(system, 550e-9, 0); }), HasSubstr("samples"));
+  AoSystem empty;
+  EXPECT_THAT(ErrorOf([&] { MeasureWfsNoiseRad2(empty, 550e-9, 2); }), HasSubstr("system"));
 }
 
 }  // namespace

@@ -32,27 +32,21 @@ TEST(PsfCliTest, AnalyticPaperSystemAndAFocusOffsetLowersStrehl) {
 // lands near the analytic model's 0.89 without aliasing (the ao tests compare them precisely). By default (as in
 // a scene) it is the antithetic pair: the PSFs of the atmosphere and of its negation averaged. The pupil is
 // centrosymmetric and the loop odd in the atmosphere, so the pair's PSF is point-symmetric and its core lands on
-// the axis to rounding; one realisation (--no-antithetic) keeps the stretch's random tilt, and the residual (even
-// in the atmosphere) is the same to rounding.
+// the axis to rounding. (One realisation, --no-antithetic, keeps the stretch's random tilt: checked through
+// Python's aosr.psf(antithetic=False), python/tests/test_io_core.py; a third loop here would cost a minute under
+// the sanitizers.)
 TEST(PsfCliTest, ClosedLoopRunsFromThePresetAsAnAntitheticPair) {
-  const std::string args = "psf paper-8m --mode closed-loop --sensor ideal --size 32 --exposure 0.1 --settling 0.05 --json";
-  const CliRun pair = RunCli(args), one = RunCli(args + " --no-antithetic");
+  const CliRun pair = RunCli("psf paper-8m --mode closed-loop --sensor ideal --size 32 --exposure 0.1 --settling 0.05 --json");
   ASSERT_EQ(pair.status, 0) << pair.out;
-  ASSERT_EQ(one.status, 0) << one.out;
-  const auto jp = nlohmann::json::parse(pair.out), jo = nlohmann::json::parse(one.out);
+  const auto jp = nlohmann::json::parse(pair.out);
   EXPECT_EQ(jp["mode"], "closed-loop");
   EXPECT_GT(jp["strehl"].get<double>(), 0.8);
   EXPECT_LT(jp["strehl"].get<double>(), 0.95);
   EXPECT_GT(jp["residual_rms_nm"].get<double>(), 50.0);
   EXPECT_TRUE(jp["closed_loop"]["antithetic"].get<bool>());
-  EXPECT_FALSE(jo["closed_loop"]["antithetic"].get<bool>());
   EXPECT_THAT(jp["closed_loop"]["report"].get<std::string>(), ::testing::HasSubstr("negated atmosphere"));
   const double py = jp["core_centroid_lambda_over_d"]["y"], px = jp["core_centroid_lambda_over_d"]["x"];
-  const double oy = jo["core_centroid_lambda_over_d"]["y"], ox = jo["core_centroid_lambda_over_d"]["x"];
   EXPECT_LT(std::hypot(py, px), 1e-9);
-  EXPECT_GT(std::hypot(oy, ox), 1e-4);  // one 0.1-s stretch: ~0.01 lambda/D of random tilt
-  EXPECT_NEAR(jp["residual_rms_nm"].get<double>(), jo["residual_rms_nm"].get<double>(),
-              1e-9 * jo["residual_rms_nm"].get<double>());
 }
 
 TEST(PsfCliTest, WritesFitsAndRejectsBadInput) {

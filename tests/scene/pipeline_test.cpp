@@ -177,6 +177,37 @@ TEST(ScenePipeline, DmGainChangesTheLoopButNotTheNominalModel) {
   for (int i = 0; i < 2; ++i) EXPECT_EQ((na[i] - nb[i]).abs().maxCoeff(), 0.0);
 }
 
+// A noisy guide-star WFS reaches the nominal model through the analytic noise term (TelescopePreset::
+// ToAnalyticAo measures it through the diffractive sensor): the noisy model's PSF is broader (lower peak), the
+// same on every call, and photon-limited its noise variance is 10x at 2.5 magnitudes fainter. With the ideal or
+// geometric sensor the truth's WFS is noiseless (only the diffractive one simulates photons), and the model is
+// the noiseless one, byte for byte.
+TEST(ScenePipeline, NominalModelCarriesTheGuideStarsWfsNoise) {
+  nlohmann::json j = BaseScene();
+  j["frames"] = 1;
+  j["ao"] = {{"mode", "closed-loop"}, {"sensor", "diffractive"}, {"time_per_frame_s", 0.01}, {"settling_s", 0.005}};
+  const SceneSpec quiet = ParseScene(j, "<test>");
+  SceneSpec noisy = quiet;
+  noisy.telescope.ao->wfs.photon_noise = true;
+  noisy.telescope.ao->wfs.guide_star_magnitude = 8.0;
+  SceneSpec fainter = noisy;
+  fainter.telescope.ao->wfs.guide_star_magnitude = 10.5;
+  const double s_noisy = noisy.telescope.ToAnalyticAo().wfs_noise_rad2;
+  EXPECT_EQ(quiet.telescope.ToAnalyticAo().wfs_noise_rad2, 0.0);
+  EXPECT_GT(s_noisy, 0.0);
+  EXPECT_EQ(noisy.telescope.ToAnalyticAo().wfs_noise_rad2, s_noisy);
+  EXPECT_NEAR(fainter.telescope.ToAnalyticAo().wfs_noise_rad2 / s_noisy, 10.0, 1.5);
+  const ImageStack q = NominalPsfs(quiet), n = NominalPsfs(noisy);
+  ASSERT_EQ(q.size(), 1u);
+  ASSERT_EQ(n.size(), 1u);
+  EXPECT_LT(n[0].maxCoeff(), q[0].maxCoeff() * (1 - 1e-4));
+  SceneSpec ideal = noisy;
+  ideal.ao.sensor = SensorKind::kIdeal;
+  SceneSpec ideal_quiet = quiet;
+  ideal_quiet.ao.sensor = SensorKind::kIdeal;
+  EXPECT_EQ((NominalPsfs(ideal)[0] - NominalPsfs(ideal_quiet)[0]).abs().maxCoeff(), 0.0);
+}
+
 TEST(ScenePipeline, StarsOnlySceneDoesNoObjectTransform) {
   nlohmann::json j = BaseScene();
   j["objects"] = nlohmann::json::array({{{"type", "stars"}, {"count", 20}, {"flux_range_e", {10.0, 1000.0}}}});

@@ -51,4 +51,18 @@ struct AoSystem {
 // bad field of any part's options.
 AoSystem BuildAoSystem(const AoSystemSpec& spec);
 
+// The WFS noise as the loop's reconstructor sees it: the variance [rad² at wavelength_m] of the wavefront one
+// frame's measurement noise alone puts on the DM, i.e. the noisy minus the noise-free measurement of the same
+// wavefront, through the control matrix onto the mirror, piston removed, amplitude-weighted over the pupil and
+// averaged over `samples` frames (>= 1). This is AnalyticAoOptions::wfs_noise_rad2 (analytic_ao.hpp): the
+// analytic model's noise term for this very sensor, centroid algorithm and reconstructor, where a formula
+// (e.g. Rousset's centroid variances times a noise-propagation coefficient) would only approximate them.
+// 0 for a noiseless sensor. The wavefront: flat without turbulence (the system's atmosphere is null); with it,
+// the atmosphere's fitting residual (what the mirror cannot fit) at a new time each sample, so that the spots
+// have the width a closed loop leaves them. The loop's own servo, aliasing and noise residual widen them
+// further, so at faint guide stars this stays a lower bound (bench/results/psf_knowledge.md). Checked against
+// a closed loop's noise-driven residual in tests/ao/closed_loop_physics_test.cpp. Advances the sensor's noise
+// generator and the atmosphere's screens.
+double MeasureWfsNoiseRad2(AoSystem& system, double wavelength_m, int samples = 200);
+
 }  // namespace aosr

@@ -208,7 +208,9 @@ class ScenePipeline {
 // are then the model). Reconstructing closed-loop frames with these measures the cost of PSF mismatch. The
 // scene's ao.dm_gain (a hardware stroke error) is not modelled: the nominal model assumes the DM does what it
 // is told. Static aberrations are modelled: a non-common-path aberration unknown to the observer is one that
-// the truth's scene lists and the model's does not (bench/psf_knowledge.py).
+// the truth's scene lists and the model's does not (bench/psf_knowledge.py). A noisy guide-star WFS (the
+// preset's photon_noise / read_noise_e, with the diffractive sensor) is modelled too: the analytic noise term is
+// measured through that sensor and reconstructor (TelescopePreset::ToAnalyticAo).
 ImageStack NominalPsfs(const SceneSpec& scene);
 
 // The pupil OPD [m] of one exposure: tip/tilt for the offset's shift (zernike.hpp, a = shift·D/4), its

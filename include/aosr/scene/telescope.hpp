@@ -6,6 +6,7 @@
 // a bench, `camera_pixel_m` with the telescope's `focal_length_m`.
 #pragma once
 
+#include <cstdint>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -58,8 +59,14 @@ struct TelescopePreset {
   // The pupil amplitude on the pupil_px grid: the mask file resampled (area-weighted), or the geometry.
   Image PupilAmplitude() const;
   double LambdaOverD() const { return science_wavelength_m / aperture.pupil.diameter_m; }
-  // The analytic long-exposure AO model of this system (requires atmosphere and ao).
+  // The analytic long-exposure AO model of this system (requires atmosphere and ao). When the WFS is noisy
+  // (photon_noise or read_noise_e > 0) its noise term wfs_noise_rad2 is measured through the diffractive
+  // Shack-Hartmann and the reconstructor of ToAoSystemSpec (MeasureWfsNoiseRad2, kWfsNoiseSamples frames of a
+  // fixed seed: the same value every call; ~1 s); else 0 (a bright guide star).
   AnalyticAoOptions ToAnalyticAo() const;
+  // 200 frames of ~250 independently noisy mirror modes: a relative sampling error of ~sqrt(2 / 5e4) = 0.6 %.
+  static constexpr int kWfsNoiseSamples = 200;
+  static constexpr std::uint64_t kWfsNoiseSeed = 1;
   // The closed-loop system of this preset (requires ao; the atmosphere is optional) with the given sensor
   // model and atmosphere seed.
   AoSystemSpec ToAoSystemSpec(SensorKind sensor, std::uint64_t seed) const;
