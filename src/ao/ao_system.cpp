@@ -54,16 +54,13 @@ double MeasureWfsNoiseRad2(AoSystem& system, double wavelength_m, int samples) {
   std::unique_ptr<DmFitter> fitter;
   if (system.atmosphere) fitter = std::make_unique<DmFitter>(system.dm, system.amplitude);
   Image wavefront = Image::Zero(n, n);
-  Vector clean = system.wfs->MeasureNoiseless(wavefront);
-  Vector noisy(clean.size());
+  Vector clean(system.wfs->n_measurements()), noisy(system.wfs->n_measurements());
   const double sum_a = system.amplitude.sum();
   const double k = 2.0 * M_PI / wavelength_m;
   double variance = 0.0;
   for (int i = 0; i < samples; ++i) {
-    if (fitter) {
-      wavefront = fitter->Residual(system.atmosphere->Opd(kWfsNoiseSampleSpacingS * i));
-      system.wfs->MeasureNoiseless(wavefront, clean);
-    }
+    if (fitter) wavefront = fitter->Residual(system.atmosphere->Opd(kWfsNoiseSampleSpacingS * i));
+    if (fitter || i == 0) system.wfs->MeasureNoiseless(wavefront, clean);  // the flat's once
     system.wfs->Measure(wavefront, noisy);
     const Vector commands = system.control_matrix.matrix * (noisy - clean);
     const Image opd = system.dm->Opd(commands);
