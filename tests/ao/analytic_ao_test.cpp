@@ -13,7 +13,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.141592653589793238462643383279;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The von Karman constant, written out independently of the library.

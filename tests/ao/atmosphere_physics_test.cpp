@@ -14,7 +14,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 AtmosphereOptions OneLayer(double speed, double direction, std::uint64_t seed) {
   AtmosphereOptions o;

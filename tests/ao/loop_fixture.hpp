@@ -20,7 +20,6 @@
 namespace aosr::test {
 
 constexpr double kPaperDiameter = 8.0;
-constexpr double kPi = 3.14159265358979323846;
 
 
 inline AtmosphereOptions PaperAtmosphere(std::uint64_t seed) {

@@ -15,7 +15,6 @@ namespace aosr {
 namespace {
 
 constexpr double kD = 8.0;
-constexpr double kPi = 3.14159265358979323846;
 
 Image TiltOpd(Index n, double sx, double sy) {
   Image w(n, n);

@@ -10,7 +10,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 TEST(VonKarmanTest, Constants) {

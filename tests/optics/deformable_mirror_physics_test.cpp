@@ -26,7 +26,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDiameter = 8.0;
 constexpr Index kPupilN = 128;
 constexpr double kPixel = kDiameter / kPupilN;  // 1/16 m

@@ -16,7 +16,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // The 8 m telescope with 16 x 16 subapertures in Fried geometry: 17 x 17 actuators of pitch D/16 = 0.5 m,
 // on a 128-pixel pupil (8 pixels per pitch).

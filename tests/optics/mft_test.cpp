@@ -11,7 +11,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 ComplexImage RandomField(Shape s, std::uint64_t seed) {
   std::mt19937_64 rng(seed);

@@ -16,7 +16,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDiameter = 8.0;        // m
 constexpr double kWavelength = 1.65e-6;  // m (H band)
 constexpr double kLambdaOverD = kWavelength / kDiameter;
