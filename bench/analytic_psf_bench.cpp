@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/memory.hpp"
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/core/fft.hpp"

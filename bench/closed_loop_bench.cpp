@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/memory.hpp"
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/ao/closed_loop.hpp"

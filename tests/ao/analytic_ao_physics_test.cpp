@@ -9,6 +9,7 @@
 #include <iostream>
 #include <limits>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/optics/psf.hpp"
 #include "aosr/optics/pupil.hpp"

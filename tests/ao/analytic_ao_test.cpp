@@ -1,5 +1,6 @@
 // Unit tests of the analytic AO model: options, loop transfer functions, PSD terms and their integrals,
 // structure-function geometry (include/aosr/ao/analytic_ao.hpp).
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/analytic_ao.hpp"
 
 #include <gtest/gtest.h>

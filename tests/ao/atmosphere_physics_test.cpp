@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/ao/von_karman.hpp"
 

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/ao/ao_system.hpp"
 #include "aosr/ao/atmosphere.hpp"

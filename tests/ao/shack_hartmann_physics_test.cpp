@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/shack_hartmann.hpp"
 #include "aosr/optics/pupil.hpp"
 #include "aosr/optics/zernike.hpp"

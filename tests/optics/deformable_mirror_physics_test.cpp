@@ -18,6 +18,7 @@
 #include <random>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/fft.hpp"
 #include "aosr/optics/deformable_mirror.hpp"
 #include "aosr/optics/psf.hpp"

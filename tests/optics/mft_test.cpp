@@ -1,3 +1,4 @@
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/optics/mft.hpp"
 
 #include <gtest/gtest.h>

@@ -8,6 +8,7 @@
 #include <map>
 #include <random>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/fft.hpp"
 #include "aosr/optics/psf.hpp"
 #include "aosr/optics/pupil.hpp"

@@ -1,3 +1,4 @@
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/optics/zernike.hpp"
 
 #include <gtest/gtest.h>
