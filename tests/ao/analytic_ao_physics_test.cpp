@@ -16,7 +16,7 @@
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 

@@ -12,7 +12,7 @@
 #include <utility>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 

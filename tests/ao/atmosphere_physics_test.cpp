@@ -13,7 +13,7 @@
 #include "aosr/ao/von_karman.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 
 AtmosphereOptions OneLayer(double speed, double direction, std::uint64_t seed) {

@@ -8,7 +8,7 @@
 #include "aosr/ao/von_karman.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 AtmosphereOptions ThreeLayers() {
   AtmosphereOptions o;

@@ -21,7 +21,7 @@
 #include "loop_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using test::KBandScience;
 using test::kPaperDiameter;
@@ -402,7 +402,7 @@ TEST(ClosedLoopPhysicsTest, OffsetsLandWhereCommandedWithOnSkyCalibration) {
 }  // namespace aosr
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // The WFS-noise term of the analytic model, measured through the sensor and the reconstructor
 // (MeasureWfsNoiseRad2): (1) photon-limited, its variance scales as 1/flux (2.5 magnitudes = 10x); (2) a closed

@@ -12,7 +12,7 @@
 #include "loop_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using test::KBandScience;
 using test::kPaperDiameter;

@@ -15,7 +15,7 @@
 #include "aosr/optics/pupil.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kD = 8.0;
 

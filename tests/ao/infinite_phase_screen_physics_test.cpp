@@ -11,7 +11,7 @@
 #include "aosr/ao/von_karman.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Width 64, length 64, dx = 4 cm (2.56 m), r0 = 0.1 m, L0 = 10 m. After a burn-in of 10 window lengths
 // (640 rows), 4 seeds x 80000 further rows are extruded; every new row contributes its across-row pairs

@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 InfinitePhaseScreenOptions Small() {
   InfinitePhaseScreenOptions o;

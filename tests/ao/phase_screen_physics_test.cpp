@@ -16,7 +16,7 @@
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Mean and standard error of per-sample estimates.
 struct Estimate {

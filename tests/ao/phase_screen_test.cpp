@@ -10,7 +10,7 @@
 #include "aosr/ao/von_karman.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 PhaseScreenOptions SmallOptions() {
   PhaseScreenOptions o;

@@ -9,7 +9,7 @@
 #include <limits>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 

@@ -14,7 +14,7 @@
 #include "calib_trials.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(CalibratePhysics, GainsWithinTwoSigmaAndSigmaMatchesTheScatter) {
   SyntheticCalibrationOptions o;

@@ -10,7 +10,7 @@
 #include "calib_trials.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(CalibrateSlow, FiftyTrialsOfThePaperBenchSet) {
   const SyntheticCalibrationOptions o =

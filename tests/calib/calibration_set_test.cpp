@@ -16,7 +16,7 @@
 #include "aosr/io/fits.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 

@@ -11,7 +11,7 @@
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 CalibrationOptics BenchOptics() {
   CalibrationOptics o;

@@ -16,7 +16,7 @@
 #include "aosr/io/image_io.hpp"
 #include "support/testing.hpp"
 
-namespace {
+namespace AOSR_TEST_NS {
 
 using aosr::Index;
 using aosr::test::CliRun;

@@ -14,7 +14,7 @@
 #include "aosr/io/fits.hpp"
 #include "support/testing.hpp"
 
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 using aosr::test::CliRun;

@@ -9,7 +9,7 @@
 
 #include "support/testing.hpp"
 
-namespace {
+namespace AOSR_TEST_NS {
 
 using aosr::test::CliRun;
 using aosr::test::RunCli;

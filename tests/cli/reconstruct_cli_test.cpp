@@ -13,7 +13,7 @@
 #include "aosr/io/fits.hpp"
 #include "support/testing.hpp"
 
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 using aosr::test::CliRun;
@@ -258,8 +258,6 @@ TEST_F(ReconstructCliTest, ProgressGoesToStderrOnlyWhenAskedOrOnATerminal) {
   }
 }
 
-}  // namespace
-
 // --offsets estimate: every method runs on the shifted model, and the summary lists per frame the commanded
 // and estimated offsets in camera px (here the DM applies exactly the commanded raster: estimated ≈ commanded).
 TEST_F(ReconstructCliTest, OffsetsEstimateReportsCommandedAndEstimatedPerFrame) {
@@ -283,8 +281,6 @@ TEST_F(ReconstructCliTest, OffsetsEstimateReportsCommandedAndEstimatedPerFrame) 
   EXPECT_NE(bad.status, 0);
   EXPECT_THAT(bad.out, HasSubstr("mean | frame0"));
 }
-
-namespace {
 
 // --model-psfs stars on data/scenes/crowded-stars.json shrunk to 48² camera px and 40 stars: the PSF from the
 // frames' own stars, its report, the cube --stars-psf-out writes, a reconstruction close to the oracle PSFs'

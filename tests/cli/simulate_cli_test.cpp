@@ -10,7 +10,7 @@
 
 #include "support/testing.hpp"
 
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 using aosr::test::CliRun;
@@ -199,8 +199,6 @@ TEST_F(SimulateCliTest, ThePeakMemoryEstimateIsOfTheOrderOfTheRun) {
   EXPECT_LT(estimate, 4.0 * used) << "estimate " << estimate << " B, measured " << used << " B above the baseline";
 }
 
-}  // namespace
-
 // --calibration: the simulated DM applies each commanded mode times its calibrated gain, so a raster made of
 // Z2/Z3 shifts is applied at g times its size; the manifest records the applied offsets.
 TEST_F(SimulateCliTest, CalibrationScalesWhatTheDmApplies) {
@@ -226,3 +224,5 @@ TEST_F(SimulateCliTest, CalibrationScalesWhatTheDmApplies) {
   EXPECT_EQ(r.status, 1) << r.out;  // CLI11's own validation error, with the documented usage-error code
   EXPECT_THAT(r.out, HasSubstr("nope.json"));
 }
+
+}  // namespace

@@ -14,7 +14,7 @@
 
 #include "support/testing.hpp"
 
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 using aosr::test::CliRun;

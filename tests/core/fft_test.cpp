@@ -10,7 +10,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 Image RandomImage(Shape s, std::uint64_t seed) { return aosr::test::RandomImage(s, seed, /*normal=*/false); }
 

@@ -12,7 +12,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 Image Random(Shape s, std::uint64_t seed) { return aosr::test::RandomImage(s, seed); }
 

@@ -5,7 +5,7 @@
 #include "aosr/core/levenberg_marquardt.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(LevenbergMarquardtErrorsTest, NegativeOptionsAreRejectedNamingTheField) {
   const LeastSquaresResiduals r = [](const Eigen::VectorXd& th, Eigen::MatrixXd* jac) {

@@ -5,7 +5,7 @@
 #include <cmath>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // r_i(a, b) = a exp(−b t_i) − y_i with J = [exp(−b t), −a t exp(−b t)].
 LeastSquaresResiduals Exponential(const Eigen::VectorXd& t, const Eigen::VectorXd& y) {

@@ -9,7 +9,7 @@
 #include <vector>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Values k/64 with k in 0..63: dyadic, so sums and differences with dyadic offsets are exact in double.
 Image DyadicImage(Shape s, std::uint64_t seed) {

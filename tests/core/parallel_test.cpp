@@ -10,7 +10,7 @@
 #include "aosr/core/error.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(ParallelForTest, CallsEveryIndexExactlyOnce) {
   for (int threads : {1, 2, 3, 8})

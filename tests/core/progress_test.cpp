@@ -13,7 +13,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using ::testing::HasSubstr;
 

@@ -12,7 +12,7 @@
 #include "aosr/scene/scene_spec.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // A pure image shift s (camera px) is a wavefront tilt of angle s · pixel [rad]: every lenslet of a
 // geometric Shack-Hartmann sees that slope, whatever grid samples the pupil. Oracle: the geometry alone.

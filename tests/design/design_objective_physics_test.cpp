@@ -12,7 +12,7 @@
 #include "design/design_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using design_test::SmallOptics;
 using design_test::SmallPupil;

@@ -14,7 +14,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 std::vector<Image> Fields(const PowerSpectrumModel& m, int count, Index side, std::uint64_t seed) {
   std::vector<Image> out;

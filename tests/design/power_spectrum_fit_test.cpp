@@ -14,7 +14,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(PowerSpectrumFitTest, GridIsTheModelSymmetricWithZeroFrequencyAtTheOrigin) {
   const PowerSpectrumModel m{2.0, 0.07, 2.5, 0.01};

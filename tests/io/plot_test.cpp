@@ -11,7 +11,7 @@
 #include "temp_dir.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using ::testing::HasSubstr;
 using testing_io::TempDir;

@@ -10,7 +10,7 @@
 #include "temp_dir.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using testing_io::TempDir;
 

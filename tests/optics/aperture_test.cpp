@@ -10,7 +10,7 @@
 #include "aosr/optics/pupil.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kSqrt3 = 1.7320508075688772935;
 

@@ -25,7 +25,7 @@
 #include "aosr/optics/pupil.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kDiameter = 8.0;
 constexpr Index kPupilN = 128;

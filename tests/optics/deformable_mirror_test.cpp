@@ -15,7 +15,7 @@
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 
 // The 8 m telescope with 16 x 16 subapertures in Fried geometry: 17 x 17 actuators of pitch D/16 = 0.5 m,

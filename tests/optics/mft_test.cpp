@@ -10,7 +10,7 @@
 #include "aosr/core/fft.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 
 ComplexImage RandomField(Shape s, std::uint64_t seed) {

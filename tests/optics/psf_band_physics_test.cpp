@@ -9,7 +9,7 @@
 #include "aosr/optics/pupil.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kDiameter = 8.0;
 constexpr double kLambda = 1.65e-6;  // band centre [m]

@@ -5,7 +5,7 @@
 #include <cmath>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // A well-sampled circular Gaussian: equivalent-area FWHM = 2 sqrt(2 ln 2) sigma, EE(ρ) = 1 - exp(-ρ²/2σ²).
 TEST(PsfMetricsTest, GaussianFwhmAndEncircledEnergy) {

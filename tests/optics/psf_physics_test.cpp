@@ -15,7 +15,7 @@
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kDiameter = 8.0;        // m
 constexpr double kWavelength = 1.65e-6;  // m (H band)

@@ -11,7 +11,7 @@
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kDiameter = 8.0;
 constexpr double kWavelength = 1.0e-6;

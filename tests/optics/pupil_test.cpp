@@ -7,7 +7,7 @@
 #include <string>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 
 TEST(PupilTest, GridCoordinatesSpanTheDiameterSymmetrically) {

@@ -9,7 +9,7 @@
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Largest |<M_i, M_j>_A - delta_ij| with <f, g>_A = sum A f g / sum A.
 double OrthonormalityError(const ImageStack& modes, const Image& pupil) {

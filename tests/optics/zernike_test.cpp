@@ -13,7 +13,7 @@
 #include "aosr/optics/pupil.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 
 // Noll (1976), Table 1: (n, m) of Z_1 .. Z_22, with m < 0 for the sin modes.

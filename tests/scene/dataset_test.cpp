@@ -15,7 +15,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 using testing_io::TempDir;
@@ -217,7 +217,7 @@ TEST_F(DatasetTest, RewritingAFolderReplacesTheDataset) {
 }  // namespace aosr
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // A closed-loop simulation also writes the nominal model (the analytic-AO PSFs of the same offsets), which
 // loads as Dataset::nominal_psfs: unit sum, the PSFs' shape, close to but not equal to the loop's draws.

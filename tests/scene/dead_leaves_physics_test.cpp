@@ -9,7 +9,7 @@
 #include "aosr/scene/dead_leaves.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Least-squares slope of log P(f) against log f of the radially averaged power spectrum (annuli of width one
 // frequency bin, mean removed) over f in [f_lo, f_hi] cycles per pixel.

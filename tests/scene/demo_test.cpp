@@ -5,7 +5,7 @@
 #include "aosr/core/operators.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 DemoOptions Small() {
   DemoOptions o;

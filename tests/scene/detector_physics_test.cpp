@@ -8,7 +8,7 @@
 #include "aosr/scene/photometry.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 struct Moments {
   double mean = 0, variance = 0;

@@ -10,7 +10,7 @@
 #include "aosr/scene/noise.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Every effect off: the detector is the read-out conversion only.
 DetectorOptions Noiseless() {

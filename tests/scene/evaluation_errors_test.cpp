@@ -9,7 +9,7 @@
 #include "aosr/core/error.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using ::testing::HasSubstr;
 using ::testing::ThrowsMessage;

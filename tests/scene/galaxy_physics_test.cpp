@@ -8,7 +8,7 @@
 #include "aosr/scene/galaxy.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(IncompleteGammaTest, ClosedForms) {
   for (double x : {0.0, 1e-3, 0.1, 0.7, 1.0, 2.5, 10.0, 40.0}) {

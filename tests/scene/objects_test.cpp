@@ -8,7 +8,7 @@
 #include <utility>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(UsafTest, FrequenciesFollowTheChartFormula) {
   EXPECT_DOUBLE_EQ(UsafFrequency(0, 1), 1.0);

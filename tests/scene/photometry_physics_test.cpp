@@ -5,7 +5,7 @@
 #include "aosr/scene/photometry.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // "A magnitude-12 source in K, 10 s split over 16 frames, 8 m telescope with a 14% obstruction, 50%
 // throughput", by hand:

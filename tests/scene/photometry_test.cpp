@@ -5,7 +5,7 @@
 #include <cmath>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kH = 6.62607015e-34, kC = 299792458.0;
 

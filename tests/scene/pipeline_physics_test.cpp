@@ -14,7 +14,7 @@
 #include "../io/temp_dir.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 nlohmann::json Scene(nlohmann::json objects, int frame_px = 32) {
   return {{"name", "physics"},

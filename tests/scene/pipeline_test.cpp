@@ -11,7 +11,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // A small, cheap scene: paper-8m optics without turbulence, 32-px frames, r = 2, no noise.
 nlohmann::json BaseScene() {

@@ -13,7 +13,7 @@
 #include "aosr/scene/star_field.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Unit-sum diffraction-limited PSF of a 8 m, 14%-obstructed pupil, `pitch_lambda_over_d` per HR pixel,
 // on an odd window so that the kernel is exactly symmetric about its centre pixel.

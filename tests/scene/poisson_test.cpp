@@ -6,7 +6,7 @@
 #include <map>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(PoissonTest, LogPmfMatchesLgammaEverywhere) {
   for (double mean : {0.5, 9.99, 10.0, 123.4, 1e4, 1e8}) {

@@ -7,7 +7,7 @@
 #include "aosr/scene/raster.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(RasterTest, CompleteRasterVisitsEveryHrPhaseOnceAndIsCentred) {
   for (int r : {2, 3, 4}) {

@@ -18,7 +18,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using aosr::test::ErrorOf;
 using ::testing::AllOf;
@@ -497,7 +497,7 @@ TEST(SceneSpecErrorsTest, LoadSceneNamesTheFile) {
 }  // namespace aosr
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Checks that used to fire only when the scene ran now fail at parse time (so `--plan` refuses them too).
 TEST(SceneSpecErrorsTest, DemoObjectNeedsA64PixelHrFrame) {

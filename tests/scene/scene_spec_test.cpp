@@ -21,7 +21,7 @@
 #include "aosr/scene/telescope.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 using Json = nlohmann::json;

@@ -6,7 +6,7 @@
 #include <cmath>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(StarFieldTest, DeterministicPerSeedAndInTheField) {
   const Shape hr{100, 150};

@@ -7,7 +7,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // A Gaussian blob of total flux f at (y, x), sigma s (HR px), plus a constant background.
 void AddBlob(Image* img, double y, double x, double f, double s) {

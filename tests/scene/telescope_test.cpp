@@ -8,7 +8,7 @@
 #include "aosr/io/image_io.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // The paper's system as the issue states it.
 TEST(TelescopePresetTest, PaperSystemLoadsWithItsNumbers) {

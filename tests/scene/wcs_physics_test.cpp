@@ -15,7 +15,7 @@
 #include "io/temp_dir.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using testing_io::TempDir;
 

@@ -7,7 +7,7 @@
 #include <random>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // A dense symmetric matrix as a LinearOperator.
 class DenseOp final : public LinearOperator {

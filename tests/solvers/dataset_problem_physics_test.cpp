@@ -14,7 +14,7 @@
 #include "aosr/solvers/reconstruct.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // A K = 14 star (6.8e4 e- per 1 s frame, crowded-stars' brightest bin) on a K-band sky (550 e-/s per camera
 // pixel), read noise 5 e-, behind the paper's telescope without turbulence, 4 raster frames of 32² px, r = 2.

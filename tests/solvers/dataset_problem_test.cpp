@@ -20,7 +20,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using ::testing::HasSubstr;
 

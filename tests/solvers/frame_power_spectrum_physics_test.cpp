@@ -15,7 +15,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // An object with s(f) = E|X(f)|²/M² = model(|f|) exactly at the grid's frequencies: IFFT(√s · FFT(white)).
 Image RandomField(Shape hr, const PowerSpectrumModel& model, std::uint64_t seed) {

@@ -13,7 +13,7 @@
 #include "solvers/map_fixtures.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using map_test::MakeProblem;
 using map_test::Psnr;

@@ -40,7 +40,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using namespace stability_test;  // NOLINT: test-local helpers
 using test::ErrorOf;

@@ -23,7 +23,7 @@
 #include "aosr/solvers/reconstruct.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using Shifts = std::vector<std::pair<double, double>>;  // camera px
 

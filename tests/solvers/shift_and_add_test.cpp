@@ -7,7 +7,7 @@
 #include "drizzle_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // On a complete integer raster, mean shift-and-add of noise-free box-pixel frames equals the object
 // blurred by the separable triangle c[d] = (r - |d|)/r² per axis (see shift_and_add.hpp).

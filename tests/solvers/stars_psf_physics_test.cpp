@@ -19,7 +19,7 @@
 #include "aosr/solvers/stars_psf.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr int kSeed = 7;
 

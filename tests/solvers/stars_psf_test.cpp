@@ -9,7 +9,7 @@
 #include "solvers/stars_psf_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 Image Gaussian(Index k, double cy, double cx, double sigma) {
   Image g(k, k);

@@ -8,7 +8,7 @@
 #include "solvers/tikhonov_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 std::shared_ptr<const MultiFrameModel> Model(Shape hr) {
   return std::make_shared<MultiFrameModel>(

@@ -15,7 +15,7 @@
 #include "solvers/tikhonov_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using test::RasterModel;
 

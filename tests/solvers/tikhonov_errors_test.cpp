@@ -14,7 +14,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using test::ErrorOf;
 using ::testing::HasSubstr;

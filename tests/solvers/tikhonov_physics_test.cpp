@@ -14,7 +14,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // What the std map is. C = σ²(AᵀWA + λΓᵀΓ)⁻¹ is the covariance of x − x̂ when the object is drawn from the
 // prior *and* the noise is drawn: the Bayesian error. Over noise alone (object fixed) x̂ has the smaller

@@ -7,7 +7,7 @@
 #include "solvers/tikhonov_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(TikhonovStdPhysicsTest, PosteriorDrawsMatchTheClosedFormWithinTheirErrorBars) {
   const Shape hr{32, 32};

@@ -16,7 +16,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 Image Random(Shape s, std::uint64_t seed) { return aosr::test::RandomImage(s, seed); }
 
@@ -171,7 +171,7 @@ TEST(TikhonovTest, RanksOnRequestAgreeWithTheSvdCounts) {
 }  // namespace aosr
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // GCV needs no noise level, yet its λ should give an error close to the best λ on the same grid
 // (an oracle that knows the truth). Smooth object, 2% white noise, N = r² raster.
@@ -206,7 +206,7 @@ TEST(TikhonovTest, GcvChoosesALambdaNearTheOracle) {
 }  // namespace aosr
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using test::RasterModel;
 
@@ -486,7 +486,7 @@ TEST(TikhonovTest, GcvWalksUpwardsPastTheTopOfItsGrid) {
 // ---- λ rules in closed form (issue 15): FourierSystem::EvaluateSpectral --------------------------------------
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using tikhonov_internal::FourierSystem;
 using tikhonov_internal::PriorSymbolImage;
@@ -630,7 +630,7 @@ TEST(TikhonovTest, GcvContinuousOptimumAgreesWithAFineGrid) {
 #include "solvers/bin_kernels.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using tikhonov_internal::FourierSystem;
 using tikhonov_internal::PriorSymbolImage;

@@ -21,7 +21,7 @@
 #include "total_variation_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using tv_test::NoisyProblem;
 using tv_test::RasterModel;
