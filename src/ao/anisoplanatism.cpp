@@ -9,10 +9,8 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // 6.8839^(-3/5): the structure function constant 2 [24/5 Gamma(6/5)]^(5/6) to the power -3/5.
-double ThetaZeroConstant() {
+double AnisoplanatismThetaZeroConstant() {
   const double c = 2.0 * std::pow(24.0 / 5.0 * std::tgamma(6.0 / 5.0), 5.0 / 6.0);
   return std::pow(c, -3.0 / 5.0);
 }
@@ -53,7 +51,7 @@ double IsoplanaticAngleRad(double r0_m, double r0_wavelength_m, double wavelengt
   const double cos_z = std::cos(zenith_rad);
   // r0 along the line of sight: r0 cos(zeta)^(3/5); layers at h sec(zeta) from the telescope.
   const double r0 = r0_m * std::pow(wavelength_m / r0_wavelength_m, 6.0 / 5.0) * std::pow(cos_z, 3.0 / 5.0);
-  return ThetaZeroConstant() * r0 / (h_bar / cos_z);
+  return AnisoplanatismThetaZeroConstant() * r0 / (h_bar / cos_z);
 }
 
 double FriedAnisoplanaticVarianceRad2(double theta_rad, double theta0_rad) {

@@ -38,7 +38,7 @@ struct PsfArgs {
   ExecutionArgs exec;
 };
 
-constexpr double kArcsecPerRad = 180.0 * 3600.0 / M_PI;
+constexpr double kPsfCommandArcsecPerRad = 180.0 * 3600.0 / M_PI;
 
 // "X,Y" [arcsec] -> direction [rad]; finite numbers only.
 FieldDirection ParseFieldDirection(const std::string& text) {
@@ -51,7 +51,7 @@ FieldDirection ParseFieldDirection(const std::string& text) {
     const double y = std::stod(text.substr(comma + 1), &used_y);
     if (used_x != comma || used_y != text.size() - comma - 1 || !std::isfinite(x) || !std::isfinite(y))
       throw InvalidArgument("aosr psf", "--field-direction", text, allowed);
-    return {x / kArcsecPerRad, y / kArcsecPerRad};
+    return {x / kPsfCommandArcsecPerRad, y / kPsfCommandArcsecPerRad};
   } catch (const std::logic_error&) {
     throw InvalidArgument("aosr psf", "--field-direction", text, allowed);
   }
@@ -97,13 +97,13 @@ void RunPsf(const PsfArgs& args) {
   o.settling_s = args.settling_s;
   o.seed = args.seed;
   o.antithetic = args.antithetic;
-  if (!std::isfinite(args.field_angle_arcsec) || std::abs(args.field_angle_arcsec) > 0.01 * kArcsecPerRad)
+  if (!std::isfinite(args.field_angle_arcsec) || std::abs(args.field_angle_arcsec) > 0.01 * kPsfCommandArcsecPerRad)
     throw InvalidArgument("aosr psf", "--field-angle", ToString(args.field_angle_arcsec),
                           "a finite angle in arcsec, at most 2062.6 (0.01 rad) from the guide star");
   if (!args.field_direction.empty() && args.field_angle_arcsec != 0.0)
     throw InvalidArgument("aosr psf", "--field-direction", args.field_direction,
                           "not together with --field-angle (one direction: --field-angle A is --field-direction A,0)");
-  o.field_direction = args.field_direction.empty() ? FieldDirection{args.field_angle_arcsec / kArcsecPerRad, 0.0}
+  o.field_direction = args.field_direction.empty() ? FieldDirection{args.field_angle_arcsec / kPsfCommandArcsecPerRad, 0.0}
                                                    : ParseFieldDirection(args.field_direction);
   {
     std::string why;
@@ -141,8 +141,8 @@ void RunPsf(const PsfArgs& args) {
     h.Set("STREHL", strehl, "peak / diffraction-limited peak");
     h.Set("NORMALIS", "whole focal plane sums to 1", "window sum = light in the window");
     if (!o.field_direction.IsZero()) {
-      h.Set("FIELDX", o.field_direction.x_rad * kArcsecPerRad, "[arcsec] science direction from the guide star, x");
-      h.Set("FIELDY", o.field_direction.y_rad * kArcsecPerRad, "[arcsec] science direction from the guide star, y");
+      h.Set("FIELDX", o.field_direction.x_rad * kPsfCommandArcsecPerRad, "[arcsec] science direction from the guide star, x");
+      h.Set("FIELDY", o.field_direction.y_rad * kPsfCommandArcsecPerRad, "[arcsec] science direction from the guide star, y");
     }
     for (std::size_t i = 0; i < o.offsets.size(); ++i)
       h.Set("ZOFF" + std::to_string(i), std::to_string(o.offsets[i].noll) + "=" + ToString(o.offsets[i].rms_nm) + " nm",
@@ -163,8 +163,8 @@ void RunPsf(const PsfArgs& args) {
                         {"elongation", result.elongation},
                         {"major_axis_angle_deg", result.major_axis_angle_deg},
                         {"field_direction_arcsec",
-                         {{"x", o.field_direction.x_rad * kArcsecPerRad}, {"y", o.field_direction.y_rad * kArcsecPerRad}}},
-                        {"field_angle_arcsec", o.field_direction.Norm() * kArcsecPerRad},
+                         {{"x", o.field_direction.x_rad * kPsfCommandArcsecPerRad}, {"y", o.field_direction.y_rad * kPsfCommandArcsecPerRad}}},
+                        {"field_angle_arcsec", o.field_direction.Norm() * kPsfCommandArcsecPerRad},
                         {"encircled_energy", {{"radius_lambda_over_d", {1, 2, 5}}, {"fraction_of_window", ee}}},
                         {"window_sum", result.window_sum},
                         {"core_centroid_lambda_over_d", {{"y", result.core_centroid_lod[0]}, {"x", result.core_centroid_lod[1]}}},
@@ -172,7 +172,7 @@ void RunPsf(const PsfArgs& args) {
                         {"seconds", seconds}};
     // JSON has no infinity: null when no atmosphere or all the turbulence is at the ground.
     j["isoplanatic_angle_arcsec"] = result.isoplanatic_angle_rad > 0 && std::isfinite(result.isoplanatic_angle_rad)
-                                        ? nlohmann::json(result.isoplanatic_angle_rad * kArcsecPerRad)
+                                        ? nlohmann::json(result.isoplanatic_angle_rad * kPsfCommandArcsecPerRad)
                                         : nlohmann::json(nullptr);
     if (!args.output.empty()) j["output"] = args.output;
     if (!loop_report.empty())
@@ -186,10 +186,10 @@ void RunPsf(const PsfArgs& args) {
   std::printf("  elongation %.3f (FWHM %.3f x %.3f lambda/D), major axis at %+.1f deg from +x\n", result.elongation,
               result.fwhm_major_px / lod_px, result.fwhm_minor_px / lod_px, result.major_axis_angle_deg);
   if (!o.field_direction.IsZero() || result.isoplanatic_angle_rad > 0) {
-    std::printf("  field direction (x, y) = (%+.2f, %+.2f) arcsec from the guide star", o.field_direction.x_rad * kArcsecPerRad,
-                o.field_direction.y_rad * kArcsecPerRad);
+    std::printf("  field direction (x, y) = (%+.2f, %+.2f) arcsec from the guide star", o.field_direction.x_rad * kPsfCommandArcsecPerRad,
+                o.field_direction.y_rad * kPsfCommandArcsecPerRad);
     if (result.isoplanatic_angle_rad > 0 && std::isfinite(result.isoplanatic_angle_rad))
-      std::printf("; isoplanatic angle theta0 = %.2f arcsec", result.isoplanatic_angle_rad * kArcsecPerRad);
+      std::printf("; isoplanatic angle theta0 = %.2f arcsec", result.isoplanatic_angle_rad * kPsfCommandArcsecPerRad);
     std::printf("\n");
   }
   std::printf("  EE(1, 2, 5 lambda/D) = %.4f, %.4f, %.4f of the window (window holds %.4f of all light)\n", ee[0],

@@ -13,7 +13,7 @@
 
 namespace aosr {
 namespace {
-constexpr double kArcsecPerRad = 180.0 * 3600.0 / M_PI;
+constexpr double kPresetPsfArcsecPerRad = 180.0 * 3600.0 / M_PI;
 }  // namespace
 
 bool PresetPsfOptions::IsValid(std::string* why) const {
@@ -34,8 +34,8 @@ bool PresetPsfOptions::IsValid(std::string* why) const {
   if (!(settling_s >= 0) || !std::isfinite(settling_s)) return fail("settling_s = " + ToString(settling_s) + "; allowed: >= 0");
   if (!(std::isfinite(field_direction.x_rad) && std::isfinite(field_direction.y_rad) &&
         field_direction.Norm() <= 0.01))
-    return fail("field_direction = (" + ToString(field_direction.x_rad * kArcsecPerRad) + ", " +
-                ToString(field_direction.y_rad * kArcsecPerRad) +
+    return fail("field_direction = (" + ToString(field_direction.x_rad * kPresetPsfArcsecPerRad) + ", " +
+                ToString(field_direction.y_rad * kPresetPsfArcsecPerRad) +
                 ") arcsec; allowed: finite, at most 0.01 rad = 2062.6 arcsec from the guide star");
   return true;
 }
@@ -134,9 +134,9 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
       const int largest = int(4096 / n);
       if (needed > largest)
         throw InvalidArgument("ComputePresetPsf", "field_direction",
-                              "(" + ToString(o.field_direction.x_rad * kArcsecPerRad) + ", " +
-                                  ToString(o.field_direction.y_rad * kArcsecPerRad) + ") arcsec",
-                              "at most " + ToString(largest * analytic.diameter_m / 4.0 / (reach / o.field_direction.Norm()) * kArcsecPerRad) +
+                              "(" + ToString(o.field_direction.x_rad * kPresetPsfArcsecPerRad) + ", " +
+                                  ToString(o.field_direction.y_rad * kPresetPsfArcsecPerRad) + ") arcsec",
+                              "at most " + ToString(largest * analytic.diameter_m / 4.0 / (reach / o.field_direction.Norm()) * kPresetPsfArcsecPerRad) +
                                   " arcsec from the guide star in analytic mode (the PSD grid of a " + std::to_string(n) +
                                   "-pixel pupil cannot resolve the anisoplanatism of the highest layer beyond it)");
       analytic.frequency_padding = std::max(analytic.frequency_padding, needed);

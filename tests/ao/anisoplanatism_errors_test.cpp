@@ -23,7 +23,7 @@ using aosr::test::ErrorOf;
 using ::testing::HasSubstr;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr double kArcsec = test::kPi / (180.0 * 3600.0);
+constexpr double kArcsec = kPi / (180.0 * 3600.0);
 
 TEST(AnisoplanatismErrorsTest, AtmosphereRefusesDirectionsOutsideItsScreens) {
   AtmosphereOptions o = test::PaperAtmosphere(1);

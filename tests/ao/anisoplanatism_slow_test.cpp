@@ -3,7 +3,8 @@
 // theta0 and 2 theta0 along x (theta0 = 19.9" at K), three seeds x 1 s each (PSF every 4th frame). Stated
 // tolerance: the seeds' mean long-exposure Strehl within 5 % (relative) of the analytic model's with the
 // servo-lag cross term, at every angle. Printed beside it: the model without the cross term (the perfect-loop
-// filter) and the MC's elongation and major-axis angle. Label slow (about a minute).
+// filter) and the MC's elongation and major-axis angle; at 2 theta0 the seeds' mean PSF must stretch along x
+// (major axis within 10 degrees, elongation > 1.03). Label slow (about two minutes).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -21,7 +22,6 @@ namespace aosr {
 namespace {
 
 using test::kPaperDiameter;
-using test::kPi;
 
 constexpr double kArcsec = kPi / (180.0 * 3600.0);
 
@@ -40,7 +40,8 @@ TEST(AnisoplanatismSlowTest, ClosedLoopOffAxisStrehlMatchesTheAnalyticModel) {
     const double model = AnalyticAoPsfCalculator(a, n, options.science).Compute(amplitude, Image::Zero(n, n)).strehl;
     a.anisoplanatism_servo_cross_term = false;
     const double filter = AnalyticAoPsfCalculator(a, n, options.science).Compute(amplitude, Image::Zero(n, n)).strehl;
-    double mean = 0.0;
+    double mean = 0.0, elongation = 0.0;
+    Image psf;
     for (std::uint64_t seed : {41, 42, 43}) {
       // Screens built for 2 theta0 at every angle: the same atmosphere (per seed) for every direction.
       test::LoopSystem system = test::MakePaperSystem(SensorKind::kIdeal, true, seed, control, n, 2.0 * theta0);
@@ -50,12 +51,22 @@ TEST(AnisoplanatismSlowTest, ClosedLoopOffAxisStrehlMatchesTheAnalyticModel) {
                   fraction * theta0 / kArcsec, static_cast<unsigned long>(seed), r.long_exposure_strehl,
                   st.Elongation(), st.major_axis_angle_rad * 180.0 / kPi);
       mean += r.long_exposure_strehl / 3.0;
+      psf = psf.size() == 0 ? Image(r.psf / 3.0) : Image(psf + r.psf / 3.0);
     }
     std::printf("%.1f theta0: closed loop %.4f, analytic %.4f (ratio %.3f), perfect-loop filter %.4f (ratio %.3f); "
                 "%.0f s so far\n",
                 fraction, mean, model, mean / model, filter, mean / filter,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     EXPECT_NEAR(mean / model, 1.0, 0.05) << fraction << " theta0";
+    // The seeds' mean PSF at 2 theta0 stretches along the line to the guide star (x): major axis within 10 deg.
+    const PsfStats mean_stats = MeasurePsf(psf);
+    elongation = mean_stats.Elongation();
+    std::printf("  mean PSF: elongation %.3f, major axis at %+.1f deg\n", elongation,
+                mean_stats.major_axis_angle_rad * 180.0 / kPi);
+    if (fraction == 2.0) {
+      EXPECT_GT(elongation, 1.03);
+      EXPECT_NEAR(mean_stats.major_axis_angle_rad * 180.0 / kPi, 0.0, 10.0);
+    }
   }
 }
 
