@@ -148,7 +148,7 @@ TEST(AnisoplanatismPhysicsTest, AnalyticTermIsTheFilterIntegratedOverTheControlR
       o.field_direction = {theta * std::cos(0.3), theta * std::sin(0.3)};
       const double model = ComputeAnalyticAoErrorBudget(o).anisoplanatism_rad2;
       const double band = radial(r0, o.outer_scale_m, s, o.ControlRadius());
-      std::printf("one layer at 10 km, %2.0f": Kolmogorov whole plane %.4f rad^2, Fried (theta/theta0)^(5/3) %.4f; "
+      std::printf("one layer at 10 km, %2.0f\": Kolmogorov whole plane %.4f rad^2, Fried (theta/theta0)^(5/3) %.4f; "
                   "L0 = 30 m inside the control disk: model %.4f, radial quadrature %.4f\n",
                   theta / kArcsec, kolmogorov, fried, model, band);
       EXPECT_NEAR(kolmogorov / fried, 1.0, 0.005);
