@@ -129,7 +129,8 @@ def evaluate(estimate: Union[ArrayLike, PathLike], *, truth: Union[ArrayLike, Pa
 def psf(preset: PathLike, *, mode: Optional[str] = None,
         offsets: Union[Mapping[int, float], Sequence[Tuple[int, float]], None] = None, r: int = 2,
         pixel_lod: float = 0.0, size: int = 128, sensor: str = "diffractive", exposure: float = 0.5,
-        settling: float = 0.1, seed: int = 1, antithetic: bool = True) -> Dict[str, Any]: ...
+        settling: float = 0.1, seed: int = 1, antithetic: bool = True, field_angle: float = 0.0,
+        field_direction: Optional[Tuple[float, float]] = None) -> Dict[str, Any]: ...
 
 # solvers
 class Reconstruction:

@@ -145,6 +145,26 @@ def test_psf_matches_cli(cli, tmp_path):
         aosr.psf("paper-8m", sensor="magic")
 
 
+def test_psf_off_axis_matches_cli(cli):
+    # Anisoplanatism (issue 31): the PSF 20" from the guide star, as `aosr psf --field-angle 20` (same bytes).
+    j = json.loads(cli("psf", "paper-8m", "--size", 64, "--field-angle", 20, "--json").stdout)
+    p = aosr.psf("paper-8m", size=64, field_angle=20)
+    for k in ("strehl", "fwhm_px", "elongation", "major_axis_angle_deg", "isoplanatic_angle_arcsec",
+              "field_direction_arcsec", "fwhm_major_lambda_over_d", "fwhm_minor_lambda_over_d"):
+        assert p[k] == j[k], k
+    on = aosr.psf("paper-8m", size=64)
+    assert on["field_angle_arcsec"] == 0 and on["strehl"] > p["strehl"]
+    assert p["elongation"] > 1.1 and abs(p["major_axis_angle_deg"]) < 5
+    q = aosr.psf("paper-8m", size=64, field_direction=(0, 20))
+    assert abs(abs(q["major_axis_angle_deg"]) - 90) < 5
+    with pytest.raises(aosr.InvalidArgument, match="field_direction"):
+        aosr.psf("paper-8m", field_direction=(1, 2, 3))
+    with pytest.raises(aosr.InvalidArgument, match="not together"):
+        aosr.psf("paper-8m", field_angle=3, field_direction=(1, 2))
+    with pytest.raises(aosr.InvalidArgument, match="field_direction"):
+        aosr.psf("paper-8m", field_angle=float("nan"))
+
+
 def test_closed_loop_psf_antithetic_pair(cli):
     kw = dict(mode="closed-loop", sensor="ideal", size=32, exposure=0.1, settling=0.05)
     pair = aosr.psf("paper-8m", **kw)

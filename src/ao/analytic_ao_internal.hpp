@@ -24,6 +24,8 @@ struct LoopModel {
     double noise = 0.0;      // |H_n|^2
   };
   Squares At(double x) const;
+  // The complex noise transfer H_n = H_ol / (1 + H_ol) at x (1 at x = 0 for a closed loop, 0 open).
+  Complex NoiseTransfer(double x) const;
 };
 
 // q(x) = (5/3) int_1^inf t^(-8/3) (1 - J0(x t)) dt for x >= 0 (section 5 of the header): 0 at 0, -> 1.

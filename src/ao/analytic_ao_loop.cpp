@@ -42,6 +42,16 @@ LoopModel::Squares LoopModel::At(double x) const {
   return out;
 }
 
+// H_n = H_ol / (1 + H_ol) = (-2 g s sin phi - 2 i g s cos phi) / den (the same den as above).
+Complex LoopModel::NoiseTransfer(double x) const {
+  if (x == 0.0) return Complex(gain > 0.0 ? 1.0 : 0.0, 0.0);
+  const double s = std::sin(0.5 * x);
+  const double phi = x * (delay_frames + 0.5);
+  const double x2 = x * x;
+  const Complex den(x2 - 2.0 * gain * s * std::sin(phi), -2.0 * gain * s * std::cos(phi));
+  return Complex(-2.0 * gain * s * std::sin(phi), -2.0 * gain * s * std::cos(phi)) / den;
+}
+
 }  // namespace analytic_ao_internal
 
 namespace {
@@ -141,6 +151,24 @@ bool AnalyticAoOptions::IsValid(std::string* why) const {
   }
   if (aliasing_orders < 1 || aliasing_orders > 10) {
     return Fail(why, "aliasing_orders = " + ToString(aliasing_orders) + "; allowed: [1, 10]");
+  }
+  if (!(std::isfinite(field_direction.x_rad) && std::isfinite(field_direction.y_rad))) {
+    return Fail(why, "field_direction = (" + ToString(field_direction.x_rad) + ", " +
+                         ToString(field_direction.y_rad) + "); allowed: finite [rad]");
+  }
+  // The filter 2 (1 - cos 2 pi f.(h theta)) has period 1/(h |theta|) in f; the PSD grid's pitch 1/(K D)
+  // resolves it with at least 4 cells per period when h |theta| <= K D / 4.
+  const double reach = 0.25 * frequency_padding * diameter_m;
+  for (std::size_t l = 0; l < layers.size(); ++l) {
+    const double shift = layers[l].altitude_m * field_direction.Norm();
+    if (layers[l].cn2_fraction > 0.0 && shift > reach) {
+      return Fail(why, "field_direction = (" + ToString(field_direction.x_rad) + ", " +
+                           ToString(field_direction.y_rad) + ") rad: layers[" + std::to_string(l) + "] at " +
+                           ToString(layers[l].altitude_m) + " m is seen " + ToString(shift) +
+                           " m off axis; allowed: <= frequency_padding * diameter_m / 4 = " + ToString(reach) +
+                           " m, i.e. |direction| <= " + ToString(reach / layers[l].altitude_m) +
+                           " rad (raise frequency_padding for wider fields)");
+    }
   }
   return true;
 }

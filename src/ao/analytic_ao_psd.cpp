@@ -88,11 +88,15 @@ double Ramp(double edge, double c, double h) { return std::clamp((edge - c) / h 
 struct Wind {
   double weight;
   double vx, vy;  // [m/s]
+  double altitude_m;
 };
 
 }  // namespace
 
-Image ResidualPsd::Total() const { return fitting + servo + noise + aliasing; }
+Image ResidualPsd::Total() const {
+  if (anisoplanatism.size() == 0) return fitting + servo + noise + aliasing;
+  return fitting + servo + noise + aliasing + anisoplanatism;
+}
 
 AnalyticAoErrorBudget ResidualPsd::Budget() const {
   AnalyticAoErrorBudget b;
@@ -102,6 +106,7 @@ AnalyticAoErrorBudget ResidualPsd::Budget() const {
   b.servo_rad2 = servo.sum() * cell;
   b.noise_rad2 = noise.sum() * cell;
   b.aliasing_rad2 = aliasing.sum() * cell;
+  if (anisoplanatism.size() > 0) b.anisoplanatism_rad2 = anisoplanatism.sum() * cell;
   return b;
 }
 
@@ -123,7 +128,11 @@ std::string AnalyticAoErrorBudget::BriefReport() const {
                 wavelength_m * 1e6, Nm(fitting_rad2), fitting_rad2, Nm(servo_rad2), servo_rad2,
                 Nm(noise_rad2), noise_rad2, Nm(aliasing_rad2), aliasing_rad2, TotalNm(), TotalRad2(),
                 MarechalStrehl());
-  return buf;
+  if (anisoplanatism_rad2 == 0.0) return buf;
+  char aniso[160];
+  std::snprintf(aniso, sizeof(aniso), "  of which anisoplanatism %8.1f nm  %.4f\n", Nm(anisoplanatism_rad2),
+                anisoplanatism_rad2);
+  return std::string(buf) + aniso;
 }
 
 ResidualPsd ComputeResidualPsd(const AnalyticAoOptions& options, Index grid_n, double frequency_step_per_m) {
@@ -161,7 +170,7 @@ ResidualPsd ComputeResidualPsd(const AnalyticAoOptions& options, Index grid_n, d
       const double dir =
           options.average_wind_direction ? (q + 0.5) * kPi / directions : layer.wind_direction_rad;
       winds.push_back({layer.cn2_fraction / directions, layer.wind_speed_mps * std::cos(dir),
-                       layer.wind_speed_mps * std::sin(dir)});
+                       layer.wind_speed_mps * std::sin(dir), layer.altitude_m});
     }
   }
 
@@ -184,6 +193,10 @@ ResidualPsd ComputeResidualPsd(const AnalyticAoOptions& options, Index grid_n, d
   out.servo = Image::Zero(grid_n, grid_n);
   out.noise = Image::Zero(grid_n, grid_n);
   out.aliasing = Image::Zero(grid_n, grid_n);
+  const FieldDirection theta = options.field_direction;
+  const bool aniso = !theta.IsZero() && amp > 0.0;
+  if (aniso) out.anisoplanatism = Image::Zero(grid_n, grid_n);
+  const bool cross = options.anisoplanatism_servo_cross_term;
   out.fitting_tail_rad2 = amp == 0.0 ? 0.0 : 1.2 * kPi * amp * std::pow(f_t * f_t + k0sq, -5.0 / 6.0);
 
   const Index c = grid_n / 2;
@@ -205,6 +218,25 @@ ResidualPsd ComputeResidualPsd(const AnalyticAoOptions& options, Index grid_n, d
       for (const Wind& w : winds)
         rejection += w.weight * loop.At(kTwoPi * period * (fx * w.vx + fy * w.vy)).rejection;
       out.servo(i, j) = w_ctrl * atm * rejection;
+      if (aniso) {
+        // Header section 2: w_l 2 Re[H_n(f.v_l) (1 - exp(i a_l))], a_l = 2 pi f.(h_l theta); or 2 (1 - cos a_l).
+        // Averaged wind directions cover half a turn only, which the servo's |E|^2 (even in nu) allows; the
+        // cross term is not even in v alone, so each direction is paired with its opposite (H_n(-x) = conj).
+        double filter = 0.0;
+        for (const Wind& w : winds) {
+          const double a = kTwoPi * w.altitude_m * (fx * theta.x_rad + fy * theta.y_rad);
+          if (!cross) {
+            filter += w.weight * 2.0 * (1.0 - std::cos(a));
+            continue;
+          }
+          const Complex h = loop.NoiseTransfer(kTwoPi * period * (fx * w.vx + fy * w.vy));
+          const Complex one_minus = Complex(1.0 - std::cos(a), -std::sin(a));
+          const double re = options.average_wind_direction ? (std::real(h) * std::real(one_minus))
+                                                           : std::real(h * one_minus);
+          filter += w.weight * 2.0 * re;
+        }
+        out.anisoplanatism(i, j) = w_ctrl * atm * filter;
+      }
       out.noise(i, j) = w_ctrl * noise_psd;
       if (!aliasing) continue;
       double alias = 0.0;

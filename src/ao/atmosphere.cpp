@@ -33,7 +33,11 @@ struct Atmosphere::LayerState {
   double rho0 = 0.0, kappa0 = 0.0;
   std::unique_ptr<InfinitePhaseScreen> screen;
   std::vector<double> x_cos, x_sin;  // x_k cos, x_k sin for the columns of the pupil grid
+  double altitude_m = 0.0;
+  double margin_px = 0.0;  // M: extra pixels on every side for field directions (0 on axis only)
 };
+
+double FieldDirection::Norm() const { return std::hypot(x_rad, y_rad); }
 
 bool AtmosphereOptions::IsValid(std::string* why) const {
   std::string msg;
@@ -46,6 +50,10 @@ bool AtmosphereOptions::IsValid(std::string* why) const {
     msg = "L0_m = " + ToString(L0_m) + "; allowed: > 0 and finite [m]";
   } else if (interpolation != Interpolation::kBilinear && interpolation != Interpolation::kCubic) {
     msg = "interpolation = " + ToString(static_cast<int>(interpolation)) + "; allowed: kBilinear, kCubic";
+  } else if (!(std::isfinite(max_field_angle_rad) && max_field_angle_rad >= 0.0 &&
+                 max_field_angle_rad <= 0.01)) {
+    msg = "max_field_angle_rad = " + ToString(max_field_angle_rad) +
+          "; allowed: [0, 0.01] [rad] (0.01 rad = 34 arcmin)";
   } else if (layers.empty()) {
     msg = "layers = (empty); allowed: at least one layer";
   } else {
@@ -94,6 +102,17 @@ Atmosphere::Atmosphere(const AtmosphereOptions& options, Index pupil_n, double d
     state->cos_t = Snap(std::cos(l.wind_direction_rad));
     state->sin_t = Snap(std::sin(l.wind_direction_rad));
     state->speed_px = l.wind_speed_mps / dx;
+    state->altitude_m = l.altitude_m;
+    if (state->active && options.max_field_angle_rad > 0.0 && l.altitude_m > 0.0) {
+      // Field directions: the footprint moves by up to h theta_max; one pixel more for rounding.
+      state->margin_px = std::ceil(l.altitude_m * options.max_field_angle_rad / dx - 1e-9) + 1.0;
+      CheckArgument(state->margin_px <= 1024.0, "Atmosphere", "options.max_field_angle_rad",
+                    options.max_field_angle_rad,
+                    "a field radius whose layer footprints move by at most 1024 pupil pixels (layer " +
+                        std::to_string(i) + " at " + ToString(l.altitude_m) + " m would move by " +
+                        ToString(l.altitude_m * options.max_field_angle_rad) + " m = " +
+                        ToString(state->margin_px) + " pixels)");
+    }
     if (state->active) {
       // Footprint half-extent h along and across the wind. The pupil centre sits at (rho0, kappa0) = (h + 3,
       // h + 3) at t = 0: 3 pixels of margin for the interpolation taps (floor - 1 .. floor + 2), and for a
@@ -101,10 +120,13 @@ Atmosphere::Atmosphere(const AtmosphereOptions& options, Index pupil_n, double d
       // layer is read without interpolation whenever it has moved a whole number of pixels. The strip is
       // ceil(2h) + 6 columns wide; the window keeps 4 more rows than that, so calls may step back in time by
       // a few pixels of travel.
+      // Field directions widen the strip and the window by the margin M on every side (0 on axis only: the
+      // same screens, hence the same bytes, as without field directions).
       const double h = half_n * (std::abs(state->cos_t) + std::abs(state->sin_t));
-      const Index size = static_cast<Index>(std::ceil(2.0 * h - 1e-9)) + 6;
-      state->kappa0 = h + 3.0;
-      state->rho0 = h + 3.0;
+      const Index margin = static_cast<Index>(state->margin_px);
+      const Index size = static_cast<Index>(std::ceil(2.0 * h - 1e-9)) + 6 + 2 * margin;
+      state->kappa0 = h + 3.0 + state->margin_px;
+      state->rho0 = h + 3.0 + state->margin_px;
       InfinitePhaseScreenOptions so;
       so.width = size;
       so.length = size + 4;
@@ -128,10 +150,11 @@ Atmosphere::~Atmosphere() = default;
 Atmosphere::Atmosphere(Atmosphere&&) noexcept = default;
 Atmosphere& Atmosphere::operator=(Atmosphere&&) noexcept = default;
 
-void Atmosphere::Prepare(LayerState& layer, double t_s, const char* function) {
+void Atmosphere::Prepare(LayerState& layer, double t_s, double row_shift_px, const char* function) {
   const double half_n = 0.5 * static_cast<double>(pupil_n_ - 1);
   const double h = half_n * (std::abs(layer.cos_t) + std::abs(layer.sin_t));
-  const double centre = layer.rho0 + layer.speed_px * t_s;  // absolute row of the pupil centre
+  // Absolute row of the footprint's centre (row_shift_px: a field direction's displacement along the rows).
+  const double centre = layer.rho0 + layer.speed_px * t_s + row_shift_px;
   InfinitePhaseScreen& screen = *layer.screen;
   const Index length = screen.options().length;
   // Rows needed by the interpolation taps: floor(centre - h) - 1 .. floor(centre + h) + 2.
@@ -144,7 +167,8 @@ void Atmosphere::Prepare(LayerState& layer, double t_s, const char* function) {
                 "behind the latest time requested)");
 }
 
-void Atmosphere::Accumulate(LayerState& layer, double t_s, double* out) const {
+void Atmosphere::Accumulate(LayerState& layer, double t_s, double shift_x_px, double shift_y_px,
+                            double* out) const {
   const Index n = pupil_n_;
   const double half_n = 0.5 * static_cast<double>(n - 1);
   const InfinitePhaseScreen& screen = *layer.screen;
@@ -153,14 +177,19 @@ void Atmosphere::Accumulate(LayerState& layer, double t_s, double* out) const {
   const double scale = options_.r0_wavelength_m / (2.0 * kPi);  // rad at lambda_ref -> m
   // Window-relative row of the pupil centre; the difference of two large numbers is formed first so that
   // long runs keep full sub-pixel precision.
-  const double base = (layer.rho0 - static_cast<double>(screen.rows_extruded())) + layer.speed_px * t_s;
+  // A field direction displaces the footprint by s = (shift_x, shift_y) pixels: reading phi(p + s) moves rho
+  // by -(s_x cos + s_y sin) and kappa by -s_x sin + s_y cos (the geometry above). On axis both are 0 and
+  // the sums below are the on-axis ones exactly.
+  const double base = (layer.rho0 - static_cast<double>(screen.rows_extruded())) + layer.speed_px * t_s -
+                      (shift_x_px * layer.cos_t + shift_y_px * layer.sin_t);
+  const double kappa_c = layer.kappa0 - shift_x_px * layer.sin_t + shift_y_px * layer.cos_t;
   const double* xc = layer.x_cos.data();
   const double* xs = layer.x_sin.data();
   const bool cubic = options_.interpolation == AtmosphereOptions::Interpolation::kCubic;
   for (Index i = 0; i < n; ++i) {
     const double y = static_cast<double>(i) - half_n;
     const double rho_i = base - y * layer.sin_t;
-    const double kappa_i = layer.kappa0 + y * layer.cos_t;
+    const double kappa_i = kappa_c + y * layer.cos_t;
     double* o = out + i * n;
     for (Index k = 0; k < n; ++k) {
       const double r = rho_i - xc[k];
@@ -202,14 +231,63 @@ void Atmosphere::Opd(double t_s, Image* opd) {
   CheckArgument(opd != nullptr, "Atmosphere::Opd", "opd", "null", "an Image to write into");
   CheckArgument(std::isfinite(t_s) && t_s >= 0.0, "Atmosphere::Opd", "t_s", t_s, ">= 0 and finite [s]");
   for (auto& layer : layers_) {
-    if (layer->active) Prepare(*layer, t_s, "Atmosphere::Opd");
+    if (layer->active) Prepare(*layer, t_s, 0.0, "Atmosphere::Opd");
   }
   if (opd->rows() != pupil_n_ || opd->cols() != pupil_n_) opd->resize(pupil_n_, pupil_n_);
   opd->setZero();
   for (auto& layer : layers_) {
-    if (layer->active) Accumulate(*layer, t_s, opd->data());
+    if (layer->active) Accumulate(*layer, t_s, 0.0, 0.0, opd->data());
   }
   if (options_.antithetic) *opd = -*opd;
+}
+
+void Atmosphere::CheckFieldDirection(const FieldDirection& direction, const char* function) const {
+  CheckArgument(std::isfinite(direction.x_rad) && std::isfinite(direction.y_rad), function, "direction",
+                "(" + ToString(direction.x_rad) + ", " + ToString(direction.y_rad) + ") rad",
+                "finite (x, y) [rad] from the guide star");
+  const double angle = direction.Norm();
+  if (angle <= options_.max_field_angle_rad * (1.0 + 1e-12)) return;
+  for (std::size_t i = 0; i < layers_.size(); ++i) {
+    const LayerState& l = *layers_[i];
+    if (!l.active || l.altitude_m == 0.0) continue;  // a ground layer is the same in every direction
+    constexpr double kArcsecPerRad = 180.0 * 3600.0 / kPi;
+    throw InvalidArgument(
+        function, "direction",
+        "(" + ToString(direction.x_rad) + ", " + ToString(direction.y_rad) + ") rad, |theta| = " +
+            ToString(angle) + " rad = " + ToString(angle * kArcsecPerRad) + " arcsec",
+        "|theta| <= max_field_angle_rad = " + ToString(options_.max_field_angle_rad) + " rad = " +
+            ToString(options_.max_field_angle_rad * kArcsecPerRad) +
+            " arcsec: layer " + std::to_string(i) + " (" + ToString(l.altitude_m) + " m) would be read " +
+            ToString(l.altitude_m * angle) + " m off axis, beyond its phase screen (build the atmosphere with "
+            "AtmosphereOptions::max_field_angle_rad >= |theta|)");
+  }
+}
+
+void Atmosphere::Opd(double t_s, const FieldDirection& direction, Image* opd) {
+  if (direction.IsZero()) return Opd(t_s, opd);
+  CheckArgument(opd != nullptr, "Atmosphere::Opd", "opd", "null", "an Image to write into");
+  CheckArgument(std::isfinite(t_s) && t_s >= 0.0, "Atmosphere::Opd", "t_s", t_s, ">= 0 and finite [s]");
+  CheckFieldDirection(direction, "Atmosphere::Opd");
+  const double dx = diameter_m_ / static_cast<double>(pupil_n_);
+  for (auto& layer : layers_) {
+    if (!layer->active) continue;
+    const double sx = layer->altitude_m * direction.x_rad / dx, sy = layer->altitude_m * direction.y_rad / dx;
+    Prepare(*layer, t_s, -(sx * layer->cos_t + sy * layer->sin_t), "Atmosphere::Opd");
+  }
+  if (opd->rows() != pupil_n_ || opd->cols() != pupil_n_) opd->resize(pupil_n_, pupil_n_);
+  opd->setZero();
+  for (auto& layer : layers_) {
+    if (!layer->active) continue;
+    const double sx = layer->altitude_m * direction.x_rad / dx, sy = layer->altitude_m * direction.y_rad / dx;
+    Accumulate(*layer, t_s, sx, sy, opd->data());
+  }
+  if (options_.antithetic) *opd = -*opd;
+}
+
+Image Atmosphere::Opd(double t_s, const FieldDirection& direction) {
+  Image opd;
+  Opd(t_s, direction, &opd);
+  return opd;
 }
 
 Image Atmosphere::Opd(double t_s) {
@@ -225,8 +303,8 @@ Image Atmosphere::LayerOpd(int layer, double t_s) {
   Image opd = Image::Zero(pupil_n_, pupil_n_);
   LayerState& state = *layers_[layer];
   if (state.active) {
-    Prepare(state, t_s, "Atmosphere::LayerOpd");
-    Accumulate(state, t_s, opd.data());
+    Prepare(state, t_s, 0.0, "Atmosphere::LayerOpd");
+    Accumulate(state, t_s, 0.0, 0.0, opd.data());
   }
   if (options_.antithetic) opd = -opd;
   return opd;

@@ -75,6 +75,9 @@ const ClosedLoopOptions& CheckedLoopOptions(const Image& amplitude, double diame
           ToString(t) + " [s] (1 / the controller's loop_rate_hz) when the sensor has noise");
     }
   }
+  if (!options.science_direction.IsZero() && atmosphere != nullptr) {
+    atmosphere->CheckFieldDirection(options.science_direction, "ClosedLoop (options.science_direction)");
+  }
   CheckStaticOpd(options.common_static_opd_m, amplitude, "common_static_opd_m");
   CheckStaticOpd(options.science_static_opd_m, amplitude, "science_static_opd_m");
   return options;
@@ -90,6 +93,10 @@ bool ClosedLoopOptions::IsValid(std::string* why) const {
   }
   if (!(std::isfinite(start_time_s) && start_time_s >= 0.0)) {
     return Fail(why, "start_time_s = " + ToString(start_time_s) + "; allowed: >= 0 and finite [s]");
+  }
+  if (!(std::isfinite(science_direction.x_rad) && std::isfinite(science_direction.y_rad))) {
+    return Fail(why, "science_direction = (" + ToString(science_direction.x_rad) + ", " +
+                         ToString(science_direction.y_rad) + "); allowed: finite [rad]");
   }
   if (!(std::isfinite(dm_gain) && dm_gain >= 0.5 && dm_gain <= 2.0)) {
     return Fail(why, "dm_gain = " + ToString(dm_gain) + "; allowed: [0.5, 2] (the mirror's response per commanded metre)");
@@ -243,7 +250,15 @@ void ClosedLoop::Step(bool record) {
     }
   }
   const auto t4 = Clock::now();
-  // 5. Science.
+  // 5. Science (off axis: the science direction's turbulence under the same DM, header "Off axis").
+  if (record && !options_.science_direction.IsZero()) {
+    science_residual_ = dm_opd_;
+    if (atmosphere_ != nullptr) {
+      atmosphere_->Opd(t, options_.science_direction, &science_turbulence_);
+      science_residual_ += science_turbulence_;
+    }
+    if (options_.common_static_opd_m.size() > 0) science_residual_ += options_.common_static_opd_m;
+  }
   if (record) {
     if (!recorder_) BeginRecording();
     Recorder& r = *recorder_;
@@ -264,8 +279,8 @@ void ClosedLoop::Step(bool record) {
 
 void ClosedLoop::ScienceStage(bool psf_frame) {
   Recorder& r = *recorder_;
-  // Residual RMS over the pupil, amplitude-weighted, piston removed.
-  const double* w = residual_.data();
+  // Residual RMS over the pupil, amplitude-weighted, piston removed (the science direction's).
+  const double* w = options_.science_direction.IsZero() ? residual_.data() : science_residual_.data();
   double s1 = 0.0, s2 = 0.0;
   for (std::size_t j = 0; j < lit_pupil_.size(); ++j) {
     const double v = w[lit_pupil_[j]], a = lit_amp_[j];

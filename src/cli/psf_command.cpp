@@ -32,8 +32,30 @@ struct PsfArgs {
   double settling_s = 0.1;
   std::uint64_t seed = 1;
   bool antithetic = true;
+  // Science direction from the guide star [arcsec]: --field-angle A is (A, 0); --field-direction X,Y.
+  double field_angle_arcsec = 0.0;
+  std::string field_direction;
   ExecutionArgs exec;
 };
+
+constexpr double kPsfCommandArcsecPerRad = 180.0 * 3600.0 / M_PI;
+
+// "X,Y" [arcsec] -> direction [rad]; finite numbers only.
+FieldDirection ParseFieldDirection(const std::string& text) {
+  const std::string allowed = "X,Y: two finite angles in arcsec from the guide star (x along columns), e.g. 20,-5";
+  const auto comma = text.find(',');
+  if (comma == std::string::npos) throw InvalidArgument("aosr psf", "--field-direction", text, allowed);
+  try {
+    std::size_t used_x = 0, used_y = 0;
+    const double x = std::stod(text.substr(0, comma), &used_x);
+    const double y = std::stod(text.substr(comma + 1), &used_y);
+    if (used_x != comma || used_y != text.size() - comma - 1 || !std::isfinite(x) || !std::isfinite(y))
+      throw InvalidArgument("aosr psf", "--field-direction", text, allowed);
+    return {x / kPsfCommandArcsecPerRad, y / kPsfCommandArcsecPerRad};
+  } catch (const std::logic_error&) {
+    throw InvalidArgument("aosr psf", "--field-direction", text, allowed);
+  }
+}
 
 struct ZernikeOffset {
   int j;
@@ -75,6 +97,21 @@ void RunPsf(const PsfArgs& args) {
   o.settling_s = args.settling_s;
   o.seed = args.seed;
   o.antithetic = args.antithetic;
+  if (!std::isfinite(args.field_angle_arcsec) || std::abs(args.field_angle_arcsec) > 0.01 * kPsfCommandArcsecPerRad)
+    throw InvalidArgument("aosr psf", "--field-angle", ToString(args.field_angle_arcsec),
+                          "a finite angle in arcsec, at most 2062.6 (0.01 rad) from the guide star");
+  if (!args.field_direction.empty() && args.field_angle_arcsec != 0.0)
+    throw InvalidArgument("aosr psf", "--field-direction", args.field_direction,
+                          "not together with --field-angle (one direction: --field-angle A is --field-direction A,0)");
+  o.field_direction = args.field_direction.empty() ? FieldDirection{args.field_angle_arcsec / kPsfCommandArcsecPerRad, 0.0}
+                                                   : ParseFieldDirection(args.field_direction);
+  {
+    std::string why;
+    if (!o.IsValid(&why))
+      throw InvalidArgument("aosr psf", args.field_direction.empty() ? "--field-angle" : "--field-direction",
+                            args.field_direction.empty() ? ToString(args.field_angle_arcsec) : args.field_direction,
+                            why);
+  }
   const TelescopePreset preset = LoadTelescopePreset(args.preset);
   // Checked here too so that the message names the flag (the library checks it again).
   const int max_size = MaxPresetPsfSize(preset, o);
@@ -103,6 +140,10 @@ void RunPsf(const PsfArgs& args) {
     h.Set("PIXSCALE", sampling.pixel_scale_rad, "[rad] pixel angular pitch");
     h.Set("STREHL", strehl, "peak / diffraction-limited peak");
     h.Set("NORMALIS", "whole focal plane sums to 1", "window sum = light in the window");
+    if (!o.field_direction.IsZero()) {
+      h.Set("FIELDX", o.field_direction.x_rad * kPsfCommandArcsecPerRad, "[arcsec] science direction from the guide star, x");
+      h.Set("FIELDY", o.field_direction.y_rad * kPsfCommandArcsecPerRad, "[arcsec] science direction from the guide star, y");
+    }
     for (std::size_t i = 0; i < o.offsets.size(); ++i)
       h.Set("ZOFF" + std::to_string(i), std::to_string(o.offsets[i].noll) + "=" + ToString(o.offsets[i].rms_nm) + " nm",
             "Noll index = wavefront OPD RMS offset");
@@ -117,11 +158,22 @@ void RunPsf(const PsfArgs& args) {
                         {"strehl", strehl},
                         {"fwhm_px", result.fwhm_px},
                         {"fwhm_lambda_over_d", result.fwhm_px / lod_px},
+                        {"fwhm_major_lambda_over_d", result.fwhm_major_px / lod_px},
+                        {"fwhm_minor_lambda_over_d", result.fwhm_minor_px / lod_px},
+                        {"elongation", result.elongation},
+                        {"major_axis_angle_deg", result.major_axis_angle_deg},
+                        {"field_direction_arcsec",
+                         {{"x", o.field_direction.x_rad * kPsfCommandArcsecPerRad}, {"y", o.field_direction.y_rad * kPsfCommandArcsecPerRad}}},
+                        {"field_angle_arcsec", o.field_direction.Norm() * kPsfCommandArcsecPerRad},
                         {"encircled_energy", {{"radius_lambda_over_d", {1, 2, 5}}, {"fraction_of_window", ee}}},
                         {"window_sum", result.window_sum},
                         {"core_centroid_lambda_over_d", {{"y", result.core_centroid_lod[0]}, {"x", result.core_centroid_lod[1]}}},
                         {"residual_rms_nm", residual_nm},
                         {"seconds", seconds}};
+    // JSON has no infinity: null when no atmosphere or all the turbulence is at the ground.
+    j["isoplanatic_angle_arcsec"] = result.isoplanatic_angle_rad > 0 && std::isfinite(result.isoplanatic_angle_rad)
+                                        ? nlohmann::json(result.isoplanatic_angle_rad * kPsfCommandArcsecPerRad)
+                                        : nlohmann::json(nullptr);
     if (!args.output.empty()) j["output"] = args.output;
     if (!loop_report.empty())
       j["closed_loop"] = {{"sensor", args.sensor}, {"antithetic", args.antithetic}, {"report", loop_report}};
@@ -131,6 +183,15 @@ void RunPsf(const PsfArgs& args) {
   std::printf("aosr psf %s (%s) at %.3g um, pixel %.3g lambda/D, %dx%d\n", preset.name.c_str(), mode.c_str(),
               sampling.wavelength_m * 1e6, 1.0 / lod_px, args.size, args.size);
   std::printf("  Strehl %.4f   FWHM %.3f lambda/D   residual %.1f nm RMS\n", strehl, result.fwhm_px / lod_px, residual_nm);
+  std::printf("  elongation %.3f (FWHM %.3f x %.3f lambda/D), major axis at %+.1f deg from +x\n", result.elongation,
+              result.fwhm_major_px / lod_px, result.fwhm_minor_px / lod_px, result.major_axis_angle_deg);
+  if (!o.field_direction.IsZero() || result.isoplanatic_angle_rad > 0) {
+    std::printf("  field direction (x, y) = (%+.2f, %+.2f) arcsec from the guide star", o.field_direction.x_rad * kPsfCommandArcsecPerRad,
+                o.field_direction.y_rad * kPsfCommandArcsecPerRad);
+    if (result.isoplanatic_angle_rad > 0 && std::isfinite(result.isoplanatic_angle_rad))
+      std::printf("; isoplanatic angle theta0 = %.2f arcsec", result.isoplanatic_angle_rad * kPsfCommandArcsecPerRad);
+    std::printf("\n");
+  }
   std::printf("  EE(1, 2, 5 lambda/D) = %.4f, %.4f, %.4f of the window (window holds %.4f of all light)\n", ee[0],
               ee[1], ee[2], result.window_sum);
   std::printf("  core centroid (y, x) = (%+.4f, %+.4f) lambda/D from the optical axis\n", result.core_centroid_lod[0],
@@ -150,7 +211,8 @@ void RegisterPsf(CLI::App& app) {
       "Compute the science PSF of a telescope preset (a name from data/telescopes/ or a .json path): "
       "diffraction-limited, long-exposure through the analytic AO residual model, or from a closed-loop "
       "Monte-Carlo run (atmosphere, Shack-Hartmann, controller, DM), with optional DM offsets given as Zernike "
-      "coefficients (held by the loop through the WFS reference slopes). Prints Strehl, FWHM, encircled energy, residual and time.");
+      "coefficients (held by the loop through the WFS reference slopes), on the guide star's axis or at a field direction "
+      "from it (anisoplanatism). Prints Strehl, FWHM, elongation, encircled energy, residual and time.");
   cmd->add_option("preset", args->preset, "telescope preset name or .json path")->required();
   cmd->add_option("--mode", args->mode,
                   "analytic | closed-loop | diffraction (default: analytic when the preset has atmosphere and AO)")
@@ -171,6 +233,10 @@ void RegisterPsf(CLI::App& app) {
   cmd->add_flag("--antithetic,!--no-antithetic", args->antithetic,
                 "closed loop: average the PSFs of the atmosphere and of its negation (default; the stretch's random "
                 "tip/tilt cancels, as in a scene), or --no-antithetic for one realisation in half the time");
+  cmd->add_option("--field-angle", args->field_angle_arcsec,
+                  "science direction: A arcsec from the guide star along +x (anisoplanatism; default 0, on axis)");
+  cmd->add_option("--field-direction", args->field_direction,
+                  "science direction X,Y in arcsec from the guide star (x along columns, y along rows)");
   AddExecutionOptions(cmd, &args->exec);
   cmd->callback([args] { RunPsf(*args); });
 }

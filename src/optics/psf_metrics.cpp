@@ -30,6 +30,7 @@ PsfStats MeasurePsf(const Image& psf) {
   // is biased by several per cent for cores a few pixels wide.
   constexpr int k = 8;
   double above = 0;
+  double my = 0, mx = 0, myy = 0, mxx = 0, mxy = 0;  // moments of the region (sub-pixel centres)
   for (Index y = 0; y + 1 < psf.rows(); ++y)
     for (Index x = 0; x + 1 < psf.cols(); ++x) {
       const double a = psf(y, x), b = psf(y, x + 1), c = psf(y + 1, x), d = psf(y + 1, x + 1);
@@ -38,10 +39,31 @@ PsfStats MeasurePsf(const Image& psf) {
         for (int j = 0; j < k; ++j) {
           const double ty = (i + 0.5) / k, tx = (j + 0.5) / k;
           const double v = (1 - ty) * ((1 - tx) * a + tx * b) + ty * ((1 - tx) * c + tx * d);
-          above += v >= 0.5 * s.peak;
+          if (v < 0.5 * s.peak) continue;
+          above += 1;
+          const double py = static_cast<double>(y) + ty, px = static_cast<double>(x) + tx;
+          my += py;
+          mx += px;
+          myy += py * py;
+          mxx += px * px;
+          mxy += px * py;
         }
     }
   s.fwhm_px = 2.0 * std::sqrt(above / (k * k) / M_PI);
+  if (above > 0) {
+    my /= above;
+    mx /= above;
+    // Covariance of the region plus the sub-pixel cell's own 1/(12 k^2) per axis (a continuous region).
+    const double cell = 1.0 / (12.0 * k * k);
+    const double cyy = myy / above - my * my + cell, cxx = mxx / above - mx * mx + cell;
+    const double cxy = mxy / above - mx * my;
+    const double mean = 0.5 * (cxx + cyy), diff = 0.5 * (cxx - cyy);
+    const double radius = std::sqrt(diff * diff + cxy * cxy);
+    s.fwhm_major_px = 4.0 * std::sqrt(std::max(mean + radius, 0.0));
+    s.fwhm_minor_px = 4.0 * std::sqrt(std::max(mean - radius, 0.0));
+    s.major_axis_angle_rad = 0.5 * std::atan2(2.0 * cxy, cxx - cyy);
+    if (s.major_axis_angle_rad <= -0.5 * M_PI) s.major_axis_angle_rad += M_PI;
+  }
   return s;
 }
 

@@ -1,15 +1,20 @@
 #include "aosr/scene/preset_psf.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
 #include "aosr/ao/analytic_ao.hpp"
+#include "aosr/ao/anisoplanatism.hpp"
 #include "aosr/ao/closed_loop.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/optics/psf_metrics.hpp"
 #include "aosr/optics/zernike.hpp"
 
 namespace aosr {
+namespace {
+constexpr double kPresetPsfArcsecPerRad = 180.0 * 3600.0 / M_PI;
+}  // namespace
 
 bool PresetPsfOptions::IsValid(std::string* why) const {
   auto fail = [why](const std::string& m) {
@@ -27,6 +32,11 @@ bool PresetPsfOptions::IsValid(std::string* why) const {
   if (size < 8 || size > 4096) return fail("size = " + std::to_string(size) + "; allowed: 8..4096");
   if (!(exposure_s >= 1e-4 && exposure_s <= 3600)) return fail("exposure_s = " + ToString(exposure_s) + "; allowed: 1e-4..3600");
   if (!(settling_s >= 0) || !std::isfinite(settling_s)) return fail("settling_s = " + ToString(settling_s) + "; allowed: >= 0");
+  if (!(std::isfinite(field_direction.x_rad) && std::isfinite(field_direction.y_rad) &&
+        field_direction.Norm() <= 0.01))
+    return fail("field_direction = (" + ToString(field_direction.x_rad * kPresetPsfArcsecPerRad) + ", " +
+                ToString(field_direction.y_rad * kPresetPsfArcsecPerRad) +
+                ") arcsec; allowed: finite, at most 0.01 rad = 2062.6 arcsec from the guide star");
   return true;
 }
 
@@ -89,6 +99,8 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
   const Image perfect = diffraction.Compute(amplitude, Image::Zero(n, n));
   if (out.mode == "closed-loop") {
     AoSystemSpec spec = preset.ToAoSystemSpec(o.sensor, o.seed);
+    // Off axis: screens wide enough for the direction (on axis: exactly the on-axis screens).
+    if (spec.atmosphere) spec.atmosphere->max_field_angle_rad = o.field_direction.Norm();
     // Antithetic: the atmosphere, then its negation; the PSFs averaged, the residual variances too.
     const int runs = o.antithetic && spec.atmosphere ? 2 : 1;
     double residual_variance = 0.0;
@@ -99,6 +111,7 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
       AoSystem system = BuildAoSystem(spec);
       ClosedLoopOptions loop_options;
       loop_options.science = sampling;
+      loop_options.science_direction = o.field_direction;
       std::unique_ptr<ClosedLoop> loop = system.MakeLoop(loop_options);
       step("running the loop for " + ToString(o.settling_s) + " s settling + " + ToString(o.exposure_s) + " s" + which);
       // The DM offset is applied as the real-time computer would: through the WFS reference slopes.
@@ -110,7 +123,25 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
     }
     out.residual_rms_nm = std::sqrt(residual_variance) * 1e9;
   } else if (out.mode == "analytic") {
-    const AnalyticAoPsfCalculator ao(preset.ToAnalyticAo(), n, sampling);
+    AnalyticAoOptions analytic = preset.ToAnalyticAo();
+    if (!o.field_direction.IsZero()) {
+      analytic.field_direction = o.field_direction;
+      // The PSD grid must resolve the anisoplanatism filter: h |theta| <= K D / 4 (analytic_ao.hpp).
+      double reach = 0.0;
+      for (const Layer& l : analytic.layers)
+        if (l.cn2_fraction > 0) reach = std::max(reach, l.altitude_m * o.field_direction.Norm());
+      const int needed = int(std::ceil(4.0 * reach / analytic.diameter_m - 1e-9));
+      const int largest = int(4096 / n);
+      if (needed > largest)
+        throw InvalidArgument("ComputePresetPsf", "field_direction",
+                              "(" + ToString(o.field_direction.x_rad * kPresetPsfArcsecPerRad) + ", " +
+                                  ToString(o.field_direction.y_rad * kPresetPsfArcsecPerRad) + ") arcsec",
+                              "at most " + ToString(largest * analytic.diameter_m / 4.0 / (reach / o.field_direction.Norm()) * kPresetPsfArcsecPerRad) +
+                                  " arcsec from the guide star in analytic mode (the PSD grid of a " + std::to_string(n) +
+                                  "-pixel pupil cannot resolve the anisoplanatism of the highest layer beyond it)");
+      analytic.frequency_padding = std::max(analytic.frequency_padding, needed);
+    }
+    const AnalyticAoPsfCalculator ao(analytic, n, sampling);
     const AnalyticAoPsf p = ao.Compute(amplitude, opd);
     out.psf = p.psf;
     out.residual_rms_nm = p.residual_rms_nm;
@@ -123,6 +154,14 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
   out.strehl = out.psf.maxCoeff() / perfect.maxCoeff();
   out.lambda_over_d_px = preset.LambdaOverD() / sampling.pixel_scale_rad;
   out.fwhm_px = stats.fwhm_px;
+  out.fwhm_major_px = stats.fwhm_major_px;
+  out.fwhm_minor_px = stats.fwhm_minor_px;
+  out.elongation = stats.Elongation();
+  out.major_axis_angle_deg = stats.major_axis_angle_rad * 180.0 / M_PI;
+  out.field_direction = o.field_direction;
+  if (preset.atmosphere)
+    out.isoplanatic_angle_rad = IsoplanaticAngleRad(preset.atmosphere->r0_m, preset.atmosphere->r0_wavelength_m,
+                                                    preset.science_wavelength_m, preset.atmosphere->layers);
   out.window_sum = stats.window_sum;
   out.encircled_energy = EncircledEnergy(out.psf, {1.0 * out.lambda_over_d_px, 2.0 * out.lambda_over_d_px, 5.0 * out.lambda_over_d_px});
   const auto core = CoreCentroid(out.psf, 2.0 * out.lambda_over_d_px);

@@ -65,15 +65,20 @@ inline ShackHartmannOptions PaperSensor(ShackHartmannMode mode) {
 using LoopSystem = AoSystem;
 using aosr::SensorKind;
 
-// The paper's system on an n-pixel pupil (n divisible by 16), calibrated; turbulence when `turbulence`.
+// The paper's system on an n-pixel pupil (n divisible by 16), calibrated; turbulence when `turbulence`, its
+// screens built for field directions up to max_field_angle_rad (atmosphere.hpp; 0: on axis only).
 inline LoopSystem MakePaperSystem(SensorKind kind, bool turbulence, std::uint64_t seed,
-                                  const ControllerOptions& control, Index n = 128) {
+                                  const ControllerOptions& control, Index n = 128,
+                                  double max_field_angle_rad = 0.0) {
   AoSystemSpec spec;
   spec.amplitude = CircularPupil(n, PupilGeometry{kPaperDiameter, 0.0});
   spec.diameter_m = kPaperDiameter;
   spec.dm.actuators_across = 17;
   spec.dm.pitch_m = 0.5;
-  if (turbulence) spec.atmosphere = PaperAtmosphere(seed);
+  if (turbulence) {
+    spec.atmosphere = PaperAtmosphere(seed);
+    spec.atmosphere->max_field_angle_rad = max_field_angle_rad;
+  }
   spec.sensor = kind;
   spec.wfs = PaperSensor(kind == SensorKind::kGeometric ? ShackHartmannMode::kGeometric : ShackHartmannMode::kDiffractive);
   spec.control = control;

@@ -54,6 +54,61 @@ TEST(PsfCliTest, ClosedLoopRunsFromThePresetAsAnAntitheticPair) {
   EXPECT_LT(std::hypot(py, px), 1e-9);
 }
 
+// Off axis (issue 31): 20" from the guide star along x at K, analytic. The paper-8m preset's theta0 is 19.9"; the
+// Strehl falls to about 0.6 of the on-axis value, and the core stretches along x (elongation > 1.1, major axis
+// within 5 degrees of x); --field-direction 0,20 turns it to y. The diffraction mode has no atmosphere: the
+// same PSF off axis. The closed loop off axis runs from the preset too (the screens built for the direction).
+TEST(PsfCliTest, FieldAngleInEveryMode) {
+  const auto on = PsfJson("paper-8m --size 64", "analytic", 0.8, 0.92);
+  const auto off = PsfJson("paper-8m --size 64 --field-angle 20", "analytic", 0.3, 0.7);
+  ASSERT_TRUE(off.contains("elongation"));
+  EXPECT_NEAR(off["isoplanatic_angle_arcsec"].get<double>(), 19.9, 0.2);
+  EXPECT_NEAR(off["field_direction_arcsec"]["x"].get<double>(), 20.0, 1e-9);
+  const double ratio = off["strehl"].get<double>() / on["strehl"].get<double>();
+  EXPECT_GT(ratio, 0.5);
+  EXPECT_LT(ratio, 0.7);
+  EXPECT_GT(off["elongation"].get<double>(), 1.1);
+  EXPECT_NEAR(off["major_axis_angle_deg"].get<double>(), 0.0, 5.0);
+  const auto up = PsfJson("paper-8m --size 64 --field-direction 0,20", "analytic", 0.3, 0.7);
+  EXPECT_NEAR(std::abs(up["major_axis_angle_deg"].get<double>()), 90.0, 5.0);
+  EXPECT_NEAR(up["strehl"].get<double>(), off["strehl"].get<double>(), 0.03);
+  const auto d0 = PsfJson("paper-8m --mode diffraction --size 32", "diffraction", 0.9, 1.01);
+  const auto d1 = PsfJson("paper-8m --mode diffraction --size 32 --field-angle 30", "diffraction", 0.9, 1.01);
+  EXPECT_EQ(d0["strehl"].get<double>(), d1["strehl"].get<double>());
+  const auto cl = PsfJson("paper-8m --mode closed-loop --sensor ideal --size 32 --exposure 0.1 --settling 0.05 "
+                          "--no-antithetic --field-angle 20",
+                          "closed-loop", 0.3, 0.8);
+  EXPECT_GT(cl["elongation"].get<double>(), 1.0);
+  const CliRun text = RunCli("psf paper-8m --size 32 --field-angle 20");
+  ASSERT_EQ(text.status, 0) << text.out;
+  EXPECT_THAT(text.out, ::testing::HasSubstr("elongation"));
+  EXPECT_THAT(text.out, ::testing::HasSubstr("isoplanatic angle theta0 = 19.9"));
+}
+
+TEST(PsfCliTest, RejectsBadFieldDirections) {
+  using ::testing::HasSubstr;
+  CliRun r = RunCli("psf paper-8m --field-angle nan");
+  EXPECT_EQ(r.status, 1);
+  r = RunCli("psf paper-8m --field-angle 5000");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("--field-angle"));
+  EXPECT_THAT(r.out, HasSubstr("2062.6"));
+  r = RunCli("psf paper-8m --field-direction 3");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("--field-direction"));
+  r = RunCli("psf paper-8m --field-direction 3,x");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("X,Y"));
+  r = RunCli("psf paper-8m --field-direction 3,4 --field-angle 2");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("not together"));
+  // Beyond what the analytic model's PSD grid resolves for a 128-pixel pupil (K <= 32: 1320").
+  r = RunCli("psf paper-8m --field-angle 1500");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("field_direction"));
+  EXPECT_THAT(r.out, HasSubstr("arcsec from the guide star in analytic mode"));
+}
+
 TEST(PsfCliTest, WritesFitsAndRejectsBadInput) {
   using ::testing::HasSubstr;
   const auto path = std::filesystem::temp_directory_path() / ("aosr_psf_" + std::to_string(getpid()) + ".fits");

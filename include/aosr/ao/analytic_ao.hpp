@@ -4,8 +4,8 @@
 //     systems", Proc. SPIE 3353, 1038 (1998)   [RVL98], and
 //   L. Jolissaint, J.-P. Veran, R. Conan, "Analytical modeling of adaptive optics: foundations of the
 //     phase spatial power spectrum approach", J. Opt. Soc. Am. A 23, 382 (2006)   [JVC06].
-// On-axis natural guide star, infinitely bright unless a WFS noise is given; no anisoplanatism, no
-// scintillation. Everything below is phase at the science wavelength lambda (rad, rad^2, rad^2 m^2),
+// Natural guide star, infinitely bright unless a WFS noise is given; the science direction may be off the
+// guide star's axis (anisoplanatism, section 2); no scintillation. Everything below is phase at the science wavelength lambda (rad, rad^2, rad^2 m^2),
 // spatial frequencies f in cycles per metre in the pupil, temporal frequencies nu in Hz.
 //
 // 1. Turbulence. von Karman phase PSD at lambda, r0 scaled from the reference wavelength as lambda^(6/5):
@@ -36,6 +36,27 @@
 //      frozen-flow frequency and enters the loop as a measurement, hence the noise transfer H_n.
 //      Approximations: temporal aliasing by the frame rate is ignored (nu = f_mn . v stays well below the
 //      Nyquist rate 1/(2T) for any sensible wind and pitch), and the reconstructor is the ideal Fourier one.
+//    * anisoplanatism (inside; only when field_direction != 0). The science direction theta sees layer l
+//      (altitude h_l) displaced by h_l theta (atmosphere.hpp, "Field directions"), i.e. its Fourier component
+//      f multiplied by exp(i a_l), a_l = 2 pi f . (h_l theta), while the DM holds H_n applied to the guide
+//      star's phase. With frozen flow the residual of layer l at f is Phi w_l |exp(i a_l) - H_n(f . v_l)|^2
+//      (the sign of f . v follows from phi(p - v t): a component's temporal frequency is -f . v, and
+//      H_n(-nu) = conj H_n(nu)). Subtracting the on-axis servo term |1 - H_n|^2 leaves
+//          aniso(f) = Phi(f) sum_l w_l 2 Re[ H_n(f . v_l) (1 - exp(i a_l)) ],
+//      which is kept as its own term so that servo-lag stays the on-axis term. This is the joint
+//      "anisoservo" form of the Fourier models (B. Neichel, T. Fusco, J.-M. Conan, JOSA A 26, 219 (2009);
+//      TIPTOP/P3's fourierModel, Neichel et al. 2021): it includes the servo x anisoplanatism cross term,
+//      which is negative downwind (where h theta ~ v x lag the delayed correction fits the science direction
+//      better) and positive upwind, and vanishes for an open loop (no correction, nothing to decorrelate).
+//      With anisoplanatism_servo_cross_term = false the perfect-loop form is used instead:
+//          aniso(f) = Phi(f) sum_l w_l 2 (1 - cos a_l),
+//      the standard anisoplanatism filter (Rigaut/Jolissaint analytic models, TIPTOP), whose variance over
+//      the whole plane with no control radius is Fried's (theta / theta0)^(5/3) (anisoplanatism.hpp).
+//      Both are even in f, so the structure function stays real, and elongated along theta: the PSF's core
+//      stretches along the line to the guide star. Fitting, noise and aliasing do not change with theta
+//      (the DM is common to all directions and nothing outside the control region is corrected anyway).
+//      The filter oscillates with period 1 / (h theta) in f, which the PSD grid (pitch 1/(K D)) must resolve:
+//      IsValid requires h_l |theta| <= K D / 4 for every layer.
 //
 // 3. Loop (hybrid continuous/discrete model, e.g. E. Gendron & P. Lena, A&A 291, 337 (1994); JVC06).
 //    Frame period T = 1 / loop_rate_hz, s = 2 pi i nu, z = exp(s T). The WFS averages the residual over one
@@ -161,6 +182,15 @@ struct AnalyticAoOptions {
   // wavelength, and PSFs must be sampled at it. Default 2.2 um (K band).
   double science_wavelength_m = 2.2e-6;
 
+  // --- Science direction (anisoplanatism, section 2) ---
+  // Direction of the science target from the guide star [rad] (x along columns, y along rows); finite, and
+  // with altitude * |direction| <= frequency_padding * diameter_m / 4 for every layer (the PSD grid must
+  // resolve the anisoplanatism filter). Default (0, 0): on axis, exactly the model without anisoplanatism.
+  FieldDirection field_direction;
+  // Off axis: include the servo-lag x anisoplanatism cross term (true, default: the joint form, section 2)
+  // or use the perfect-loop filter 2 (1 - cos) (false: the issue's / the usual budget's anisoplanatism term).
+  bool anisoplanatism_servo_cross_term = true;
+
   // --- Numerics (GalSim-style accuracy knobs) ---
   // Frequency padding K, in [2, 64]: the PSD grid pitch is 1/(K D), i.e. the covariance is periodic over
   // K D. Larger K resolves the low frequencies (servo, L0) better at (K n)^2 cost. Default 4: the
@@ -206,8 +236,11 @@ struct AnalyticAoErrorBudget {
   double servo_rad2 = 0.0;     // servo-lag (temporal) error inside the control region
   double noise_rad2 = 0.0;     // propagated WFS noise
   double aliasing_rad2 = 0.0;  // propagated WFS aliasing
+  double anisoplanatism_rad2 = 0.0;  // off axis only (section 2): the increase over the on-axis residual
 
-  double TotalRad2() const { return fitting_rad2 + servo_rad2 + noise_rad2 + aliasing_rad2; }
+  double TotalRad2() const {
+    return fitting_rad2 + servo_rad2 + noise_rad2 + aliasing_rad2 + anisoplanatism_rad2;
+  }
   // RMS optical path [nm] of a phase variance at wavelength_m: sqrt(rad2) lambda / (2 pi) * 1e9.
   double Nm(double rad2) const;
   double TotalNm() const { return Nm(TotalRad2()); }
@@ -229,10 +262,11 @@ struct ResidualPsd {
   Image servo;
   Image noise;
   Image aliasing;
+  Image anisoplanatism;  // off axis only (section 2); empty on axis
   double fitting_tail_rad2 = 0.0;  // variance of the fitting PSD beyond f_t [rad^2]
 
   Index grid_n() const { return fitting.rows(); }
-  // fitting + servo + noise + aliasing on the grid (without the tail).
+  // fitting + servo + noise + aliasing (+ anisoplanatism off axis) on the grid (without the tail).
   Image Total() const;
   // Sums times df^2 (plus the tail for fitting).
   AnalyticAoErrorBudget Budget() const;

@@ -58,8 +58,8 @@
 namespace aosr {
 
 struct Layer {
-  // Height above the telescope [m]; >= 0 and finite. Not used on axis (see the top of the header); 0: a
-  // ground layer.
+  // Height above the telescope [m]; >= 0 and finite. Not used on axis; off axis the layer is seen displaced
+  // by altitude * direction (header, "Field directions"). 0: a ground layer, the same in every direction.
   double altitude_m = 0.0;
   // Fraction of the integrated Cn^2 in this layer; in [0, 1]. The fractions of all layers sum to 1 (within
   // 1e-6). A layer with fraction 0 contributes nothing and gets no screen. 1: a single-layer atmosphere.
@@ -70,6 +70,15 @@ struct Layer {
   // Direction the turbulence moves toward [rad], from +x toward +y (pupil.hpp's azimuth); finite. 0 moves the
   // OPD pattern toward larger column index.
   double wind_direction_rad = 0.0;
+};
+
+// A direction in the field relative to the guide star [rad]: x along the pupil's columns, y along its rows
+// (the image axes: a tilt of the pupil along +x moves the image along +x).
+struct FieldDirection {
+  double x_rad = 0.0;
+  double y_rad = 0.0;
+  double Norm() const;
+  bool IsZero() const { return x_rad == 0.0 && y_rad == 0.0; }
 };
 
 struct AtmosphereOptions {
@@ -100,6 +109,9 @@ struct AtmosphereOptions {
   // axis, so the pair's mean centroid is 0 unless the system holds a bias (tests/ao/closed_loop_physics_test).
   // Default false.
   bool antithetic = false;
+  // Radius [rad] of the disk of field directions the screens must serve (header, "Field directions"); >= 0,
+  // finite and <= 0.01 rad (34'). Default 0: the guide star's direction only, exactly the on-axis screens.
+  double max_field_angle_rad = 0.0;
 
   // True when every field is in range; otherwise false and `why` (if non-null) names the bad field, e.g.
   // "layers[2].wind_speed_mps = nan; allowed: >= 0 and finite [m/s]".
@@ -123,8 +135,16 @@ class Atmosphere {
   Image Opd(double t_s);
   // Same into `opd` (resized to n x n if needed; no allocation when already that size).
   void Opd(double t_s, Image* opd);
+  // OPD [m] seen from field direction `direction` (header, "Field directions"); the zero direction gives
+  // exactly Opd(t_s). Throws InvalidArgument for a non-finite direction or one outside the disk the screens
+  // were built for (CheckFieldDirection), and as Opd(t_s) for a bad time.
+  void Opd(double t_s, const FieldDirection& direction, Image* opd);
+  Image Opd(double t_s, const FieldDirection& direction);
   // OPD [m] of layer `layer` alone (0-based) at t_s; zero for a layer with cn2_fraction 0.
   Image LayerOpd(int layer, double t_s);
+  // Throws InvalidArgument (as `function`, argument `direction`) unless the direction is finite and every
+  // layer above the ground can be read there: |theta| <= options().max_field_angle_rad.
+  void CheckFieldDirection(const FieldDirection& direction, const char* function) const;
 
   // r0_i = r0 w_i^(-3/5) of layer i at r0_wavelength_m [m] (+inf for a fraction of 0).
   double LayerR0(int layer) const;
@@ -137,8 +157,9 @@ class Atmosphere {
 
  private:
   struct LayerState;
-  void Accumulate(LayerState& layer, double t_s, double* out) const;
-  void Prepare(LayerState& layer, double t_s, const char* function);
+  // shift_x_px, shift_y_px: the layer's footprint displacement h theta / dx [pupil pixels] (0 on axis).
+  void Accumulate(LayerState& layer, double t_s, double shift_x_px, double shift_y_px, double* out) const;
+  void Prepare(LayerState& layer, double t_s, double row_shift_px, const char* function);
 
   AtmosphereOptions options_;
   Index pupil_n_ = 0;

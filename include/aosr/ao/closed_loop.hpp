@@ -13,6 +13,18 @@
 //   5. science:     the science camera sees w_n + science_static_opd_m (non-common-path aberration) at
 //                   science.wavelength_m: instantaneous Strehl and, every psf_every_steps frames, the
 //                   instantaneous PSF added to the long-exposure average.
+// Off axis (options.science_direction = theta != 0): steps 1-4 are unchanged (the guide star's loop, on its
+// axis), and the science camera of step 5 sees instead
+//     w_n(theta) = Atmosphere::Opd(t_n, theta) + common_static_opd_m + g_dm H c_n,
+// the same layered frozen flow with each layer displaced by h_l theta (atmosphere.hpp, "Field directions"),
+// corrected by the guide star's commands: anisoplanatism. The atmosphere must have been built for that
+// direction (AtmosphereOptions::max_field_angle_rad >= |theta|; checked by the constructor). residual_rms_m,
+// strehl and the PSF are then the science direction's; residual_opd_m() stays the sensor's. Cost: one more
+// Atmosphere::Opd per recorded frame (~0.17 ms for the paper's system). Any number of directions: one loop
+// per direction with the same atmosphere seed and sensor gives the same commands (the loop does not depend on
+// theta), so the directions of a field grid see the same correction; the scene layer can run them in parallel.
+// On axis (theta = 0, the default) nothing of this runs and the results are the same bytes as before.
+//
 // The sensor sees the residual of the same instant the science camera sees; the lag from a measurement to
 // the frame its correction starts is (k + 1) T with k = delay_frames, analytic_ao.hpp's convention (the
 // simulation samples each frame at its centre where the analytic model averages over it).
@@ -124,6 +136,9 @@ struct ClosedLoopOptions {
   double dm_gain = 1.0;
   // RunSubExposures' reference offsets (OffsetCalibration). Default kOnSky.
   OffsetCalibration offset_calibration = OffsetCalibration::kOnSky;
+  // Direction of the science camera from the guide star [rad] (header, "Off axis"); finite, and within the
+  // atmosphere's max_field_angle_rad. Default (0, 0): on axis.
+  FieldDirection science_direction;
 
   // True when every field is in range; otherwise false and `why` names the bad field. Image shapes are
   // checked by the ClosedLoop constructor (they depend on the pupil grid).
@@ -219,6 +234,7 @@ class ClosedLoop {
   Controller* controller_;
   long frame_ = 0;
   Image turbulence_, dm_opd_, residual_;
+  Image science_turbulence_, science_residual_;  // off axis only (header, "Off axis")
   Vector measurement_, clipped_;
   // Science path.
   std::vector<Index> lit_pupil_, lit_field_;  // lit pupil pixels and their index in the 2n x 2n field

@@ -3,6 +3,14 @@
 // (ao/closed_loop.hpp, the offset held through the WFS reference slopes), with its Strehl ratio, FWHM and
 // encircled energy. What `aosr psf` prints and the Python aosr.psf() returns: one library call for both.
 //
+// Field direction (anisoplanatism): the PSF of a science target at `field_direction` from the guide star
+// (which defines the AO axis), through the same atmosphere corrected by the guide star's loop. Analytic: the
+// anisoplanatism term of ao/analytic_ao.hpp (with the servo-lag cross term), the PSD grid's padding raised when
+// the direction needs it (h |theta| <= K D / 4); closed loop: the science camera off axis in the loop
+// (ao/closed_loop.hpp, "Off axis"), the screens built for |theta|; diffraction: no atmosphere, so the same PSF
+// everywhere. This is the one call that a field grid (scene layer) makes per field point. The default (on
+// axis) gives the same bytes as before field directions existed.
+//
 // Normalisation: the whole focal plane sums to 1, so the window's sum is the light inside it.
 // Strehl: the PSF's peak over the diffraction-limited peak of the same sampling (offsets included, so a
 // designed tilt lowers it only by the window's discretisation).
@@ -46,6 +54,9 @@ struct PresetPsfOptions {
   // the atmosphere and cancels, so the core centroid shows the sensor's and the offsets' own tilt; Strehl and
   // halo are even and stay. false: one realisation (half the time).
   bool antithetic = true;
+  // Direction of the science target from the guide star [rad] (x along columns, y along rows); finite, |theta|
+  // <= 0.01 rad (34'). Default on axis. `aosr psf --field-angle A` is (A arcsec, 0).
+  FieldDirection field_direction;
 
   bool IsValid(std::string* why) const;
 };
@@ -57,6 +68,14 @@ struct PresetPsf {
   double lambda_over_d_px = 0.0;  // λ/D in pixels
   double strehl = 0.0;
   double fwhm_px = 0.0;
+  // The core's elongation (optics/psf_metrics.hpp): major and minor FWHM [px], their ratio (>= 1) and the
+  // major axis' angle from +x toward +y [deg, (-90, 90]]; off axis the core stretches along the line to the
+  // guide star.
+  double fwhm_major_px = 0.0, fwhm_minor_px = 0.0, elongation = 1.0, major_axis_angle_deg = 0.0;
+  FieldDirection field_direction;  // as requested [rad]
+  // Fried's isoplanatic angle at the science wavelength (ao/anisoplanatism.hpp) [rad]; 0 without atmosphere,
+  // +inf with all the turbulence at the ground.
+  double isoplanatic_angle_rad = 0.0;
   double window_sum = 0.0;        // light inside the window
   double residual_rms_nm = 0.0;   // AO residual (analytic, closed loop); 0 for diffraction
   std::vector<double> encircled_energy;  // at 1, 2 and 5 λ/D, fraction of the window
