@@ -20,6 +20,7 @@
 #include "aosr/scene/evaluation.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/tiling.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
@@ -70,6 +71,9 @@ struct ReconstructArgs {
   // Drizzle
   std::string kernel = "square";
   double pixfrac = 1.0;
+  // Tiling (solvers/tiling.hpp): 0 = the whole grid at once
+  int tile = 0;           // --tile [camera px]
+  int tile_overlap = -1;  // --tile-overlap [camera px], -1 = the rule
   ExecutionArgs exec;
 };
 
@@ -159,6 +163,15 @@ void RunReconstruct(const ReconstructArgs& a) {
   o.map.likelihood = ParseMapLikelihood(a.likelihood);
   o.map.prior = ParseMapPrior(a.map_prior);
   o.map.read_noise = a.read_noise;
+  TilingOptions tiling;
+  tiling.tile = a.tile;
+  tiling.overlap = a.tile_overlap;
+  if (a.tile == 0 && a.tile_overlap >= 0)
+    throw InvalidArgument("aosr reconstruct", "--tile-overlap", std::to_string(a.tile_overlap), "only with --tile");
+  if (a.tile != 0) {
+    std::string why;
+    if (!tiling.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--tile / --tile-overlap", why, "valid tiling");
+  }
   CheckWritableFile(a.out);
   if (!a.stars_psf_out.empty()) {
     if (a.model_psfs != "stars")
@@ -211,7 +224,8 @@ void RunReconstruct(const ReconstructArgs& a) {
   progress.Step(std::string("reconstructing with ") + ToString(o.method) + " (" + std::to_string(d.size()) +
                 " frames of " + ToString(d.frame) + ", r = " + std::to_string(d.r) + ")");
   o.progress = bar.Callback();
-  const Reconstruction rec = Reconstruct(dp.problem, o);
+  TilingSummary ts;
+  const Reconstruction rec = a.tile > 0 ? ReconstructTiled(dp.problem, o, tiling, &ts) : Reconstruct(dp.problem, o);
   bar.Clear();
 
   FitsHeader h;
@@ -223,6 +237,11 @@ void RunReconstruct(const ReconstructArgs& a) {
   h.Set("REGUL", rec.regularisation, "lambda (tikhonov, map) or mu (tv); 0 for baselines");
   h.Set("TERMINAT", std::string(ToString(rec.summary.termination)), "solver termination");
   h.Set("NITER", static_cast<long long>(rec.summary.iterations), "iterations");
+  if (a.tile > 0) {
+    h.Set("TILE", static_cast<long long>(a.tile), "[camera px] largest tile core (solvers/tiling.hpp)");
+    h.Set("TILEOVER", static_cast<long long>(ts.overlap), "[camera px] tile overlap on each side");
+    h.Set("NTILES", static_cast<long long>(ts.tiles.size()), "tiles reconstructed and blended");
+  }
   if (d.camera_pixel_rad > 0) h.Set("HRPIXRAD", d.camera_pixel_rad / d.r, "[rad] HR pixel angular pitch");
   const FitsHeader common = h;  // the aux map sets its own unit
   SetHrImageKeywords(d, "electron", &h);  // BUNIT (e- per HR pixel per frame) and the HR grid's WCS
@@ -308,6 +327,12 @@ void RunReconstruct(const ReconstructArgs& a) {
                          {"seconds", reg.seconds}};
   }
   if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
+  if (a.tile > 0)
+    j["tiling"] = {{"tile", a.tile},
+                   {"overlap", ts.overlap},
+                   {"overlap_rule", ts.overlap_rule},
+                   {"tiles", {ts.tiles_y, ts.tiles_x}},
+                   {"regularisation_source", ts.regularisation_source}};
   if (dp.stars_psf) {
     const StarsPsfResult& st = *dp.stars_psf;
     j["stars_psf"] = {{"stars_used", st.used},
@@ -527,6 +552,12 @@ void RegisterReconstruct(CLI::App& app) {
   cmd->add_option("--pixfrac", a->pixfrac, "drizzle: drop size as a fraction of the camera pixel, (0, 1]")
       ->capture_default_str();
   AddExecutionOptions(cmd, &a->exec);
+  cmd->add_option("--tile", a->tile,
+                  "reconstruct in overlapping tiles of at most T x T camera px, blended with no seam, one "
+                  "regularisation for the field (chosen on the central tile); 0: the whole grid at once");
+  cmd->add_option("--tile-overlap", a->tile_overlap,
+                  "--tile: camera px added on each side of a tile; default from the PSF's extent and the method's "
+                  "reach (solvers/tiling.hpp)");
   cmd->callback([a] { RunReconstruct(*a); });
 }
 
