@@ -386,6 +386,7 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
   const Reconstruction& c = rec[central];
   const bool has_aux = c.aux.size() > 0;
   Image aux_num = has_aux ? Image::Zero(hr.rows, hr.cols) : Image();
+  Image aux_den = has_aux ? Image::Zero(hr.rows, hr.cols) : Image();  // a tile without the map adds no weight
   for (int k = 0; k < count; ++k) {
     const TileWindow& t = ts.tiles[k];
     const Image w = TileBlendWeight(t, r, overlap, ts.tiles_y, ts.tiles_x);
@@ -398,7 +399,10 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
         const Index fx = Mod(t.x0 * r + x, hr.cols);
         num(fy, fx) += wk * rec[k].image(y, x);
         den(fy, fx) += wk;
-        if (aux) aux_num(fy, fx) += wk * rec[k].aux(y, x);
+        if (aux) {
+          aux_num(fy, fx) += wk * rec[k].aux(y, x);
+          aux_den(fy, fx) += wk;
+        }
       }
     }
   }
@@ -406,7 +410,7 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
   Reconstruction out;
   out.image = num / den;
   if (has_aux) {
-    out.aux = aux_num / den;
+    out.aux = (aux_den > 0).select(aux_num / aux_den, 0.0);
     out.aux_name = c.aux_name;
   }
   out.regularisation = c.regularisation;
