@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <utility>
@@ -13,6 +14,7 @@
 #include "aosr/core/fft.hpp"
 #include "aosr/core/parallel.hpp"
 #include "aosr/solvers/padded_model.hpp"
+#include "tile_checkpoint.hpp"
 
 namespace aosr {
 namespace {
@@ -300,6 +302,8 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
   problem.Validate(kFn);
   std::string why;
   if (!tiling.IsValid(&why)) throw InvalidArgument(std::string(kFn) + ": tiling." + why);
+  if (!tiling.checkpoint_dir.empty() && !std::filesystem::is_directory(tiling.checkpoint_dir))
+    throw InvalidArgument(kFn, "tiling.checkpoint_dir", tiling.checkpoint_dir, "an existing folder");
   const Shape lr = problem.model->lr_shape(), hr = problem.model->hr_shape();
   const int r = problem.model->r();
 
@@ -363,17 +367,29 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
     ts.regularisation_source = chosen ? (whole ? "whole field" : "central tile") : "given";
   }
 
-  // The tiles, in parallel or one after the other (each writes only its own slot).
+  // The tiles, in parallel or one after the other (each writes only its own slot), each read from the checkpoint
+  // folder if a previous run finished it, else solved and written there.
+  const bool checkpoint = !tiling.checkpoint_dir.empty();
+  const std::uint64_t fingerprint =
+      checkpoint ? tiling_internal::RunFingerprint(problem, o, tiling, overlap) : 0;
   std::vector<Reconstruction> rec(count);
-  std::vector<char> empty(count, 0);
+  std::vector<char> empty(count, 0), resumed(count, 0);
   auto solve = [&](Index k) {
+    const std::string path = checkpoint ? tiling_internal::TilePath(tiling.checkpoint_dir, int(k)) : "";
+    if (checkpoint && tiling_internal::ReadTile(path, fingerprint, int(k), &rec[k])) {
+      resumed[k] = 1;
+      empty[k] = rec[k].summary.method.empty() && rec[k].summary.message == "no data";
+      return;
+    }
     const ReconstructionProblem p = tile_problem(ts.tiles[k]);
     if (!AnyWeighted(p)) {  // nothing observed in the window: zeros, said in the summary
       empty[k] = 1;
       rec[k].image = Image::Zero(p.model->hr_shape().rows, p.model->hr_shape().cols);
-      return;
+      rec[k].summary.message = "no data";
+    } else {
+      rec[k] = Reconstruct(p, o);
     }
-    rec[k] = Reconstruct(p, o);
+    if (checkpoint) tiling_internal::WriteTile(path, fingerprint, int(k), rec[k]);
   };
   if (tiling.parallel_tiles) {
     ParallelFor(count, solve);
@@ -424,6 +440,7 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
     ts.tile_terminations.push_back(rec[k].summary.termination);
     out.summary.iterations += rec[k].summary.iterations;
     empties += empty[k];
+    ts.tiles_resumed += resumed[k];
     if (Severity(rec[k].summary.termination) > Severity(rec[worst].summary.termination)) worst = k;
   }
   ts.regularisation = out.regularisation;
@@ -433,6 +450,7 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
                         std::to_string(overlap) + " (" + ts.overlap_rule + "); regularisation " +
                         ToString(out.regularisation) + " (" + ts.regularisation_source + ")";
   if (empties > 0) out.summary.message += "; " + std::to_string(empties) + " tiles without data (zero)";
+  if (checkpoint) out.summary.message += "; " + std::to_string(ts.tiles_resumed) + " tiles resumed";
   out.summary.message += "; central tile: " + c.summary.message;
   if (worst != central)
     out.summary.message += "; worst tile " + std::to_string(worst) + " (" +

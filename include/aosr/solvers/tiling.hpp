@@ -52,8 +52,8 @@
 // Second maps and the linear method's kernels: aux maps (posterior std, noise std, Drizzle weight) are blended
 // with the same weights (a std map blended linearly: exact where tiles agree, an approximation in the ramps);
 // effective_psf, noise_correlation, leakage_spectrum (on the tile's grid) and the linear summary are the
-// central tile's. Not done here: a memory limit per tile or automatic tiling, resuming, cancellation, reading
-// frames by sections.
+// central tile's. Not done here: a memory limit per tile or automatic tiling, cancellation, reading frames by
+// sections.
 #pragma once
 
 #include <functional>
@@ -90,6 +90,15 @@ struct TilingOptions {
   // each fitting in the window's HR grid. Empty: the problem's model PSFs, cut to the window. Called from the
   // tile's thread, so concurrently when parallel_tiles: it must be safe to call so.
   std::function<ImageStack(const TileWindow&)> local_psfs;
+  // Resuming: a folder (which must exist) where each finished tile is written (tile_<index>.bin, atomically)
+  // and where tiles a previous run of the same problem left are read instead of solved, so that a killed run
+  // continues and the final bytes are those of an uninterrupted run. The files carry a fingerprint of the run
+  // (the data, the model, the tile geometry, the method's options with the regularisation fixed, and
+  // checkpoint_key); another run's tile is refused with InvalidArgument, never mixed in. Empty: none.
+  std::string checkpoint_dir;
+  // What else the fingerprint should cover (the caller's description of its local PSFs or options the
+  // fingerprint does not list; the CLI gives its arguments).
+  std::string checkpoint_key;
 
   bool IsValid(std::string* why) const;
 };
@@ -102,6 +111,7 @@ struct TilingSummary {
   std::string regularisation_source; // "given", "central tile" or "whole field"
   std::vector<TileWindow> tiles;
   std::vector<Termination> tile_terminations;
+  int tiles_resumed = 0;             // read from checkpoint_dir instead of solved
 };
 
 // The tiles of an m_rows x m_cols camera field (core and window rule above). InvalidArgument (naming
