@@ -74,6 +74,7 @@ struct ReconstructArgs {
   // Tiling (solvers/tiling.hpp): 0 = the whole grid at once
   int tile = 0;           // --tile [camera px]
   int tile_overlap = -1;  // --tile-overlap [camera px], -1 = the rule
+  std::string resume;     // --resume DIR: finished tiles kept there, reused by a rerun
   ExecutionArgs exec;
 };
 
@@ -171,6 +172,26 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (a.tile != 0) {
     std::string why;
     if (!tiling.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--tile / --tile-overlap", why, "valid tiling");
+  }
+  if (!a.resume.empty()) {
+    if (a.tile <= 0) throw InvalidArgument("aosr reconstruct", "--resume", a.resume, "only with --tile");
+    std::error_code ec;
+    fs::create_directories(a.resume, ec);
+    if (!fs::is_directory(a.resume))
+      throw InvalidArgument("aosr reconstruct", "--resume", a.resume, "a folder that exists or can be created");
+    tiling.checkpoint_dir = a.resume;
+    // The options the library's fingerprint does not see by itself (it hashes the data, the model, the tiles and
+    // the method's main options): every argument that changes the image.
+    tiling.checkpoint_key = a.method + "|" + a.weights + "|" + a.offsets + "|" + a.model_psfs + "|" +
+                            ToString(a.lambda) + "|" + a.lambda_rule + "|" + a.prior + "|" + a.boundary + "|" +
+                            ToString(a.std_map) + "|" + ToString(a.noise_sigma) + "|" + ToString(a.mu) + "|" +
+                            ToString(a.iterations) + "|" + ToString(a.positivity) + "|" + a.likelihood + "|" +
+                            a.map_prior + "|" + ToString(a.read_noise) + "|" + a.target_psf + "|" +
+                            ToString(a.leakage) + "|" + ToString(a.noise_probes) + "|" + a.kernel + "|" +
+                            ToString(a.pixfrac) + "|" + ToString(a.registration_range) + "|" +
+                            a.registration_anchor + "|" + ToString(a.registration_rounds) + "|" +
+                            ToString(a.stars_psf_size) + "|" + ToString(a.stars_threshold) + "|" +
+                            ToString(a.stars_min) + "|" + ToString(a.stars_rounds);
   }
   CheckWritableFile(a.out);
   if (!a.stars_psf_out.empty()) {
@@ -332,7 +353,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                    {"overlap", ts.overlap},
                    {"overlap_rule", ts.overlap_rule},
                    {"tiles", {ts.tiles_y, ts.tiles_x}},
-                   {"regularisation_source", ts.regularisation_source}};
+                   {"regularisation_source", ts.regularisation_source},
+                   {"tiles_resumed", ts.tiles_resumed}};
   if (dp.stars_psf) {
     const StarsPsfResult& st = *dp.stars_psf;
     j["stars_psf"] = {{"stars_used", st.used},
@@ -558,6 +580,9 @@ void RegisterReconstruct(CLI::App& app) {
   cmd->add_option("--tile-overlap", a->tile_overlap,
                   "--tile: camera px added on each side of a tile; default from the PSF's extent and the method's "
                   "reach (solvers/tiling.hpp)");
+  cmd->add_option("--resume", a->resume,
+                  "--tile: keep each finished tile in this folder (created if missing) and reuse the tiles a killed "
+                  "run of the same command left there; the output is byte-identical to an uninterrupted run");
   cmd->callback([a] { RunReconstruct(*a); });
 }
 

@@ -5,10 +5,12 @@
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -339,6 +341,52 @@ TEST(TilingTest, SameBytesOnOneAndTwoThreads) {
       EXPECT_EQ(std::memcmp(out[0].data(), out[k].data(), sizeof(double) * out[0].size()), 0)
           << ToString(m) << " run " << k;
   }
+}
+
+// Resuming: a run that keeps its finished tiles in a folder gives the bytes of a run without it; with some
+// tiles missing (a run killed before they were written) the rerun solves only those and gives the same bytes;
+// another run's tiles are refused.
+TEST(TilingTest, ResumesFromFinishedTilesWithTheSameBytes) {
+  namespace fs = std::filesystem;
+  const Scene s = MakeScene();
+  ReconstructOptions o;
+  o.method = ReconstructionMethod::kLinear;  // κ chosen on the central tile, a noise map as aux
+  o.linear.noise_sigma = 0.01;
+  TilingOptions t;
+  t.tile = 32;
+  const Reconstruction plain = ReconstructTiled(s.problem, o, t);
+  const fs::path dir = fs::temp_directory_path() / ("aosr_tiles_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  t.checkpoint_dir = dir.string();
+  TilingSummary ts;
+  const Reconstruction first = ReconstructTiled(s.problem, o, t, &ts);
+  EXPECT_EQ(ts.tiles_resumed, 0);
+  for (int k = 0; k < 9; ++k) EXPECT_TRUE(fs::exists(dir / ("tile_" + std::to_string(k) + ".bin"))) << k;
+  auto same = [](const Image& a, const Image& b) {
+    return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
+  };
+  EXPECT_TRUE(same(first.image, plain.image));
+  fs::remove(dir / "tile_2.bin");
+  fs::remove(dir / "tile_4.bin");  // the central tile too
+  const Reconstruction resumed = ReconstructTiled(s.problem, o, t, &ts);
+  EXPECT_EQ(ts.tiles_resumed, 7);
+  EXPECT_TRUE(same(resumed.image, plain.image));
+  EXPECT_TRUE(same(resumed.aux, plain.aux));
+  EXPECT_TRUE(same(resumed.effective_psf, plain.effective_psf));
+  ASSERT_TRUE(resumed.linear.has_value());
+  EXPECT_EQ(resumed.linear->kappa, plain.linear->kappa);
+  const Reconstruction all = ReconstructTiled(s.problem, o, t, &ts);
+  EXPECT_EQ(ts.tiles_resumed, 9);
+  EXPECT_TRUE(same(all.image, plain.image));
+  // Another run's tiles (another leakage bound, so another κ) are refused, not mixed in.
+  ReconstructOptions other = o;
+  other.linear.leakage = 1e-2;
+  EXPECT_THAT(test::ErrorOf([&] { ReconstructTiled(s.problem, other, t); }),
+              ::testing::AllOf(::testing::HasSubstr("checkpoint_dir"), ::testing::HasSubstr("another run")));
+  t.checkpoint_dir = (dir / "nowhere").string();
+  EXPECT_THAT(test::ErrorOf([&] { ReconstructTiled(s.problem, o, t); }), ::testing::HasSubstr("an existing folder"));
+  fs::remove_all(dir);
 }
 
 TEST(TilingTest, OneTileIsTheWholeGridExactly) {
