@@ -41,3 +41,14 @@ def test_one_regularisation_for_the_field(demo_dir):
 def test_bad_tiling_raises_invalid_argument(demo_dir, kwargs, needle):
     with pytest.raises(aosr.InvalidArgument, match=needle):
         aosr.reconstruct(demo_dir, "tikhonov", **kwargs)
+
+
+def test_resume_gives_the_same_bytes(demo_dir, tmp_path):
+    plain = aosr.reconstruct(demo_dir, "tikhonov", tile=64)
+    first = aosr.reconstruct(demo_dir, "tikhonov", tile=64, resume=str(tmp_path))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"tile_{k}.bin" for k in range(4)]
+    (tmp_path / "tile_1.bin").unlink()
+    again = aosr.reconstruct(demo_dir, "tikhonov", tile=64, resume=str(tmp_path))
+    assert "3 tiles resumed" in again.summary["message"]
+    for rec in (first, again):
+        assert np.array_equal(rec.image.view(np.uint64), plain.image.view(np.uint64))

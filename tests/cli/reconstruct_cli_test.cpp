@@ -259,6 +259,38 @@ TEST_F(ReconstructCliTest, TileReconstructsByOverlappingTiles) {
   }
 }
 
+// --resume DIR: the finished tiles are kept; a rerun after losing some (a killed run never wrote them) solves
+// only those and writes the same file, byte for byte.
+TEST_F(ReconstructCliTest, ResumeGivesTheBytesOfAnUninterruptedRun) {
+  auto bytes = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string dir = (dir_ / "tiles").string();
+  const std::string cmd = "reconstruct " + Data() + " -m linear --tile 16 --json -o ";
+  CliRun r = RunCli(cmd + Out("plain"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  r = RunCli(cmd + Out("first") + " --resume " + dir);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["tiling"]["tiles_resumed"], 0);
+  ASSERT_TRUE(fs::exists(fs::path(dir) / "tile_8.bin"));
+  fs::remove(fs::path(dir) / "tile_0.bin");
+  fs::remove(fs::path(dir) / "tile_4.bin");
+  r = RunCli(cmd + Out("resumed") + " --resume " + dir);
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["tiling"]["tiles_resumed"], 7);
+  EXPECT_EQ(bytes(Out("resumed")), bytes(Out("plain")));
+  EXPECT_EQ(bytes(Out("first")), bytes(Out("plain")));
+  // The same folder with other options: refused, nothing written.
+  r = RunCli(cmd + Out("other") + " --leakage 0.01 --resume " + dir);
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("another run"));
+  EXPECT_FALSE(fs::exists(Out("other")));
+  r = RunCli("reconstruct " + Data() + " -o " + Out("other") + " --resume " + dir);
+  EXPECT_EQ(r.status, 1);
+  EXPECT_THAT(r.out, HasSubstr("only with --tile"));
+}
+
 // Progress (src/cli/progress_bar.hpp): --progress writes it to stderr, as whole lines when stderr is a file,
 // and never to stdout (the JSON stays clean); without it, with stderr not a terminal (a file here), a
 // successful run writes nothing to stderr.
