@@ -31,6 +31,13 @@ std::vector<Index> Cuts(Index m, int tile) {
   return b;
 }
 
+// The smallest and largest core of an axis cut by Cuts.
+std::pair<Index, Index> CoreRange(const std::vector<Index>& c) {
+  Index lo = c.back(), hi = 0;
+  for (std::size_t k = 0; k + 1 < c.size(); ++k) lo = std::min(lo, c[k + 1] - c[k]), hi = std::max(hi, c[k + 1] - c[k]);
+  return {lo, hi};
+}
+
 // One axis of a tile's blending weight over its window (HR pixels j = 0 .. rows·r − 1 at field HR position
 // (start·r + j), unwrapped). With one tile on the axis: 1. Otherwise the raised-cosine ramps of half-width
 // h = P·r/2 centred on both core boundaries (the field is periodic: the first core's left boundary is the last
@@ -218,14 +225,13 @@ std::vector<TileWindow> MakeTiles(Shape lr, int tile, int overlap, const char* f
   // Per cut axis: P <= every core (a ramp must not reach the next boundary) and the window within the field.
   auto check_axis = [&](const std::vector<Index>& c, Index m, const char* axis) {
     if (c.size() <= 2) return;
-    Index smallest = m;
-    for (std::size_t k = 0; k + 1 < c.size(); ++k) smallest = std::min(smallest, c[k + 1] - c[k]);
+    const auto [smallest, largest_core] = CoreRange(c);
     if (overlap > smallest)
       throw InvalidArgument(function, "overlap", std::to_string(overlap),
                             std::string("at most the smallest tile core along ") + axis + " (" +
                                 std::to_string(smallest) + " camera px for tile " + std::to_string(tile) +
                                 " on " + std::to_string(m) + " px): choose a larger tile or a smaller overlap");
-    const Index largest = c[1] - c[0] + 2 * Index(overlap);
+    const Index largest = largest_core + 2 * Index(overlap);
     if (largest > m)
       throw InvalidArgument(function, "tile, overlap", std::to_string(tile) + ", " + std::to_string(overlap),
                             std::string("tile + 2 overlap <= the field's ") + axis + " side (" + std::to_string(m) +
@@ -319,9 +325,8 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
       (void)axis;
       const std::vector<Index> c = Cuts(m, tiling.tile);
       if (c.size() <= 2) continue;
-      Index smallest = m;
-      for (std::size_t k = 0; k + 1 < c.size(); ++k) smallest = std::min(smallest, c[k + 1] - c[k]);
-      cap = std::min({cap, smallest, (m - (c[1] - c[0])) / 2});
+      const auto [smallest, largest] = CoreRange(c);
+      cap = std::min({cap, smallest, (m - largest) / 2});
     }
     if (cap < overlap) ts.overlap_rule += ", capped at " + std::to_string(cap) + " by the tile and field sizes";
     overlap = int(cap);
