@@ -12,11 +12,11 @@
 namespace aosr::tiling_internal {
 namespace {
 
-constexpr char kMagic[8] = {'A', 'O', 'S', 'R', 'T', 'I', 'L', '1'};
+constexpr char kTileMagic[8] = {'A', 'O', 'S', 'R', 'T', 'I', 'L', '1'};
 
 // FNV-1a, 64 bits, over bytes in a fixed order (the fingerprint: not a security hash, a guard against mixing
 // two runs' tiles by mistake).
-struct Fnv {
+struct TileFnv {
   std::uint64_t h = 1469598103934665603ull;
   void Bytes(const void* p, std::size_t n) {
     const unsigned char* b = static_cast<const unsigned char*>(p);
@@ -38,7 +38,7 @@ struct Fnv {
 };
 
 // A little-endian-as-in-memory writer/reader of the fields (the file is read back by the same build).
-struct Writer {
+struct TileWriter {
   std::vector<char> buf;
   void Bytes(const void* p, std::size_t n) { buf.insert(buf.end(), (const char*)p, (const char*)p + n); }
   template <class T>
@@ -56,7 +56,7 @@ struct Writer {
   }
 };
 
-struct Reader {
+struct TileReader {
   const std::vector<char>& buf;
   std::size_t at = 0;
   bool ok = true;
@@ -96,7 +96,7 @@ struct Reader {
   }
 };
 
-[[noreturn]] void Refuse(const std::string& path, const std::string& why) {
+[[noreturn]] void RefuseTile(const std::string& path, const std::string& why) {
   throw InvalidArgument("ReconstructTiled", "tiling.checkpoint_dir", path,
                         "a folder holding only this run's tiles (" + why +
                             "): empty the folder or give another one to start afresh");
@@ -106,7 +106,7 @@ struct Reader {
 
 std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& o,
                              const TilingOptions& tiling, int overlap) {
-  Fnv f;
+  TileFnv f;
   f.String("aosr tiles v1");
   const MultiFrameModel& m = *problem.model;
   f.Value(m.hr_shape().rows);
@@ -151,8 +151,8 @@ std::string TilePath(const std::string& dir, int index) {
 }
 
 void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& r) {
-  Writer w;
-  w.Bytes(kMagic, sizeof kMagic);
+  TileWriter w;
+  w.Bytes(kTileMagic, sizeof kTileMagic);
   w.Value(fingerprint);
   w.Value(std::int32_t(index));
   w.Array(r.image);
@@ -189,12 +189,12 @@ bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Rec
   std::ifstream in(path, std::ios::binary);
   if (!in) return false;
   const std::vector<char> buf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  Reader rd{buf};
-  char magic[sizeof kMagic];
+  TileReader rd{buf};
+  char magic[sizeof kTileMagic];
   rd.Bytes(magic, sizeof magic);
-  if (!rd.ok || std::memcmp(magic, kMagic, sizeof kMagic) != 0) Refuse(path, "not an aosr tile file");
-  if (rd.Value<std::uint64_t>() != fingerprint) Refuse(path, "a tile of another run: other data or options");
-  if (rd.Value<std::int32_t>() != index) Refuse(path, "the tile index differs from its name");
+  if (!rd.ok || std::memcmp(magic, kTileMagic, sizeof kTileMagic) != 0) RefuseTile(path, "not an aosr tile file");
+  if (rd.Value<std::uint64_t>() != fingerprint) RefuseTile(path, "a tile of another run: other data or options");
+  if (rd.Value<std::int32_t>() != index) RefuseTile(path, "the tile index differs from its name");
   Reconstruction t;
   t.image = rd.Array();
   t.aux = rd.Array();
@@ -224,7 +224,7 @@ bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Rec
     s.fourier_exact = rd.Value<char>() != 0;
     t.linear = s;
   }
-  if (!rd.ok || rd.at != buf.size()) Refuse(path, "a truncated or damaged tile file");
+  if (!rd.ok || rd.at != buf.size()) RefuseTile(path, "a truncated or damaged tile file");
   *r = std::move(t);
   return true;
 }

@@ -19,9 +19,9 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFn = "ReconstructTiled";
+constexpr const char* kTilingFn = "ReconstructTiled";
 
-Index Mod(Index a, Index n) { return ((a % n) + n) % n; }
+Index WrapIndex(Index a, Index n) { return ((a % n) + n) % n; }
 
 // The core boundaries of one axis: n = ceil(m / T) cores, boundary k at round(k m / n) (sizes differ by <= 1).
 std::vector<Index> Cuts(Index m, int tile) {
@@ -60,10 +60,10 @@ std::vector<double> AxisWeight(Index start, Index rows, Index core0, Index core1
       v = 0.0;
     } else if (x < lo + h) {
       const double t = (x - (lo - h)) / (2 * h);
-      v = 1.0 - 0.5 * (1.0 + std::cos(M_PI * t));  // rising: the complement of the left neighbour's fall
+      v = 1.0 - 0.5 * (1.0 + std::cos(kPi * t));  // rising: the complement of the left neighbour's fall
     } else if (x > hi - h) {
       const double t = (x - (hi - h)) / (2 * h);
-      v = 0.5 * (1.0 + std::cos(M_PI * t));
+      v = 0.5 * (1.0 + std::cos(kPi * t));
     } else {
       v = 1.0;
     }
@@ -87,10 +87,10 @@ std::shared_ptr<const MultiFrameModel> CutModel(const ImageStack& kernels, Shape
   for (const Image& k : kernels) {
     Image kp = Image::Zero(window.rows, window.cols);
     for (Index y = 0; y < whole.rows; ++y) {
-      const Index sy = SignedFrequency(y, whole.rows), wy = Mod(sy, window.rows);
+      const Index sy = SignedFrequency(y, whole.rows), wy = WrapIndex(sy, window.rows);
       if (SignedFrequency(wy, window.rows) != sy) continue;
       for (Index x = 0; x < whole.cols; ++x) {
-        const Index sx = SignedFrequency(x, whole.cols), wx = Mod(sx, window.cols);
+        const Index sx = SignedFrequency(x, whole.cols), wx = WrapIndex(sx, window.cols);
         if (SignedFrequency(wx, window.cols) != sx) continue;
         kp(wy, wx) = k(y, x);
       }
@@ -107,8 +107,8 @@ ReconstructionProblem CutProblem(const ReconstructionProblem& problem, const Til
   auto cut = [&](const Image& a) {
     Image s(tile.rows, tile.cols);
     for (Index y = 0; y < tile.rows; ++y) {
-      const Index fy = Mod(tile.y0 + y, lr.rows);
-      for (Index x = 0; x < tile.cols; ++x) s(y, x) = a(fy, Mod(tile.x0 + x, lr.cols));
+      const Index fy = WrapIndex(tile.y0 + y, lr.rows);
+      for (Index x = 0; x < tile.cols; ++x) s(y, x) = a(fy, WrapIndex(tile.x0 + x, lr.cols));
     }
     return s;
   };
@@ -305,11 +305,11 @@ int SuggestTileOverlap(const ReconstructionProblem& problem, const ReconstructOp
 Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const ReconstructOptions& options,
                                 const TilingOptions& tiling, TilingSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
-  problem.Validate(kFn);
+  problem.Validate(kTilingFn);
   std::string why;
-  if (!tiling.IsValid(&why)) throw InvalidArgument(std::string(kFn) + ": tiling." + why);
+  if (!tiling.IsValid(&why)) throw InvalidArgument(std::string(kTilingFn) + ": tiling." + why);
   if (!tiling.checkpoint_dir.empty() && !std::filesystem::is_directory(tiling.checkpoint_dir))
-    throw InvalidArgument(kFn, "tiling.checkpoint_dir", tiling.checkpoint_dir, "an existing folder");
+    throw InvalidArgument(kTilingFn, "tiling.checkpoint_dir", tiling.checkpoint_dir, "an existing folder");
   const Shape lr = problem.model->lr_shape(), hr = problem.model->hr_shape();
   const int r = problem.model->r();
 
@@ -332,7 +332,7 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
     overlap = int(cap);
   }
   ts.overlap = overlap;
-  ts.tiles = MakeTiles(lr, tiling.tile, overlap, kFn);
+  ts.tiles = MakeTiles(lr, tiling.tile, overlap, kTilingFn);
   ts.tiles_y = ts.tiles.back().ty + 1;
   ts.tiles_x = ts.tiles.back().tx + 1;
   const int count = int(ts.tiles.size());
@@ -413,11 +413,11 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
     const Image w = TileBlendWeight(t, r, overlap, ts.tiles_y, ts.tiles_x);
     const bool aux = has_aux && rec[k].aux.size() == w.size();
     for (Index y = 0; y < w.rows(); ++y) {
-      const Index fy = Mod(t.y0 * r + y, hr.rows);
+      const Index fy = WrapIndex(t.y0 * r + y, hr.rows);
       for (Index x = 0; x < w.cols(); ++x) {
         const double wk = w(y, x);
         if (wk == 0) continue;
-        const Index fx = Mod(t.x0 * r + x, hr.cols);
+        const Index fx = WrapIndex(t.x0 * r + x, hr.cols);
         num(fy, fx) += wk * rec[k].image(y, x);
         den(fy, fx) += wk;
         if (aux) {
