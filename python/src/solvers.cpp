@@ -567,7 +567,7 @@ model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) a
             (estimated from the point sources in the frames, aosr.stars_psf; Reconstruction.stars_psf reports it)
 stars       model_psfs='stars': a dict of aosr.stars_psf's options (psf_size_hr_px, detection_sigma, ...)
 tile        > 0: reconstruct in overlapping tiles of at most tile x tile camera px, blended with no seam, one
-            regularisation for the field chosen on the central tile (solvers/tiling.hpp; `aosr reconstruct --tile`);
+            regularisation for the field chosen on the whole field (solvers/tiling.hpp; `aosr reconstruct --tile`);
             0: the whole grid at once. progress is not called for a tiled run
 tile_overlap  tile > 0: camera px added on each side of a tile; -1: from the PSF's extent and the method's reach
 resume      tile > 0: an existing folder where finished tiles are kept; a rerun reuses them (same bytes)

@@ -28,7 +28,7 @@ def test_tiled_matches_whole_grid_and_the_cli(demo_dir, cli, tmp_path):
 
 def test_one_regularisation_for_the_field(demo_dir):
     rec = aosr.reconstruct(demo_dir, "tv", tile=64, iterations=20)
-    assert "central tile" in rec.summary["message"]
+    assert "whole field" in rec.summary["message"]
     assert rec.regularisation > 0
 
 

@@ -576,7 +576,7 @@ void RegisterReconstruct(CLI::App& app) {
   AddExecutionOptions(cmd, &a->exec);
   cmd->add_option("--tile", a->tile,
                   "reconstruct in overlapping tiles of at most T x T camera px, blended with no seam, one "
-                  "regularisation for the field (chosen on the central tile); 0: the whole grid at once");
+                  "regularisation for the field (chosen on the whole field); 0: the whole grid at once");
   cmd->add_option("--tile-overlap", a->tile_overlap,
                   "--tile: camera px added on each side of a tile; default from the PSF's extent and the method's "
                   "reach (solvers/tiling.hpp)");

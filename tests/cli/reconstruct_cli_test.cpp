@@ -245,9 +245,9 @@ TEST_F(ReconstructCliTest, TileReconstructsByOverlappingTiles) {
   const aosr::Image& t = t1.planes.at(0);
   EXPECT_LT((t - w).abs().maxCoeff(), 1e-5 * w.abs().maxCoeff());
   EXPECT_TRUE((t == t2.planes.at(0)).all()) << "1 and 2 threads";
-  // The automatic overlap (PSF reach + Tikhonov's), and GCV chosen on the central tile.
+  // The automatic overlap (PSF reach + Tikhonov's), and GCV chosen on the whole field.
   const nlohmann::json a = Run("tikhonov", "--tile 24");
-  EXPECT_EQ(a["tiling"]["regularisation_source"], "central tile");
+  EXPECT_EQ(a["tiling"]["regularisation_source"], "whole field");
   EXPECT_THAT(a["tiling"]["overlap_rule"].get<std::string>(), HasSubstr("psf"));
   // Bad tilings: named, and nothing written.
   for (const std::string& bad : {std::string("--tile -3"), std::string("--tile 24 --tile-overlap 30"),

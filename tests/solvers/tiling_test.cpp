@@ -153,8 +153,10 @@ TEST(TilingTest, ZeroPaddedTilesAreCloserThanPeriodicOnes) {
   EXPECT_LT(padded, 0.1 * periodic);
 }
 
-// The regularisation is chosen once: GCV on the central tile gives one λ that every tile uses, close to the
-// whole field's GCV λ; with the whole field as the representative, tiled matches untiled as with a fixed λ.
+// The regularisation is chosen once, on the whole field by default: the tiles then use the whole field's GCV
+// λ, and the tiled image is the whole-grid one up to the tiling's error (measured 2.4e-3 of the peak at the
+// automatic overlap, at that λ). On the central tile GCV picks a λ far from the field's (printed; measured
+// 3e-10 against 7e-3): why the whole field is the default.
 TEST(TilingTest, OneLambdaForTheField) {
   const Scene s = MakeScene();
   ReconstructOptions o;  // GCV
@@ -162,15 +164,16 @@ TEST(TilingTest, OneLambdaForTheField) {
   TilingOptions t;
   t.tile = 32;
   TilingSummary ts;
-  const Reconstruction central = ReconstructTiled(s.problem, o, t, &ts);
-  EXPECT_EQ(ts.regularisation_source, "central tile");
-  EXPECT_NEAR(std::log10(central.regularisation / whole.regularisation), 0.0, 0.5)
-      << central.regularisation << " vs " << whole.regularisation;
-  t.regularisation_from_whole_field = true;
   const Reconstruction tiled = ReconstructTiled(s.problem, o, t, &ts);
   EXPECT_EQ(ts.regularisation_source, "whole field");
   EXPECT_DOUBLE_EQ(tiled.regularisation, whole.regularisation);
-  EXPECT_LT(MaxAbs(tiled.image - whole.image) / MaxAbs(whole.image), 1e-6);
+  const double err = MaxAbs(tiled.image - whole.image) / MaxAbs(whole.image);
+  std::printf("GCV lambda of the whole field %.3g; tiled vs whole %.3g of the peak\n", whole.regularisation, err);
+  EXPECT_LT(err, 5e-3);
+  t.regularisation_from_whole_field = false;
+  const Reconstruction central = ReconstructTiled(s.problem, o, t, &ts);
+  EXPECT_EQ(ts.regularisation_source, "central tile");
+  std::printf("GCV lambda of the central tile %.3g\n", central.regularisation);
 }
 
 double PsnrOf(const Image& truth, const Image& x) {
@@ -187,7 +190,6 @@ TEST(TilingTest, TotalVariationWithinAHundredthOfADecibel) {
   const Reconstruction whole = Reconstruct(s.problem, o);
   TilingOptions t;
   t.tile = 32;
-  t.regularisation_from_whole_field = true;  // the same μ as the whole field: compare the tiling alone
   TilingSummary ts;
   const Reconstruction tiled = ReconstructTiled(s.problem, o, t, &ts);
   EXPECT_DOUBLE_EQ(tiled.regularisation, whole.regularisation);
