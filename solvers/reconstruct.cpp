@@ -55,8 +55,16 @@ struct Pilot {
   double mu = 0.0;        // μ of that rule
 };
 
-Pilot RunPilot(const ReconstructionProblem& problem, const TikhonovOptions& base) {
-  TikhonovOptions t = WithGcvLambda(problem, base);
+// With `fixed` (ReconstructOptions::fixed_automatic) the pilot runs at its λ and reports its μ and contrast.
+Pilot RunPilot(const ReconstructionProblem& problem, const TikhonovOptions& base,
+               const std::optional<AutomaticRegularisation>& fixed = std::nullopt) {
+  TikhonovOptions t = base;
+  if (fixed) {
+    t.lambda_rule = TikhonovLambdaRule::kFixed;
+    t.lambda = fixed->pilot_lambda;
+  } else {
+    t = WithGcvLambda(problem, base);
+  }
   t.compute_std = false;
   Pilot p;
   p.tikhonov = ReconstructTikhonov(problem, t);
@@ -72,6 +80,10 @@ Pilot RunPilot(const ReconstructionProblem& problem, const TikhonovOptions& base
   const double n = double(std::max<Index>(1, weighted));
   const double rho = std::sqrt(std::max(p.tikhonov.summary.weighted_residual / n, 1e-300));
   p.mu = 0.5 * rho * std::sqrt(weight_sum / n);
+  if (fixed) {
+    p.mu = fixed->mu;
+    p.contrast = fixed->contrast;
+  }
   return p;
 }
 
@@ -79,10 +91,11 @@ Pilot RunPilot(const ReconstructionProblem& problem, const TikhonovOptions& base
 // cancellation asked at either point is honoured after the pilot (a direct solve), whose estimate is then the
 // result: *cancelled is set.
 Pilot RunPilotStage(const ReconstructionProblem& problem, const TikhonovOptions& base,
-                    const ProgressCallback& progress, bool* cancelled) {
+                    const std::optional<AutomaticRegularisation>& fixed, const ProgressCallback& progress,
+                    bool* cancelled) {
   ProgressReporter stage(progress, "pilot", 1, "lambda");
   stage.Start();
-  Pilot p = RunPilot(problem, base);
+  Pilot p = RunPilot(problem, base, fixed);
   stage.Finish(1, p.tikhonov.summary.lambda);
   stage.RethrowIfThrown();
   *cancelled = stage.cancelled();
@@ -129,6 +142,16 @@ ReconstructionMethod ParseReconstructionMethod(const std::string& name) {
     allowed += (allowed.empty() ? "" : " | ") + std::string(ToString(m));
   }
   throw InvalidArgument("ParseReconstructionMethod", "method", name, allowed);
+}
+
+AutomaticRegularisation ChooseAutomaticRegularisation(const ReconstructionProblem& problem,
+                                                      const ReconstructOptions& options) {
+  problem.Validate("ChooseAutomaticRegularisation");
+  std::string why;
+  if (!options.tikhonov.IsValid(&why))
+    throw InvalidArgument("ChooseAutomaticRegularisation: options.tikhonov." + why);
+  const Pilot p = RunPilot(problem, options.tikhonov);
+  return {p.tikhonov.summary.lambda, p.mu, p.contrast};
 }
 
 Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options) {
@@ -212,7 +235,7 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
       Image initial;
       if (options.auto_regularisation) {
         bool cancelled = false;
-        Pilot p = RunPilotStage(problem, options.tikhonov, tv.progress, &cancelled);
+        Pilot p = RunPilotStage(problem, options.tikhonov, options.fixed_automatic, tv.progress, &cancelled);
         if (cancelled) {
           CancelledAfterPilot(std::move(p), &out);
           break;
@@ -231,7 +254,9 @@ Reconstruction Reconstruct(const ReconstructionProblem& problem, const Reconstru
       MapOptions m = options.map;
       if (options.progress) m.progress = options.progress;
       bool cancelled = false;
-      Pilot p = RunPilotStage(problem, options.tikhonov, m.progress, &cancelled);
+      Pilot p = RunPilotStage(problem, options.tikhonov,
+                              options.auto_regularisation ? options.fixed_automatic : std::nullopt, m.progress,
+                              &cancelled);
       if (cancelled) {
         CancelledAfterPilot(std::move(p), &out);
         break;

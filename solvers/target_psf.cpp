@@ -251,6 +251,8 @@ bool TargetPsfOptions::IsValid(std::string* why) const {
   }
   if (!(std::isfinite(leakage) && leakage > 0 && leakage < 1))
     return fail("leakage = " + std::to_string(leakage) + "; allowed: (0, 1)");
+  if (!(std::isfinite(kappa) && kappa >= 0))
+    return fail("kappa = " + std::to_string(kappa) + "; allowed: 0 (by the leakage bound) or > 0");
   if (!(std::isfinite(noise_sigma) && noise_sigma > 0))
     return fail("noise_sigma = " + std::to_string(noise_sigma) + "; allowed: > 0");
   if (noise_probes < 2) return fail("noise_probes = " + std::to_string(noise_probes) + "; allowed: >= 2");
@@ -296,7 +298,9 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   s.leakage_unreachable = Leakage(sd, 0.0);
   const double goal = s.leakage_unreachable + options.leakage;
   double lo = std::log(1e-14 * sd.e_max), hi = std::log(1e4 * sd.e_max);
-  if (Leakage(sd, std::exp(hi)) <= goal) {
+  if (options.kappa > 0) {
+    lo = hi = std::log(options.kappa);  // given: no search
+  } else if (Leakage(sd, std::exp(hi)) <= goal) {
     lo = hi;
   } else if (Leakage(sd, std::exp(lo)) > goal) {
     hi = lo;
@@ -306,7 +310,7 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
       (Leakage(sd, std::exp(mid)) <= goal ? lo : hi) = mid;
     }
   }
-  const double kappa = std::exp(lo);
+  const double kappa = options.kappa > 0 ? options.kappa : std::exp(lo);
   s.kappa = kappa;
   s.leakage = Leakage(sd, kappa);
   s.leakage_met = s.leakage <= goal * (1 + 1e-9);
@@ -597,9 +601,10 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   // --- summary -------------------------------------------------------------------------------------------
   std::ostringstream msg;
   msg.precision(3);
-  msg << s.message << "target " << s.target << "; κ = " << kappa << ", leakage U = " << s.leakage
+  msg << s.message << "target " << s.target << "; κ = " << kappa << (options.kappa > 0 ? " (given)" : "")
+      << ", leakage U = " << s.leakage
       << " (unreachable " << s.leakage_unreachable << ", bound +" << options.leakage << ")";
-  if (!s.leakage_met) msg << " NOT MET: κ at its search floor";
+  if (!s.leakage_met) msg << (options.kappa > 0 ? " NOT MET at the given κ" : " NOT MET: κ at its search floor");
   msg << "; ℓ ≤ 1e-3 for |f| < " << s.band_cycles_per_hr_px << " cycles/HR px";
   if (s.unreachable_frequencies > 0) msg << "; " << s.unreachable_frequencies << " HR frequencies unreachable";
   if (options.compute_noise) {

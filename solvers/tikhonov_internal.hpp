@@ -1,6 +1,9 @@
 // Private to the library (not installed): the per-bin Fourier engine of tikhonov.hpp and the λ searches, shared
 // by the Fourier path and the conjugate-gradient path (whose preconditioner is this engine's inverse), and used
-// by design/design_empirical.cpp (objective B's preconditioner) and the tests.
+// by design/design_empirical.cpp (objective B's preconditioner) and the tests. Defined in tikhonov_prior.cpp
+// (PriorSymbolImage), tikhonov_fourier_system.cpp (FourierSystem), tikhonov_posterior.cpp (inverse operator,
+// diagonal, PosteriorStd), tikhonov_lambda.cpp (λ searches), tikhonov.cpp (entry points, summary helpers) and
+// tikhonov_cg.cpp (the CG path).
 #pragma once
 
 #include <Eigen/Dense>
@@ -275,7 +278,7 @@ LogGridMinimum MinimiseOnLogGrid(const std::function<double(double)>& f, double 
 
 // The L-curve curvature κ(λ) of tikhonov.hpp (kLcurve) from the spectral sums (−∞ where undefined), and the
 // λ' of the corner: the positive local maximum of κ at the largest λ on the grid, refined by golden section
-// (tikhonov.cpp says why not the global maximum); *edge "" or a note when there is no such corner.
+// (tikhonov_lambda.cpp says why not the global maximum); *edge "" or a note when there is no such corner.
 double LcurveCurvature(const FourierSystem& sys, double lambda);
 double LcurveSearch(const FourierSystem& sys, const TikhonovOptions& options, double* curvature, int* evaluations,
                     std::string* edge = nullptr);

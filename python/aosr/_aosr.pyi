@@ -175,7 +175,7 @@ def reconstruct(dataset: Union[Dataset, PathLike], method: str = "tikhonov", *, 
                 offsets: str = "auto", model_psfs: Union[ArrayLike, str, None] = None,
                 progress: Optional[Callable[[ProgressDict], Optional[bool]]] = None, registration_range: float = 0.5,
                 registration_anchor: str = "mean", stars: Optional[Dict[str, Any]] = None,
-                **options: Any) -> Reconstruction: ...
+                tile: int = 0, tile_overlap: int = -1, resume: str = "", **options: Any) -> Reconstruction: ...
 # model_psfs='stars' and aosr.stars_psf: PSFs from the point sources in the frames (solvers/stars_psf.hpp).
 def stars_psf(dataset: Union[Dataset, PathLike], *, psf_size_hr_px: int = 0, detection_sigma: float = 5.0,
               min_stars: int = 4, rounds: int = 4, regularisation: float = 1e-4, fit_radius_px: int = 3,

@@ -6,6 +6,7 @@
 #include "aosr/solvers/frame_power_spectrum.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "aosr/solvers/target_psf.hpp"
+#include "aosr/solvers/tiling.hpp"
 #include "bindings.hpp"
 #include "common.hpp"
 
@@ -476,8 +477,22 @@ void BindSolvers(py::module_& m) {
       "reconstruct",
       [](py::object dataset, const std::string& method, const std::string& weights, const std::string& offsets,
          py::object model_psfs, py::object progress, double registration_range, const std::string& registration_anchor,
-         py::object stars, py::kwargs kwargs) {
+         py::object stars, int tile, int tile_overlap, const std::string& resume, py::kwargs kwargs) {
         // Everything is parsed and checked before any work (as the CLI does).
+        TilingOptions tiling;
+        tiling.tile = tile;
+        tiling.overlap = tile_overlap;
+        if (tile == 0 && tile_overlap >= 0)
+          throw InvalidArgument("aosr.reconstruct", "tile_overlap", std::to_string(tile_overlap), "only with tile > 0");
+        if (tile != 0) {
+          std::string why;
+          if (!tiling.IsValid(&why)) throw InvalidArgument("aosr.reconstruct", "tile / tile_overlap", why, "valid tiling");
+        }
+        if (!resume.empty()) {
+          if (tile <= 0) throw InvalidArgument("aosr.reconstruct", "resume", resume, "only with tile > 0");
+          tiling.checkpoint_dir = resume;  // must exist; the fingerprint covers the data, model and main options
+          tiling.checkpoint_key = py::str(kwargs).cast<std::string>();
+        }
         ReconstructOptions o = CliDefaults();
         o.method = ParseReconstructionMethod(method);
         ReconstructTable().Apply(o, kwargs);
@@ -513,7 +528,7 @@ void BindSolvers(py::module_& m) {
           }
           const DatasetProblem dp = ProblemFromDataset(*d, dpo);
           warning = dp.warning;
-          out->rec = Reconstruct(dp.problem, o);
+          out->rec = tile > 0 ? ReconstructTiled(dp.problem, o, tiling) : Reconstruct(dp.problem, o);
           out->weights_source = dp.weights_source;
           out->offsets_source = dp.offsets_source;
           out->model_psfs_replaced = dp.model_psfs_replaced;
@@ -530,6 +545,7 @@ void BindSolvers(py::module_& m) {
       py::arg("dataset"), py::arg("method") = "tikhonov", py::kw_only(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("model_psfs") = py::none(), py::arg("progress") = py::none(),
       py::arg("registration_range") = 0.5, py::arg("registration_anchor") = "mean", py::arg("stars") = py::none(),
+      py::arg("tile") = 0, py::arg("tile_overlap") = -1, py::arg("resume") = "",
       R"doc(Super-resolves a dataset with one method: the library's Reconstruct (include/aosr/solvers/reconstruct.hpp),
 the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and the same bits.
 
@@ -550,6 +566,11 @@ registration_anchor  offsets='estimate': 'mean' (keep the commanded mean) | 'fra
 model_psfs  PSFs the reconstructor uses instead of the dataset's: an (N, K, K) array, 'nominal', or 'stars'
             (estimated from the point sources in the frames, aosr.stars_psf; Reconstruction.stars_psf reports it)
 stars       model_psfs='stars': a dict of aosr.stars_psf's options (psf_size_hr_px, detection_sigma, ...)
+tile        > 0: reconstruct in overlapping tiles of at most tile x tile camera px, blended with no seam, one
+            regularisation for the field chosen on the whole field (solvers/tiling.hpp; `aosr reconstruct --tile`);
+            0: the whole grid at once. progress is not called for a tiled run
+tile_overlap  tile > 0: camera px added on each side of a tile; -1: from the PSF's extent and the method's reach
+resume      tile > 0: an existing folder where finished tiles are kept; a rerun reuses them (same bytes)
 progress    optional callable(dict) called during tikhonov, tv and map (stage, iteration, total, value,
             value_name, elapsed_seconds); returning False cancels (termination 'cancelled')
 **options   the CLI's options under their names (lambda_, lambda_rule, prior, boundary, std, noise_sigma, mu,

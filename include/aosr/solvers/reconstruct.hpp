@@ -56,6 +56,14 @@ const std::vector<ReconstructionMethod>& ReconstructionMethods();
 // "shift-add" | "shift-add-median" | "drizzle" | "tikhonov" | "linear" | "tv" | "map"; InvalidArgument otherwise.
 ReconstructionMethod ParseReconstructionMethod(const std::string& name);
 
+// The automatic rule's values for one problem: the pilot's λ (options.tikhonov's rule, scaled as for weighted
+// data), the TV weight μ and the object's contrast s (map's ε = δ = 10⁻³ s).
+struct AutomaticRegularisation {
+  double pilot_lambda = 0.0;
+  double mu = 0.0;
+  double contrast = 1.0;
+};
+
 struct ReconstructOptions {
   ReconstructionMethod method = ReconstructionMethod::kTikhonov;
   DrizzleOptions drizzle;
@@ -74,6 +82,10 @@ struct ReconstructOptions {
   MapOptions map;
   // tv and map: set μ (tv.mu) and λ, ε (map.lambda, map.epsilon) by the rule above, overriding the fields.
   bool auto_regularisation = true;
+  // tv and map with auto_regularisation: when set, the rule's values are these instead of this problem's own
+  // (the pilot still runs, at pilot_lambda, for its warm start). Tiling (tiling.hpp) sets them from one
+  // representative problem so that every tile has the same weight. Empty (the default): this problem's.
+  std::optional<AutomaticRegularisation> fixed_automatic;
   // One progress callback for every stage of the run (core/progress.hpp), so a caller sees which stage runs:
   // "pilot" (the GCV Tikhonov estimate behind tv's automatic μ and warm start, and map's warm start; reported
   // as iteration 0 of 1 when it starts and 1 of 1, value λ, when it ends), then "tv" or "map" (their solvers'
@@ -99,6 +111,11 @@ struct Reconstruction {
   Image leakage_spectrum;
   std::optional<TargetPsfSummary> linear;
 };
+
+// The automatic rule's values (the pilot's λ, μ, contrast) for `problem`: one Tikhonov solve by
+// options.tikhonov's λ rule.
+AutomaticRegularisation ChooseAutomaticRegularisation(const ReconstructionProblem& problem,
+                                                      const ReconstructOptions& options);
 
 // Validates the problem and options (InvalidArgument names the field); never returns NaN: a non-finite
 // estimate is reported as Termination::kFailed with the image zeroed.

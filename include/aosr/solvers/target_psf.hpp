@@ -84,6 +84,10 @@ struct TargetPsfOptions {
   // target's, well below what PSF photometry notices, with noise close to its floor (it falls slowly as ε
   // grows; the bench's tradeoff rows show it).
   double leakage = 1e-3;
+  // κ of (1) given (unit-weight Fourier units, > 0) instead of the leakage search: U is then reported, not
+  // chosen (leakage_met says whether the bound holds). Tiling (tiling.hpp) gives every tile the κ chosen once.
+  // 0 (the default): by the leakage bound.
+  double kappa = 0.0;
   // σ of a pixel of weight 1 in frame units (noise variance σ²/w): 1 when the weights are inverse variances
   // (datasets' weights are). > 0.
   double noise_sigma = 1.0;

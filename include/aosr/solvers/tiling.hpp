@@ -1,0 +1,146 @@
+// Tiled reconstruction: the HR output grid cut into overlapping tiles, each reconstructed by any method through
+// the one entry point (reconstruct.hpp), blended into one image with no seam. The one tile engine that the
+// whole-detector work (a grid too large for one solve) and the wide-field work (a PSF that changes across the
+// field: each tile its own local PSFs) both build on.
+//
+// Geometry (camera pixels; HR pixels are r times finer). Along each axis the m camera pixels are cut into
+// n = ceil(m / T) cores of at most T pixels, as equal as possible (the boundaries at round(k·m/n)). Tile (ty, tx)
+// reconstructs the window of its core grown by the overlap P on each side: (core + 2P)² camera pixels, i.e.
+// the frames' sub-windows, their weights (masks, bad pixels) and the same offsets, with the model PSFs (or the
+// caller's local PSFs, TilingOptions::local_psfs). Windows that pass the field's edge wrap around, because the
+// whole-grid solvers treat the field as periodic: a tiled run then approximates the whole-grid solution at the
+// edges too. An axis with a single tile is not cut (its window is the whole axis, exactly periodic).
+//
+// Why an overlap: each tile's solver sees its window as periodic, so the window's edges carry an artefact (the
+// data wrapped around, the prior's coupling cut) that decays into the window over the reach of the
+// reconstruction: the PSF's extent (a pixel's data constrain the object within the PSF) plus the regulariser's
+// coupling length. Only the inner part of a window is used.
+//
+// Blending (a partition of unity). Around each inner core boundary c (HR position c·r) the two tiles are mixed
+// over a ramp of width P camera pixels centred on c: w_left = ½(1 + cos πt), w_right = 1 − w_left, t in (0, 1)
+// across the ramp (raised cosine: continuous with a continuous slope, so no seam, and no tile's weight reaches
+// the outer half of its overlap: every used pixel is at least P/2 from its window's edge). The 2-D weight is the
+// product of the axis weights; the blended image is Σ w_k x_k / Σ w_k, so the weights sum to exactly 1 up to
+// one rounding. Needs P <= every core (a ramp must not reach the next boundary).
+//
+// The overlap rule (TilingOptions::overlap = -1): P = psf_reach + regulariser_reach (camera px), where
+//   psf_reach = PaddedModel::SuggestPadding(model, psf_tail): the Chebyshev radius holding all but psf_tail
+//               (1e-4) of the model PSFs' energy Σh², in camera px, rounded up (the largest over the frames;
+//               always the problem's model PSFs, also when local PSFs are given);
+//   regulariser_reach = 2 for tv and map (TV couples neighbours; its staircase settles within a few pixels),
+//               3 for tikhonov and linear (their solution kernels decay geometrically with the prior's
+//               correlation length: a few camera px at the λ the rules pick), 1 for shift-add and drizzle
+//               (their drops reach one pixel, plus the offsets: ceil(max |offset| / r) more).
+// Then P is doubled (the ramp uses the inner half of the overlap, see Blending) and capped so that P <= every
+// core and the window fits in the field. The measured errors against the whole-grid solution are in
+// tests/solvers/tiling_test.cpp; give a larger overlap where more accuracy is needed.
+//
+// One regularisation for the whole field (what a user expects: the same λ or TV weight everywhere, so the
+// image's resolution and noise do not change from tile to tile). The method's automatic choices are made
+// once on the representative problem (the whole field, by default; or the central tile's window with its PSFs,
+// see TilingOptions::regularisation_from_whole_field), then fixed for every tile:
+//   tikhonov  λ of the rule (GCV, L-curve, UPRE, discrepancy, Wiener; a fitted prior's spectrum too) -> kFixed;
+//   linear    κ (the leakage bound's) and, for kAuto, the target's FWHM -> TargetPsfOptions::kappa, kGaussian;
+//   tv, map   the automatic rule's pilot λ, μ and contrast (ReconstructOptions::fixed_automatic); each tile
+//             still runs its pilot (at that λ) for its warm start.
+// A fixed λ, κ, μ given by the caller is used as given. A tile's own statistics never change it.
+//
+// Determinism: tiles are solved in parallel (ParallelFor over tiles, each solve then serial inside) or one after
+// the other (TilingOptions::parallel_tiles = false; each solve parallel inside); blending is serial in tile order.
+// The bytes are the same for any thread count either way.
+//
+// Second maps and the linear method's kernels: aux maps (posterior std, noise std, Drizzle weight) are blended
+// with the same weights (a std map blended linearly: exact where tiles agree, an approximation in the ramps);
+// effective_psf, noise_correlation, leakage_spectrum (on the tile's grid) and the linear summary are the
+// central tile's. Not done here: a memory limit per tile or automatic tiling, cancellation, reading frames by
+// sections.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "aosr/solvers/reconstruct.hpp"
+
+namespace aosr {
+
+// One tile: its core (the part of the output it owns, before blending) and its window (what it reconstructs),
+// in camera pixels of the field. The window may start below 0 or end past the field: it wraps around.
+struct TileWindow {
+  int index = 0;          // row-major: ty · tiles_x + tx
+  int ty = 0, tx = 0;     // position in the tile grid
+  Index core_y0 = 0, core_x0 = 0, core_rows = 0, core_cols = 0;
+  Index y0 = 0, x0 = 0, rows = 0, cols = 0;
+};
+
+struct TilingOptions {
+  // T: the largest core side in camera pixels (>= 1). Tiles larger than the field leave that axis uncut.
+  int tile = 0;
+  // P: camera pixels added on each side of a core (>= 0); -1: the rule at the top of the file.
+  int overlap = -1;
+  // The PSF tail left out of the overlap rule's PSF reach (energy fraction), in (0, 1).
+  double psf_tail = 1e-4;
+  // Choose the regularisation on the whole field (default) or on the central tile. The whole field costs one
+  // whole-grid solve (tikhonov's λ rules, the linear method's κ; tv and map their pilot) but is right: measured
+  // on tiling_test's scene (3 x 3 tiles of 32 camera px), GCV on the central tile's window picked λ = 3e-10
+  // against the whole field's 7e-3 (its wrapped edges look like detail to GCV), seven decades too small. Use
+  // the central tile only where one whole-grid solve does not fit, and check its λ.
+  bool regularisation_from_whole_field = true;
+  // Solve tiles in parallel (each solve serial inside) or one after the other (each solve parallel inside).
+  bool parallel_tiles = true;
+  // The hook for field-varying PSFs: if set, called once per tile (and for the representative tile) with its
+  // window; returns that tile's model PSFs, one per frame, centred kernels at HR sampling (image.hpp layout),
+  // each fitting in the window's HR grid. Empty: the problem's model PSFs, cut to the window. Called from the
+  // tile's thread, so concurrently when parallel_tiles: it must be safe to call so.
+  std::function<ImageStack(const TileWindow&)> local_psfs;
+  // Resuming: a folder (which must exist) where each finished tile is written (tile_<index>.bin, atomically)
+  // and where tiles a previous run of the same problem left are read instead of solved, so that a killed run
+  // continues and the final bytes are those of an uninterrupted run. The files carry a fingerprint of the run
+  // (the data, the model, the tile geometry, the method's options with the regularisation fixed, and
+  // checkpoint_key); another run's tile is refused with InvalidArgument, never mixed in. Empty: none.
+  std::string checkpoint_dir;
+  // What else the fingerprint should cover (the caller's description of its local PSFs or options the
+  // fingerprint does not list; the CLI gives its arguments).
+  std::string checkpoint_key;
+
+  bool IsValid(std::string* why) const;
+};
+
+struct TilingSummary {
+  int tiles_y = 0, tiles_x = 0;
+  int overlap = 0;                   // P used (camera px)
+  std::string overlap_rule;          // "given" or how the rule made it, e.g. "psf 3 + regulariser 3, x2"
+  double regularisation = 0;         // the λ / κ / μ every tile used (Reconstruction::regularisation)
+  std::string regularisation_source; // "given", "central tile" or "whole field"
+  std::vector<TileWindow> tiles;
+  std::vector<Termination> tile_terminations;
+  int tiles_resumed = 0;             // read from checkpoint_dir instead of solved
+};
+
+// The tiles of an m_rows x m_cols camera field (core and window rule above). InvalidArgument (naming
+// `function`) unless tile >= 1, overlap >= 0, overlap <= every core of a cut axis, and the window fits in the field.
+std::vector<TileWindow> MakeTiles(Shape lr, int tile, int overlap, const char* function = "MakeTiles");
+
+// The blending weight of `tile` over its window's HR grid (r HR px per camera px): the product of the axis
+// ramps above; 0 outside [core − P/2, core + P/2), 1 inside the core away from the ramps.
+Image TileBlendWeight(const TileWindow& tile, int r, int overlap, int tiles_y, int tiles_x);
+
+// The sub-problem of one tile: the frames', weights' windows (wrapped), the offsets, and a model on the
+// window's HR grid from `psfs` (centred kernels) or, if empty, from the problem's model (its kernels cut to
+// the window: entries beyond half the window are dropped).
+ReconstructionProblem TileProblem(const ReconstructionProblem& problem, const TileWindow& tile,
+                                  const ImageStack& psfs = {});
+
+// The overlap rule's P for this problem and method (before the cap), from the problem's model PSFs (also when
+// TilingOptions::local_psfs is set: give the overlap explicitly if the local PSFs are wider); *rule says how.
+int SuggestTileOverlap(const ReconstructionProblem& problem, const ReconstructOptions& options,
+                       const TilingOptions& tiling, std::string* rule = nullptr);
+
+// Reconstruct `problem` by tiles (see the top of the file). The result is a Reconstruction of the whole field
+// as Reconstruct returns it: image (and aux) on the whole HR grid; summary with the worst tile's termination,
+// the summed iterations, the whole field's per-frame residual RMS and a message saying how it was tiled.
+// Validates like Reconstruct, plus the tiling (InvalidArgument naming "ReconstructTiled" and the field).
+Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const ReconstructOptions& options,
+                                const TilingOptions& tiling, TilingSummary* summary = nullptr);
+
+}  // namespace aosr

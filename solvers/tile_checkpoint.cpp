@@ -1,0 +1,232 @@
+// The finished tiles of a tiled run on disk (tile_checkpoint.hpp): a fingerprint of the run and an exact,
+// versioned binary form of one tile's Reconstruction.
+#include "tile_checkpoint.hpp"
+
+#include <cstring>
+#include <fstream>
+#include <vector>
+
+#include "aosr/core/error.hpp"
+#include "aosr/io/atomic_file.hpp"
+
+namespace aosr::tiling_internal {
+namespace {
+
+constexpr char kTileMagic[8] = {'A', 'O', 'S', 'R', 'T', 'I', 'L', '1'};
+
+// FNV-1a, 64 bits, over bytes in a fixed order (the fingerprint: not a security hash, a guard against mixing
+// two runs' tiles by mistake).
+struct TileFnv {
+  std::uint64_t h = 1469598103934665603ull;
+  void Bytes(const void* p, std::size_t n) {
+    const unsigned char* b = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+  }
+  template <class T>
+  void Value(const T& v) {
+    Bytes(&v, sizeof v);
+  }
+  void String(const std::string& s) {
+    Value(s.size());
+    Bytes(s.data(), s.size());
+  }
+  void Array(const Image& a) {
+    Value(a.rows());
+    Value(a.cols());
+    Bytes(a.data(), sizeof(double) * a.size());
+  }
+};
+
+// A little-endian-as-in-memory writer/reader of the fields (the file is read back by the same build).
+struct TileWriter {
+  std::vector<char> buf;
+  void Bytes(const void* p, std::size_t n) { buf.insert(buf.end(), (const char*)p, (const char*)p + n); }
+  template <class T>
+  void Value(const T& v) {
+    Bytes(&v, sizeof v);
+  }
+  void String(const std::string& s) {
+    Value(std::uint64_t(s.size()));
+    Bytes(s.data(), s.size());
+  }
+  void Array(const Image& a) {
+    Value(std::int64_t(a.rows()));
+    Value(std::int64_t(a.cols()));
+    Bytes(a.data(), sizeof(double) * a.size());
+  }
+};
+
+struct TileReader {
+  const std::vector<char>& buf;
+  std::size_t at = 0;
+  bool ok = true;
+  void Bytes(void* p, std::size_t n) {
+    if (!ok || at + n > buf.size()) {
+      ok = false;
+      return;
+    }
+    std::memcpy(p, buf.data() + at, n);
+    at += n;
+  }
+  template <class T>
+  T Value() {
+    T v{};
+    Bytes(&v, sizeof v);
+    return v;
+  }
+  std::string String() {
+    const std::uint64_t n = Value<std::uint64_t>();
+    if (!ok || n > buf.size() - at) {
+      ok = false;
+      return {};
+    }
+    std::string s(buf.data() + at, n);
+    at += n;
+    return s;
+  }
+  Image Array() {
+    const std::int64_t rows = Value<std::int64_t>(), cols = Value<std::int64_t>();
+    if (!ok || rows < 0 || cols < 0 || (rows * cols) > std::int64_t((buf.size() - at) / sizeof(double))) {
+      ok = false;
+      return {};
+    }
+    Image a(rows, cols);
+    Bytes(a.data(), sizeof(double) * a.size());
+    return a;
+  }
+};
+
+[[noreturn]] void RefuseTile(const std::string& path, const std::string& why) {
+  throw InvalidArgument("ReconstructTiled", "tiling.checkpoint_dir", path,
+                        "a folder holding only this run's tiles (" + why +
+                            "): empty the folder or give another one to start afresh");
+}
+
+}  // namespace
+
+std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& o,
+                             const TilingOptions& tiling, int overlap) {
+  TileFnv f;
+  f.String("aosr tiles v1");
+  const MultiFrameModel& m = *problem.model;
+  f.Value(m.hr_shape().rows);
+  f.Value(m.hr_shape().cols);
+  f.Value(m.r());
+  for (int i = 0; i < m.frames(); ++i) {
+    const ComplexImage& otf = m.otf(i);
+    f.Bytes(otf.data(), sizeof(Complex) * otf.size());
+  }
+  for (std::size_t i = 0; i < problem.frames.size(); ++i) {
+    // Only weighted pixels are data (a masked pixel may hold anything, NaN with any payload).
+    const Image& a = problem.frames[i];
+    for (Index k = 0; k < a.size(); ++k) {
+      const bool on = problem.weights.empty() || problem.weights[i].data()[k] > 0;
+      f.Value(on ? a.data()[k] : 0.0);
+    }
+  }
+  for (const Image& w : problem.weights) f.Array(w);
+  for (const FrameOffset& off : problem.offsets) f.Value(off.dy), f.Value(off.dx);
+  f.Value(tiling.tile);
+  f.Value(overlap);
+  f.String(tiling.checkpoint_key);
+  f.String(ToString(o.method));
+  const TikhonovOptions& t = o.tikhonov;
+  f.Value(int(t.prior)), f.Value(int(t.lambda_rule)), f.Value(t.lambda), f.Value(t.spectrum_slope);
+  f.Value(t.spectrum_corner), f.Value(int(t.boundary)), f.Value(t.compute_std), f.Value(t.noise_sigma);
+  f.Value(t.cg.max_iterations), f.Value(t.cg.tolerance);
+  const TargetPsfOptions& l = o.linear;
+  f.Value(int(l.kind)), f.Value(l.fwhm_hr_px), f.Array(l.image), f.Value(l.leakage), f.Value(l.kappa);
+  f.Value(l.noise_sigma), f.Value(l.compute_noise), f.Value(l.noise_probes), f.Value(l.seed);
+  f.Value(o.auto_regularisation), f.Value(o.fixed_automatic.has_value());
+  if (o.fixed_automatic) f.Value(o.fixed_automatic->pilot_lambda), f.Value(o.fixed_automatic->mu), f.Value(o.fixed_automatic->contrast);
+  f.Value(o.tv.mu), f.Value(o.tv.positivity), f.Value(o.tv.max_iterations), f.Value(o.tv.relative_tolerance);
+  f.Value(o.map.lambda), f.Value(int(o.map.prior)), f.Value(int(o.map.likelihood)), f.Value(int(o.map.positivity));
+  f.Value(o.map.max_iterations), f.Value(o.map.read_noise);
+  f.Value(int(o.drizzle.kernel)), f.Value(o.drizzle.pixfrac), f.Value(o.drizzle.fill_value);
+  return f.h;
+}
+
+std::string TilePath(const std::string& dir, int index) {
+  return dir + "/tile_" + std::to_string(index) + ".bin";
+}
+
+void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& r) {
+  TileWriter w;
+  w.Bytes(kTileMagic, sizeof kTileMagic);
+  w.Value(fingerprint);
+  w.Value(std::int32_t(index));
+  w.Array(r.image);
+  w.Array(r.aux);
+  w.String(r.aux_name);
+  w.Value(r.regularisation);
+  w.String(r.summary.method);
+  w.Value(std::int32_t(r.summary.termination));
+  w.String(r.summary.message);
+  w.Value(std::int32_t(r.summary.iterations));
+  w.Value(r.summary.final_cost);
+  w.Array(r.effective_psf);
+  w.Array(r.noise_correlation);
+  w.Array(r.leakage_spectrum);
+  w.Value(char(r.linear.has_value()));
+  if (r.linear) {
+    const TargetPsfSummary& s = *r.linear;
+    w.String(s.method), w.Value(std::int32_t(s.termination)), w.String(s.message), w.String(s.target);
+    for (double v : {s.target_fwhm_hr_px, s.effective_fwhm_hr_px, s.effective_psf_window_fraction, s.kappa, s.leakage,
+                     s.leakage_unreachable, s.leakage_max_in_band, s.band_cycles_per_hr_px, s.dc_transfer,
+                     s.noise_sigma, s.noise_rms, s.noise_rms_error})
+      w.Value(v);
+    w.Value(char(s.leakage_met)), w.Value(std::int64_t(s.unreachable_frequencies));
+    w.Value(std::int32_t(s.noise_probes)), w.Value(char(s.fourier_exact));
+  }
+  AtomicWrite(path, [&](const std::string& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    out.write(w.buf.data(), std::streamsize(w.buf.size()));
+    if (!out) throw IoError(tmp, "could not write the tile checkpoint");
+  });
+}
+
+bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Reconstruction* r) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return false;
+  const std::vector<char> buf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  TileReader rd{buf};
+  char magic[sizeof kTileMagic];
+  rd.Bytes(magic, sizeof magic);
+  if (!rd.ok || std::memcmp(magic, kTileMagic, sizeof kTileMagic) != 0) RefuseTile(path, "not an aosr tile file");
+  if (rd.Value<std::uint64_t>() != fingerprint) RefuseTile(path, "a tile of another run: other data or options");
+  if (rd.Value<std::int32_t>() != index) RefuseTile(path, "the tile index differs from its name");
+  Reconstruction t;
+  t.image = rd.Array();
+  t.aux = rd.Array();
+  t.aux_name = rd.String();
+  t.regularisation = rd.Value<double>();
+  t.summary.method = rd.String();
+  t.summary.termination = Termination(rd.Value<std::int32_t>());
+  t.summary.message = rd.String();
+  t.summary.iterations = rd.Value<std::int32_t>();
+  t.summary.final_cost = rd.Value<double>();
+  t.effective_psf = rd.Array();
+  t.noise_correlation = rd.Array();
+  t.leakage_spectrum = rd.Array();
+  if (rd.Value<char>()) {
+    TargetPsfSummary s;
+    s.method = rd.String();
+    s.termination = Termination(rd.Value<std::int32_t>());
+    s.message = rd.String();
+    s.target = rd.String();
+    for (double* v : {&s.target_fwhm_hr_px, &s.effective_fwhm_hr_px, &s.effective_psf_window_fraction, &s.kappa,
+                      &s.leakage, &s.leakage_unreachable, &s.leakage_max_in_band, &s.band_cycles_per_hr_px,
+                      &s.dc_transfer, &s.noise_sigma, &s.noise_rms, &s.noise_rms_error})
+      *v = rd.Value<double>();
+    s.leakage_met = rd.Value<char>() != 0;
+    s.unreachable_frequencies = rd.Value<std::int64_t>();
+    s.noise_probes = rd.Value<std::int32_t>();
+    s.fourier_exact = rd.Value<char>() != 0;
+    t.linear = s;
+  }
+  if (!rd.ok || rd.at != buf.size()) RefuseTile(path, "a truncated or damaged tile file");
+  *r = std::move(t);
+  return true;
+}
+
+}  // namespace aosr::tiling_internal

@@ -1,0 +1,30 @@
+// Private to solvers/: the finished tiles of a tiled run kept in a folder (TilingOptions::checkpoint_dir), so
+// that a killed run resumes from them with the bytes of an uninterrupted run. A tile file holds the exact
+// doubles of the tile's Reconstruction (image, aux, the linear method's kernels and summary) and the run's
+// fingerprint; a file with another fingerprint belongs to another run and is refused, never mixed in.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "aosr/solvers/tiling.hpp"
+
+namespace aosr::tiling_internal {
+
+// A 64-bit FNV-1a hash of what decides the tiles' bytes: the data (frames, weights, offsets, the model's
+// OTFs), the tile geometry, the method and its options with the regularisation already fixed, and the caller's
+// TilingOptions::checkpoint_key (what the hash cannot see: local PSFs, options not listed).
+std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& fixed,
+                             const TilingOptions& tiling, int overlap);
+
+// dir/tile_<index>.bin.
+std::string TilePath(const std::string& dir, int index);
+
+// Writes the tile atomically (write then rename: a kill leaves either no file or a whole one).
+void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& tile);
+
+// Reads a tile written by WriteTile: false if there is no file; InvalidArgument (naming ReconstructTiled and
+// tiling.checkpoint_dir) if it is another run's or not a tile file.
+bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Reconstruction* tile);
+
+}  // namespace aosr::tiling_internal
