@@ -135,6 +135,8 @@ void ApplyExecution(const ExecutionArgs& args) {
 void AddAlignedScores(const Evaluation& e, nlohmann::json* j) {
   (*j)["aligned"] = {{"psnr_db", e.aligned.psnr}, {"ssim", e.aligned.ssim}, {"rmse", e.aligned.rmse}};
   (*j)["offset_hr_px"] = {{"dy", e.offset.dy}, {"dx", e.offset.dx}};
+  (*j)["offset_measured_hr_px"] = {{"dy", e.measured_offset.dy}, {"dx", e.measured_offset.dx}};
+  (*j)["offset_applied"] = e.offset_applied;
   if (e.offset_mas_known)
     (*j)["offset_mas"] = {{"dy", e.offset_mas[0]}, {"dx", e.offset_mas[1]}};
   else
@@ -142,14 +144,21 @@ void AddAlignedScores(const Evaluation& e, nlohmann::json* j) {
 }
 
 std::string AlignedScoresLine(const Evaluation& e) {
-  char buf[256];
+  char buf[320];
   if (e.offset_mas_known)
     std::snprintf(buf, sizeof(buf), "aligned (offset dy, dx = %+.3f, %+.3f HR px = %+.2f, %+.2f mas): PSNR %.2f dB, SSIM %.4f",
                   e.offset.dy, e.offset.dx, e.offset_mas[0], e.offset_mas[1], e.aligned.psnr, e.aligned.ssim);
   else
     std::snprintf(buf, sizeof(buf), "aligned (offset dy, dx = %+.3f, %+.3f HR px): PSNR %.2f dB, SSIM %.4f", e.offset.dy,
                   e.offset.dx, e.aligned.psnr, e.aligned.ssim);
-  return buf;
+  std::string line = buf;
+  if (!e.offset_applied) {
+    // The measured offset would have lowered a score in the scored region (core/metrics.hpp): say so.
+    std::snprintf(buf, sizeof(buf), " [measured %+.3f, %+.3f HR px, not applied: it lowered PSNR or SSIM]",
+                  e.measured_offset.dy, e.measured_offset.dx);
+    line += buf;
+  }
+  return line;
 }
 
 }  // namespace aosr::cli

@@ -70,10 +70,12 @@ void SetCommandLine(int argc, const char* const* argv);
 const std::string& CommandLine();
 
 // The alignment part of an evaluation (scene/evaluation.hpp) as JSON members added to `*j`: "aligned" {psnr_db,
-// ssim, rmse}, "offset_hr_px" {dy, dx} and "offset_mas" {dy, dx} (null when the pixel scale is unknown). The same
-// names in `aosr evaluate`, the reconstruct summary and the tradeoff table.
+// ssim, rmse}, "offset_hr_px" {dy, dx} (as applied), "offset_measured_hr_px" {dy, dx}, "offset_applied" and
+// "offset_mas" {dy, dx} (null when the pixel scale is unknown). The same names in `aosr evaluate`, the reconstruct
+// summary and the tradeoff table.
 void AddAlignedScores(const Evaluation& e, nlohmann::json* j);
-// One text line: "aligned (offset dy, dx = ... HR px = ... mas): PSNR ... dB, SSIM ...".
+// One text line: "aligned (offset dy, dx = ... HR px = ... mas): PSNR ... dB, SSIM ..." (and, when the measured
+// offset was not applied, " [measured ..., not applied: ...]").
 std::string AlignedScoresLine(const Evaluation& e);
 
 // Joins a directory and a file name.

@@ -1,7 +1,10 @@
 #include "aosr/core/metrics.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
+#include <vector>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
@@ -181,21 +184,113 @@ ImageOffset RefinePeak(const ComplexImage& x, ImageOffset centre, double step, i
 
 }  // namespace
 
-ImageOffset MeasureImageOffset(const Image& truth, const Image& estimate) {
-  CheckOffsetImages("MeasureImageOffset", truth, estimate);
-  const Index rows = truth.rows(), cols = truth.cols();
-  // Cross-power spectrum E T*: its inverse transform is c at whole-pixel shifts.
-  const ComplexImage cross = FftForward(estimate.cast<Complex>()) * FftForward(truth.cast<Complex>()).conjugate();
+namespace {
+
+// The d that maximises c(d) = (1/RC) Re Σ_k X(k) exp(+2πi (k_y dy/R + k_x dx/C)) for a cross-power spectrum
+// X = E T*: the whole-pixel peak by one inverse FFT, then the two matrix-DFT refinements (see the header).
+ImageOffset PeakOfCrossSpectrum(const ComplexImage& cross) {
+  const Index rows = cross.rows(), cols = cross.cols();
   const Image coarse = FftInverse(cross).real();
   Index iy = 0, ix = 0;
   coarse.maxCoeff(&iy, &ix);
   ImageOffset d{static_cast<double>(SignedFrequency(iy, rows)), static_cast<double>(SignedFrequency(ix, cols))};
-  // A one-pixel-wide image axis has no sub-pixel information along it.
   d = RefinePeak(cross, d, 0.05, 24);   // ±1.2 px at 1/20 px
   d = RefinePeak(cross, d, 0.001, 60);  // ±0.06 px at 1/1000 px
+  // A one-pixel-wide image axis has no sub-pixel information along it.
   if (rows == 1) d.dy = 0.0;
   if (cols == 1) d.dx = 0.0;
   return d;
+}
+
+// w · (x − μ_w(x)) with μ_w(x) = Σ w x / Σ w; nullopt when x has no structure under the window (its weighted
+// standard deviation is below 1e-12 of its weighted mean's magnitude, or exactly 0).
+std::optional<Image> Apodised(const Image& x, const Image& w, double sum_w) {
+  const double mean = (w * x).sum() / sum_w;
+  const Image centred = x - mean;
+  const double variance = (w * centred.square()).sum() / sum_w;
+  if (!(variance > 1e-24 * mean * mean)) return std::nullopt;
+  return Image(w * centred);
+}
+
+// The offset in the window's region (header), or nullopt when the truth or the estimate has no structure
+// under the window. Arguments already checked.
+std::optional<ImageOffset> WindowedOffset(const Image& truth, const Image& estimate, const Image& window) {
+  const double sum_w = window.sum();
+  const std::optional<Image> a = Apodised(truth, window, sum_w);
+  const std::optional<Image> b = Apodised(estimate, window, sum_w);
+  if (!a || !b) return std::nullopt;
+  const ComplexImage cross = FftForward(b->cast<Complex>()) * FftForward(a->cast<Complex>()).conjugate();
+  return PeakOfCrossSpectrum(cross);
+}
+
+}  // namespace
+
+ImageOffset MeasureImageOffset(const Image& truth, const Image& estimate) {
+  CheckOffsetImages("MeasureImageOffset", truth, estimate);
+  // Cross-power spectrum E T*: its inverse transform is c at whole-pixel shifts.
+  const ComplexImage cross = FftForward(estimate.cast<Complex>()) * FftForward(truth.cast<Complex>()).conjugate();
+  return PeakOfCrossSpectrum(cross);
+}
+
+ImageOffset MeasureImageOffsetInWindow(const Image& truth, const Image& estimate, const Image& window) {
+  const char* f = "MeasureImageOffsetInWindow";
+  CheckArgument(truth.size() > 0, f, "truth", ToString(ShapeOf(truth)), "a non-empty image");
+  CheckArgument(ShapeOf(estimate) == ShapeOf(truth), f, "estimate shape", ToString(ShapeOf(estimate)),
+                "the truth's shape " + ToString(ShapeOf(truth)));
+  CheckArgument(ShapeOf(window) == ShapeOf(truth), f, "window shape", ToString(ShapeOf(window)),
+                "the truth's shape " + ToString(ShapeOf(truth)));
+  CheckArgument(AllFinite(truth), f, "truth", "an image with NaN or Inf", "finite values only");
+  CheckArgument(AllFinite(estimate), f, "estimate", "an image with NaN or Inf", "finite values only");
+  CheckArgument(AllFinite(window) && window.minCoeff() >= 0.0 && window.sum() > 0.0, f, "window",
+                "values min " + ToString(window.minCoeff()) + ", sum " + ToString(window.sum()),
+                "finite weights >= 0 with a positive sum (ScoreWindow)");
+  const double sum_w = window.sum();
+  CheckArgument(Apodised(truth, window, sum_w).has_value(), f, "truth", "constant under the window",
+                "an image with structure in the windowed region (a constant has no correlation peak)");
+  CheckArgument(Apodised(estimate, window, sum_w).has_value(), f, "estimate", "constant under the window",
+                "an image with structure in the windowed region (a constant has no correlation peak)");
+  return *WindowedOffset(truth, estimate, window);
+}
+
+Image ScoreWindow(Shape shape, int crop_px, const ScoreRing& ring) {
+  const char* f = "ScoreWindow";
+  const Index c = crop_px, rows = shape.rows - 2 * c, cols = shape.cols - 2 * c;
+  CheckArgument(crop_px >= 0 && rows > 0 && cols > 0, f, "crop_px", crop_px,
+                ">= 0 and leaving pixels of the " + ToString(shape) + " image");
+  const bool has_ring = ring.inner_px >= 0.0;
+  if (has_ring) {
+    CheckArgument(std::isfinite(ring.centre_y) && std::isfinite(ring.centre_x), f, "ring centre",
+                  ToString(ring.centre_y) + ", " + ToString(ring.centre_x), "finite [px]");
+    CheckArgument(std::isfinite(ring.outer_px) && ring.outer_px > ring.inner_px, f, "ring outer_px", ring.outer_px,
+                  "finite and > inner_px = " + ToString(ring.inner_px));
+  }
+  // Tukey taper: T(δ) = ½(1 − cos(π δ/τ)) for 0 < δ < τ, 0 at δ <= 0, 1 beyond τ.
+  auto taper = [](double delta, double tau) {
+    if (delta <= 0.0) return 0.0;
+    if (delta >= tau) return 1.0;
+    return 0.5 * (1.0 - std::cos(kTwoPiMetrics * 0.5 * delta / tau));
+  };
+  const double ring_tau = has_ring ? 0.25 * (ring.outer_px - ring.inner_px) : 0.0;
+  const double tau_y = has_ring ? ring_tau : rows / 8.0;
+  const double tau_x = has_ring ? ring_tau : cols / 8.0;
+  // The rectangle's edges lie half a pixel outside its outermost pixel centres.
+  const double top = c - 0.5, bottom = double(shape.rows - c) - 0.5;
+  const double left = c - 0.5, right = double(shape.cols - c) - 0.5;
+  Image w = Image::Zero(shape.rows, shape.cols);
+  for (Index y = c; y < shape.rows - c; ++y) {
+    const double ty = taper(y - top, tau_y) * taper(bottom - y, tau_y);
+    for (Index x = c; x < shape.cols - c; ++x) {
+      double v = ty * taper(x - left, tau_x) * taper(right - x, tau_x);
+      if (has_ring) {
+        const double rho = std::hypot(y - ring.centre_y, x - ring.centre_x);
+        if (rho < ring.inner_px || rho >= ring.outer_px) continue;
+        v *= taper(ring.outer_px - rho, ring_tau);
+        if (ring.inner_px > 0.0) v *= taper(rho - ring.inner_px, ring_tau);
+      }
+      w(y, x) = v;
+    }
+  }
+  return w;
 }
 
 Image FourierShiftImage(const Image& image, double dy, double dx) {
@@ -220,9 +315,156 @@ Image FourierShiftImage(const Image& image, double dy, double dx) {
 AlignedImageMetrics CompareImagesAligned(const Image& truth, const Image& estimate, const MetricOptions& opts) {
   AlignedImageMetrics m;
   m.raw = CompareImages(truth, estimate, opts);  // checks shapes, values and options first
-  m.offset = MeasureImageOffset(truth, estimate);
-  m.aligned = CompareImages(truth, FourierShiftImage(estimate, -m.offset.dy, -m.offset.dx), opts);
+  m.aligned = m.raw;
+  const std::optional<ImageOffset> d = WindowedOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px));
+  if (!d) return m;  // no structure on the crop: no peak, nothing to align
+  m.measured_offset = *d;
+  if (d->dy == 0.0 && d->dx == 0.0) {
+    m.offset_applied = true;  // moved back by 0: the estimate itself
+    return m;
+  }
+  // Applied only when it raises neither the crop's MSE nor lowers its SSIM (header: aligned >= raw).
+  const ImageMetrics a = CompareImages(truth, FourierShiftImage(estimate, -d->dy, -d->dx), opts);
+  if (a.rmse <= m.raw.rmse && a.ssim >= m.raw.ssim) {
+    m.aligned = a;
+    m.offset = *d;
+    m.offset_applied = true;
+  }
   return m;
+}
+
+bool RingOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (rings < 1) return fail("rings = " + std::to_string(rings) + " (must be >= 1)");
+  if (std::isinf(centre_y) || std::isinf(centre_x))
+    return fail("centre = (" + ToString(centre_y) + ", " + ToString(centre_x) +
+                ") (must be finite [px], or NaN for the image centre)");
+  return true;
+}
+
+namespace {
+
+// Mean squared error and SSIM over one ring: `ring_of` holds each scored pixel's ring (or −1), `map` the SSIM
+// map of the crop (element (i, j) centred on crop pixel (i + 5, j + 5)).
+struct RingSums {
+  std::vector<double> squared_error, ssim;
+  std::vector<Index> pixels, positions;
+};
+RingSums SumRings(const Region& region, const Image& map, const Eigen::Array<int, Eigen::Dynamic, Eigen::Dynamic,
+                                                                          Eigen::RowMajor>& ring_of, int rings) {
+  RingSums s;
+  s.squared_error.assign(std::size_t(rings), 0.0);
+  s.ssim.assign(std::size_t(rings), 0.0);
+  s.pixels.assign(std::size_t(rings), 0);
+  s.positions.assign(std::size_t(rings), 0);
+  for (Index y = 0; y < ring_of.rows(); ++y)
+    for (Index x = 0; x < ring_of.cols(); ++x) {
+      const int k = ring_of(y, x);
+      const double e = region.estimate(y, x) - region.truth(y, x);
+      s.squared_error[std::size_t(k)] += e * e;
+      ++s.pixels[std::size_t(k)];
+    }
+  const int half = kSsimWindow / 2;
+  for (Index i = 0; i < map.rows(); ++i)
+    for (Index j = 0; j < map.cols(); ++j) {
+      const int k = ring_of(i + half, j + half);
+      s.ssim[std::size_t(k)] += map(i, j);
+      ++s.positions[std::size_t(k)];
+    }
+  return s;
+}
+
+ImageMetrics RingScores(const RingSums& s, int k, double peak) {
+  const std::size_t i = std::size_t(k);
+  const double mse = s.squared_error[i] / double(s.pixels[i]);
+  ImageMetrics m;
+  m.rmse = std::sqrt(mse);
+  m.psnr = mse == 0.0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(peak * peak / mse);
+  m.ssim = s.ssim[i] / double(s.positions[i]);
+  return m;
+}
+
+}  // namespace
+
+RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, const RingOptions& ring_options,
+                                 const MetricOptions& opts) {
+  const char* f = "CompareImagesInRings";
+  std::string why;
+  if (!ring_options.IsValid(&why)) throw InvalidArgument(std::string(f) + ": invalid rings: " + why);
+  const Region region = CheckAndCrop(f, truth, estimate, opts, kSsimWindow);
+  RingMetrics out;
+  out.peak = DynamicRange(f, region.truth, opts);
+  const Index rows = truth.rows(), cols = truth.cols(), c = opts.crop_px;
+  out.centre_y = std::isnan(ring_options.centre_y) ? 0.5 * double(rows - 1) : ring_options.centre_y;
+  out.centre_x = std::isnan(ring_options.centre_x) ? 0.5 * double(cols - 1) : ring_options.centre_x;
+  const double cy = out.centre_y, cx = out.centre_x;
+  CheckArgument(cy >= -0.5 && cy <= rows - 0.5 && cx >= -0.5 && cx <= cols - 0.5, f, "centre (y, x)",
+                "(" + ToString(cy) + ", " + ToString(cx) + ") px",
+                "a point on the " + ToString(ShapeOf(truth)) + " image: -0.5 <= y <= " + ToString(rows - 0.5) +
+                    ", -0.5 <= x <= " + ToString(cols - 0.5));
+  // The crop's pixel centres span [c, rows − c − 1] × [c, cols − c − 1].
+  const double y0 = double(c), y1 = double(rows - c - 1), x0 = double(c), x1 = double(cols - c - 1);
+  const double far_y = std::max(std::abs(cy - y0), std::abs(cy - y1));
+  const double far_x = std::max(std::abs(cx - x0), std::abs(cx - x1));
+  const double rho_max = std::hypot(far_y, far_x);
+  const bool inside = cy >= y0 - 0.5 && cy <= y1 + 0.5 && cx >= x0 - 0.5 && cx <= x1 + 0.5;
+  const double rho_min =
+      inside ? 0.0 : std::hypot(cy - std::clamp(cy, y0, y1), cx - std::clamp(cx, x0, x1));
+  const int k_rings = ring_options.rings;
+  const double width = (rho_max - rho_min) / k_rings;
+  const int max_rings = std::max(1, int(std::floor((rho_max - rho_min) / kMinRingWidthPx)));
+  CheckArgument(k_rings == 1 || width >= kMinRingWidthPx, f, "rings", k_rings,
+                "1 .. " + std::to_string(max_rings) + " for this centre and crop: rings from " + ToString(rho_min) +
+                    " to " + ToString(rho_max) + " px at least " + ToString(kMinRingWidthPx) +
+                    " px wide (the SSIM window)");
+  // Each scored pixel's ring.
+  Eigen::Array<int, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> ring_of(region.truth.rows(), region.truth.cols());
+  for (Index y = 0; y < ring_of.rows(); ++y)
+    for (Index x = 0; x < ring_of.cols(); ++x) {
+      const double rho = std::hypot(double(y + c) - cy, double(x + c) - cx);
+      ring_of(y, x) = std::clamp(int(std::floor((rho - rho_min) / width)), 0, k_rings - 1);
+    }
+  const RingSums raw = SumRings(region, SsimMapOfRegion(region, out.peak), ring_of, k_rings);
+  for (int k = 0; k < k_rings; ++k) {
+    RingScore ring;
+    ring.inner_px = rho_min + k * width;
+    ring.outer_px = k + 1 == k_rings ? rho_max : rho_min + (k + 1) * width;
+    ring.pixels = raw.pixels[std::size_t(k)];
+    ring.ssim_positions = raw.positions[std::size_t(k)];
+    ring.area_px = 0.5 * kTwoPiMetrics * (ring.outer_px * ring.outer_px - ring.inner_px * ring.inner_px);
+    CheckArgument(ring.pixels > 0 && ring.ssim_positions > 0, f, "rings", k_rings,
+                  "fewer rings: ring " + std::to_string(k) + " (" + ToString(ring.inner_px) + " <= rho < " +
+                      ToString(ring.outer_px) + " px) holds " + std::to_string(ring.pixels) + " scored pixels and " +
+                      std::to_string(ring.ssim_positions) + " SSIM window centres");
+    out.rings.push_back(ring);
+  }
+  for (int k = 0; k < k_rings; ++k) {
+    RingScore& ring = out.rings[std::size_t(k)];
+    AlignedImageMetrics& m = ring.scores;
+    m.raw = RingScores(raw, k, out.peak);
+    m.aligned = m.raw;
+    // The ring's own window; the innermost ring about a centre inside the crop is a disc (no inner edge).
+    const ScoreRing sr{cy, cx, k == 0 && rho_min == 0.0 ? 0.0 : ring.inner_px, ring.outer_px};
+    const std::optional<ImageOffset> d = WindowedOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px, sr));
+    if (!d) continue;
+    m.measured_offset = *d;
+    if (d->dy == 0.0 && d->dx == 0.0) {
+      m.offset_applied = true;
+      continue;
+    }
+    const Image moved = FourierShiftImage(estimate, -d->dy, -d->dx);
+    const Region shifted{region.truth, moved.block(c, c, region.truth.rows(), region.truth.cols())};
+    const ImageMetrics a = RingScores(SumRings(shifted, SsimMapOfRegion(shifted, out.peak), ring_of, k_rings), k, out.peak);
+    if (a.rmse <= m.raw.rmse && a.ssim >= m.raw.ssim) {
+      m.aligned = a;
+      m.offset = *d;
+      m.offset_applied = true;
+    }
+  }
+  return out;
 }
 
 }  // namespace aosr

@@ -73,7 +73,9 @@ TEST_F(ReconstructCliTest, EveryMethodWritesAnImageAndATruthfulSummary) {
     // Beside the raw scores: the aligned ones and the offset, in HR px and mas (the dataset knows its scale).
     const nlohmann::json& t = j["against_truth"];
     ASSERT_TRUE(t.contains("aligned")) << t.dump(2);
-    EXPECT_GE(t["aligned"]["psnr_db"].get<double>(), t["psnr_db"].get<double>() - 0.01) << m;
+    // Never below the raw ones: the offset is measured on the scored crop and applied only when it helps.
+    EXPECT_GE(t["aligned"]["psnr_db"].get<double>(), t["psnr_db"].get<double>()) << m;
+    EXPECT_GE(t["aligned"]["ssim"].get<double>(), t["ssim"].get<double>()) << m;
     EXPECT_LT(std::abs(t["offset_hr_px"]["dx"].get<double>()), 1.0) << m;
     ASSERT_TRUE(t["offset_mas"].is_object()) << t.dump(2);
     // One scale for both axes: mas_x hr_y = mas_y hr_x.
