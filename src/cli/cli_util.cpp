@@ -161,4 +161,56 @@ std::string AlignedScoresLine(const Evaluation& e) {
   return line;
 }
 
+void ParseRingCentre(const std::string& command, const std::string& text, double* y, double* x) {
+  const std::size_t comma = text.find(',');
+  bool ok = comma != std::string::npos;
+  if (ok) {
+    try {
+      std::size_t nx = 0, ny = 0;
+      const std::string xs = text.substr(0, comma), ys = text.substr(comma + 1);
+      *x = std::stod(xs, &nx);
+      *y = std::stod(ys, &ny);
+      ok = nx == xs.size() && ny == ys.size() && std::isfinite(*x) && std::isfinite(*y);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  if (!ok)
+    throw InvalidArgument(command, "--ring-centre", text,
+                          "X,Y: two finite numbers, the column then the row of the centre in HR pixels (0-based pixel "
+                          "centres), e.g. 100.5,20");
+}
+
+std::string RingsTable(const Evaluation& ev, double hr_mas, const std::string& indent) {
+  const RingMetrics& rm = ev.rings;
+  const bool stars = !ev.ring_stars.empty();
+  std::string out;
+  char buf[512];
+  std::snprintf(buf, sizeof(buf), "%s%zu rings about (x, y) = (%.2f, %.2f) HR px, each aligned on its own (dynamic range L = %.4g):\n",
+                indent.c_str(), rm.rings.size(), rm.centre_x, rm.centre_y, rm.peak);
+  out += buf;
+  std::snprintf(buf, sizeof(buf), "%s  ring  radius [HR px]%s   pixels  PSNR [dB]  aligned  SSIM    aligned  offset dy, dx [HR px]%s\n",
+                indent.c_str(), hr_mas > 0 ? "  radius [arcsec]" : "", stars ? "  stars  flux bias" : "");
+  out += buf;
+  for (std::size_t k = 0; k < rm.rings.size(); ++k) {
+    const RingScore& r = rm.rings[k];
+    const AlignedImageMetrics& m = r.scores;
+    char radius[64] = "", star_text[64] = "";
+    if (hr_mas > 0) std::snprintf(radius, sizeof(radius), "  %6.3f - %6.3f", r.inner_px * hr_mas / 1000, r.outer_px * hr_mas / 1000);
+    if (stars) {
+      const RingPhotometry& p = ev.ring_stars[k];
+      if (p.stars > 0)
+        std::snprintf(star_text, sizeof(star_text), "  %5d  %+8.2f%%", p.stars, 100 * p.flux_bias);
+      else
+        std::snprintf(star_text, sizeof(star_text), "  %5d  %9s", 0, "-");
+    }
+    std::snprintf(buf, sizeof(buf), "%s  %4zu  %6.1f - %6.1f%s  %7lld  %9.2f  %7.2f  %.4f  %.4f   %+.3f, %+.3f%s%s\n",
+                  indent.c_str(), k, r.inner_px, r.outer_px, radius, static_cast<long long>(r.pixels), m.raw.psnr,
+                  m.aligned.psnr, m.raw.ssim, m.aligned.ssim, m.offset.dy, m.offset.dx,
+                  m.offset_applied ? "" : " (not applied)", star_text);
+    out += buf;
+  }
+  return out;
+}
+
 }  // namespace aosr::cli

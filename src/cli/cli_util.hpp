@@ -78,6 +78,13 @@ void AddAlignedScores(const Evaluation& e, nlohmann::json* j);
 // offset was not applied, " [measured ..., not applied: ...]").
 std::string AlignedScoresLine(const Evaluation& e);
 
+// --ring-centre "X,Y" [HR px, column then row] -> (*y, *x); InvalidArgument naming `command` and --ring-centre.
+void ParseRingCentre(const std::string& command, const std::string& text, double* y, double* x);
+// The rings of an evaluation (scene/evaluation.hpp) as a text table, each line starting with `indent`: radius (and
+// in arcsec when hr_mas > 0), pixels, PSNR and SSIM raw and aligned, the offset, and with a catalogue the stars and
+// their photometric bias. The same table in `aosr evaluate --rings` and `aosr reconstruct --rings`.
+std::string RingsTable(const Evaluation& e, double hr_mas, const std::string& indent);
+
 // Joins a directory and a file name.
 std::string JoinPath(const std::string& dir, const std::string& name);
 

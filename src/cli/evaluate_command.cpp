@@ -38,27 +38,6 @@ struct EvaluateArgs {
   ExecutionArgs exec;
 };
 
-// "X,Y" [HR px] -> (y, x); InvalidArgument naming --ring-centre otherwise.
-void ParseRingCentre(const std::string& text, double* y, double* x) {
-  const std::size_t comma = text.find(',');
-  bool ok = comma != std::string::npos;
-  if (ok) {
-    try {
-      std::size_t nx = 0, ny = 0;
-      const std::string xs = text.substr(0, comma), ys = text.substr(comma + 1);
-      *x = std::stod(xs, &nx);
-      *y = std::stod(ys, &ny);
-      ok = nx == xs.size() && ny == ys.size() && std::isfinite(*x) && std::isfinite(*y);
-    } catch (const std::exception&) {
-      ok = false;
-    }
-  }
-  if (!ok)
-    throw InvalidArgument("aosr evaluate", "--ring-centre", text,
-                          "X,Y: two finite numbers, the column then the row of the centre in HR pixels (0-based pixel "
-                          "centres), e.g. 100.5,20");
-}
-
 // The label of an estimate in tables and plots: its METHOD keyword, else its file name without extension.
 std::string EstimateLabel(const std::string& path) {
   const FitsHeader h = ReadFits(path).header;
@@ -70,31 +49,6 @@ std::string EstimateLabel(const std::string& path) {
     }
   }
   return label;
-}
-
-void PrintRings(const Evaluation& ev, double hr_mas) {
-  const RingMetrics& rm = ev.rings;
-  const bool stars = !ev.ring_stars.empty();
-  std::printf("  %zu rings about (x, y) = (%.2f, %.2f) HR px, each aligned on its own (dynamic range L = %.4g):\n",
-              rm.rings.size(), rm.centre_x, rm.centre_y, rm.peak);
-  std::printf("    ring  radius [HR px]%s   pixels  PSNR [dB]  aligned  SSIM    aligned  offset dy, dx [HR px]%s\n",
-              hr_mas > 0 ? "  radius [arcsec]" : "", stars ? "  stars  flux bias" : "");
-  for (std::size_t k = 0; k < rm.rings.size(); ++k) {
-    const RingScore& r = rm.rings[k];
-    const AlignedImageMetrics& m = r.scores;
-    char radius[64] = "", star_text[64] = "";
-    if (hr_mas > 0) std::snprintf(radius, sizeof(radius), "  %6.3f - %6.3f  ", r.inner_px * hr_mas / 1000, r.outer_px * hr_mas / 1000);
-    if (stars) {
-      const RingPhotometry& p = ev.ring_stars[k];
-      if (p.stars > 0)
-        std::snprintf(star_text, sizeof(star_text), "  %5d  %+8.2f%%", p.stars, 100 * p.flux_bias);
-      else
-        std::snprintf(star_text, sizeof(star_text), "  %5d  %9s", 0, "-");
-    }
-    std::printf("    %4zu  %6.1f - %6.1f%s  %7lld  %9.2f  %7.2f  %.4f  %.4f   %+.3f, %+.3f%s%s\n", k, r.inner_px, r.outer_px,
-                radius, static_cast<long long>(r.pixels), m.raw.psnr, m.aligned.psnr, m.raw.ssim, m.aligned.ssim,
-                m.offset.dy, m.offset.dx, m.offset_applied ? "" : " (not applied)", star_text);
-  }
 }
 
 // The ring curves of every estimate: aligned PSNR and SSIM against the ring's mid radius, and with a catalogue the
@@ -148,7 +102,7 @@ void RunEvaluate(const EvaluateArgs& a) {
   if (a.rings == 0 && !a.plot.empty())
     throw InvalidArgument("aosr evaluate", "--plot", a.plot, "only with --rings K (K >= 1): it draws the ring curves");
   double centre_y = std::numeric_limits<double>::quiet_NaN(), centre_x = centre_y;
-  if (!a.ring_centre.empty()) ParseRingCentre(a.ring_centre, &centre_y, &centre_x);
+  if (!a.ring_centre.empty()) ParseRingCentre("aosr evaluate", a.ring_centre, &centre_y, &centre_x);
   if (!a.plot.empty()) CheckWritableFile(a.plot);
   Image truth;
   std::vector<PointSource> stars;
@@ -231,7 +185,7 @@ void RunEvaluate(const EvaluateArgs& a) {
       if (!stars.empty())
         std::printf("  %zu brightest stars (%d skipped at the edge): median |flux error| %.2f%%, RMS position error %.3f HR px\n",
                     sm.stars.size(), sm.skipped, 100 * sm.median_abs_flux_error, sm.rms_position_error_px);
-      if (ev.measured_rings) PrintRings(ev, hr_mas);
+      if (ev.measured_rings) std::printf("%s", RingsTable(ev, hr_mas, "  ").c_str());
     }
     if (!a.plot.empty()) labels.push_back(EstimateLabel(path));
     outputs.push_back(std::move(j));

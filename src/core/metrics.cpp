@@ -389,6 +389,42 @@ ImageMetrics RingScores(const RingSums& s, int k, double peak) {
 
 }  // namespace
 
+namespace {
+
+// The rings' centre and radial span over the crop (header: geometry), and the largest K whose rings are at
+// least kMinRingWidthPx wide (1 at least: one ring is the whole crop).
+struct RingSpan {
+  double centre_y = 0.0, centre_x = 0.0, rho_min = 0.0, rho_max = 0.0;
+  int max_rings = 1;
+};
+RingSpan RingSpanOf(const char* f, Shape shape, int crop_px, const RingOptions& options) {
+  const Index rows = shape.rows, cols = shape.cols, c = crop_px;
+  RingSpan s;
+  s.centre_y = std::isnan(options.centre_y) ? 0.5 * double(rows - 1) : options.centre_y;
+  s.centre_x = std::isnan(options.centre_x) ? 0.5 * double(cols - 1) : options.centre_x;
+  const double cy = s.centre_y, cx = s.centre_x;
+  CheckArgument(cy >= -0.5 && cy <= rows - 0.5 && cx >= -0.5 && cx <= cols - 0.5, f, "centre (y, x)",
+                "(" + ToString(cy) + ", " + ToString(cx) + ") px",
+                "a point on the " + ToString(shape) + " image: -0.5 <= y <= " + ToString(rows - 0.5) +
+                    ", -0.5 <= x <= " + ToString(cols - 0.5));
+  // The crop's pixel centres span [c, rows − c − 1] × [c, cols − c − 1].
+  const double y0 = double(c), y1 = double(rows - c - 1), x0 = double(c), x1 = double(cols - c - 1);
+  s.rho_max = std::hypot(std::max(std::abs(cy - y0), std::abs(cy - y1)), std::max(std::abs(cx - x0), std::abs(cx - x1)));
+  const bool inside = cy >= y0 - 0.5 && cy <= y1 + 0.5 && cx >= x0 - 0.5 && cx <= x1 + 0.5;
+  s.rho_min = inside ? 0.0 : std::hypot(cy - std::clamp(cy, y0, y1), cx - std::clamp(cx, x0, x1));
+  s.max_rings = std::max(1, int(std::floor((s.rho_max - s.rho_min) / kMinRingWidthPx)));
+  return s;
+}
+
+}  // namespace
+
+int MaxRings(Shape shape, int crop_px, const RingOptions& options) {
+  const char* f = "MaxRings";
+  CheckArgument(crop_px >= 0 && shape.rows - 2 * Index{crop_px} > 0 && shape.cols - 2 * Index{crop_px} > 0, f,
+                "crop_px", crop_px, ">= 0 and leaving pixels of the " + ToString(shape) + " image");
+  return RingSpanOf(f, shape, crop_px, options).max_rings;
+}
+
 RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, const RingOptions& ring_options,
                                  const MetricOptions& opts) {
   const char* f = "CompareImagesInRings";
@@ -397,27 +433,15 @@ RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, cons
   const Region region = CheckAndCrop(f, truth, estimate, opts, kSsimWindow);
   RingMetrics out;
   out.peak = DynamicRange(f, region.truth, opts);
-  const Index rows = truth.rows(), cols = truth.cols(), c = opts.crop_px;
-  out.centre_y = std::isnan(ring_options.centre_y) ? 0.5 * double(rows - 1) : ring_options.centre_y;
-  out.centre_x = std::isnan(ring_options.centre_x) ? 0.5 * double(cols - 1) : ring_options.centre_x;
-  const double cy = out.centre_y, cx = out.centre_x;
-  CheckArgument(cy >= -0.5 && cy <= rows - 0.5 && cx >= -0.5 && cx <= cols - 0.5, f, "centre (y, x)",
-                "(" + ToString(cy) + ", " + ToString(cx) + ") px",
-                "a point on the " + ToString(ShapeOf(truth)) + " image: -0.5 <= y <= " + ToString(rows - 0.5) +
-                    ", -0.5 <= x <= " + ToString(cols - 0.5));
-  // The crop's pixel centres span [c, rows − c − 1] × [c, cols − c − 1].
-  const double y0 = double(c), y1 = double(rows - c - 1), x0 = double(c), x1 = double(cols - c - 1);
-  const double far_y = std::max(std::abs(cy - y0), std::abs(cy - y1));
-  const double far_x = std::max(std::abs(cx - x0), std::abs(cx - x1));
-  const double rho_max = std::hypot(far_y, far_x);
-  const bool inside = cy >= y0 - 0.5 && cy <= y1 + 0.5 && cx >= x0 - 0.5 && cx <= x1 + 0.5;
-  const double rho_min =
-      inside ? 0.0 : std::hypot(cy - std::clamp(cy, y0, y1), cx - std::clamp(cx, x0, x1));
+  const Index c = opts.crop_px;
+  const RingSpan span = RingSpanOf(f, ShapeOf(truth), opts.crop_px, ring_options);
+  out.centre_y = span.centre_y;
+  out.centre_x = span.centre_x;
+  const double cy = out.centre_y, cx = out.centre_x, rho_min = span.rho_min, rho_max = span.rho_max;
   const int k_rings = ring_options.rings;
   const double width = (rho_max - rho_min) / k_rings;
-  const int max_rings = std::max(1, int(std::floor((rho_max - rho_min) / kMinRingWidthPx)));
-  CheckArgument(k_rings == 1 || width >= kMinRingWidthPx, f, "rings", k_rings,
-                "1 .. " + std::to_string(max_rings) + " for this centre and crop: rings from " + ToString(rho_min) +
+  CheckArgument(k_rings <= span.max_rings, f, "rings", k_rings,
+                "1 .. " + std::to_string(span.max_rings) + " for this centre and crop: rings from " + ToString(rho_min) +
                     " to " + ToString(rho_max) + " px at least " + ToString(kMinRingWidthPx) +
                     " px wide (the SSIM window)");
   // Each scored pixel's ring.

@@ -230,6 +230,11 @@ struct RingMetrics {
   double peak = 0.0;                      // the dynamic range L used by every ring
   std::vector<RingScore> rings;           // innermost first
 };
+// The largest K CompareImagesInRings accepts for images of `shape`, this crop and centre (options.rings is not
+// read), so that a caller can refuse a bad --rings before a long computation. Errors: crop leaving nothing, a
+// centre off the image.
+int MaxRings(Shape shape, int crop_px, const RingOptions& options);
+
 // Errors (InvalidArgument naming the function and argument): as CompareImages (shapes, values, options);
 // invalid ring options; a centre off the image; rings narrower than kMinRingWidthPx (the message gives the
 // largest K allowed); a ring with no SSIM window position.
