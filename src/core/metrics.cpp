@@ -470,8 +470,8 @@ RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, cons
     AlignedImageMetrics& m = ring.scores;
     m.raw = RingScores(raw, k, out.peak);
     m.aligned = m.raw;
-    // The ring's own window; the innermost ring about a centre inside the crop is a disc (no inner edge).
-    const ScoreRing sr{cy, cx, k == 0 && rho_min == 0.0 ? 0.0 : ring.inner_px, ring.outer_px};
+    // The ring's own window (the innermost ring about a centre inside the crop has inner_px = 0: a disc).
+    const ScoreRing sr{cy, cx, ring.inner_px, ring.outer_px};
     const std::optional<ImageOffset> d = WindowedOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px, sr));
     if (!d) continue;
     m.measured_offset = *d;
