@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <Eigen/Dense>
+#include <utility>
 #include <vector>
 
 #include "aosr/core/error.hpp"
@@ -212,15 +214,148 @@ std::optional<Image> Apodised(const Image& x, const Image& w, double sum_w) {
   return Image(w * centred);
 }
 
-// The offset in the window's region (header), or nullopt when the truth or the estimate has no structure
-// under the window. Arguments already checked.
-std::optional<ImageOffset> WindowedOffset(const Image& truth, const Image& estimate, const Image& window) {
+// The even (half-sample symmetric) extension of x to 2R × 2C: ext(2R − 1 − y, x) = ext(y, x), the same along
+// columns. It is periodic AND continuous where its grid wraps, so a Fourier shift of it does not ring from the
+// step between a non-periodic image's opposite edges (what a shift of the image itself does).
+Image MirrorExtend(const Image& x) {
+  const Index rows = x.rows(), cols = x.cols();
+  Image ext(2 * rows, 2 * cols);
+  ext.topLeftCorner(rows, cols) = x;
+  ext.topRightCorner(rows, cols) = x.rowwise().reverse();
+  ext.bottomRows(rows) = ext.topRows(rows).colwise().reverse();
+  return ext;
+}
+
+// The estimate moved back by d for scoring: S_{−d} of its mirror extension, cropped back to R × C. d = 0 returns
+// the image itself, bit for bit.
+Image ShiftBackMirrored(const Image& x, ImageOffset d) {
+  if (d.dy == 0.0 && d.dx == 0.0) return x;
+  return FourierShiftImage(MirrorExtend(x), -d.dy, -d.dx).topLeftCorner(x.rows(), x.cols());
+}
+
+// The estimate moved back by d on the mirror-extended grid (spectrum E of its extension), cropped to the image, and
+// its derivatives ∂(S_{−d} e)/∂d = S_{−d} ∇e (inverse transforms of E·phase·2πi f/N).
+struct ShiftedEstimate {
+  Image e, ey, ex;
+};
+ShiftedEstimate ShiftWithGradient(const ComplexImage& spectrum, Shape image, ImageOffset d) {
+  const Index rows = spectrum.rows(), cols = spectrum.cols();
+  // S_{−d}: the phase of FourierShiftImage with −d, separable in y and x.
+  ComplexVector py(rows), px(cols);
+  Vector fy(rows), fx(cols);
+  for (Index k = 0; k < rows; ++k) {
+    fy(k) = static_cast<double>(SignedFrequency(k, rows)) / rows;
+    py(k) = Complex(std::cos(kTwoPi * fy(k) * d.dy), std::sin(kTwoPi * fy(k) * d.dy));
+  }
+  for (Index l = 0; l < cols; ++l) {
+    fx(l) = static_cast<double>(SignedFrequency(l, cols)) / cols;
+    px(l) = Complex(std::cos(kTwoPi * fx(l) * d.dx), std::sin(kTwoPi * fx(l) * d.dx));
+  }
+  ComplexImage x(rows, cols), xy(rows, cols), xx(rows, cols);
+  for (Index k = 0; k < rows; ++k)
+    for (Index l = 0; l < cols; ++l) {
+      const Complex v = spectrum(k, l) * py(k) * px(l);
+      x(k, l) = v;
+      xy(k, l) = v * Complex(0.0, kTwoPi * fy(k));
+      xx(k, l) = v * Complex(0.0, kTwoPi * fx(l));
+    }
+  return {FftInverse(x).real().topLeftCorner(image.rows, image.cols),
+          FftInverse(xy).real().topLeftCorner(image.rows, image.cols),
+          FftInverse(xx).real().topLeftCorner(image.rows, image.cols)};
+}
+
+// The misfit of the region with the intensity nuisances fitted: J(d) = min_{g,b} Σ v (g·e_d + b − t)² (a weighted
+// linear regression of t on e_d), with its g and b. A gain and a level are fitted so that the shift does not absorb
+// a level or contrast difference: along a brightness gradient a shift changes the local level, and a plain
+// least-squares shift would trade astrometry for photometry.
+struct RegionFit {
+  double j = 0.0, gain = 1.0, bias = 0.0;
+};
+RegionFit FitGainAndBias(const Image& e, const Image& truth, const Image& weights) {
+  const double sw = weights.sum(), se = (weights * e).sum(), st = (weights * truth).sum();
+  const double see = (weights * e.square()).sum(), set = (weights * e * truth).sum();
+  const double det = sw * see - se * se;
+  RegionFit f;
+  if (det > 1e-12 * sw * see && det > 0.0) {
+    f.gain = (sw * set - se * st) / det;
+    f.bias = (st - f.gain * se) / sw;
+  } else {  // a constant estimate in the region: only the level
+    f.gain = 0.0;
+    f.bias = st / sw;
+  }
+  f.j = (weights * (f.gain * e + f.bias - truth).square()).sum();
+  return f;
+}
+
+// Gauss-Newton (variable projection) on J(d) from `start`: each step solves the 4x4 normal equations of (dy, dx, g,
+// b) at the current fit, moves d only (capped at 0.5 px, halved up to 6 times until J decreases) and refits g and b
+// exactly; stops when a step is below 1e-5 px or after 12 steps. J never increases. Returns d and J(d).
+std::pair<ImageOffset, double> RefineShift(const ComplexImage& spectrum, const Image& truth, const Image& weights,
+                                           ImageOffset start) {
+  const Shape shape = ShapeOf(truth);
+  ImageOffset d = start;
+  ShiftedEstimate s = ShiftWithGradient(spectrum, shape, d);
+  RegionFit fit = FitGainAndBias(s.e, truth, weights);
+  const Image ones = Image::Ones(shape.rows, shape.cols);
+  for (int it = 0; it < 12; ++it) {
+    const Image r = fit.gain * s.e + fit.bias - truth;
+    const Image jy = fit.gain * s.ey, jx = fit.gain * s.ex;
+    const Image* cols[4] = {&jy, &jx, &s.e, &ones};
+    Eigen::Matrix4d a;
+    Eigen::Vector4d rhs;
+    for (int i = 0; i < 4; ++i) {
+      rhs(i) = -(weights * *cols[i] * r).sum();
+      for (int k = 0; k <= i; ++k) a(i, k) = a(k, i) = (weights * *cols[i] * *cols[k]).sum();
+    }
+    if (!(a(0, 0) * a(1, 1) - a(0, 1) * a(0, 1) > 0.0)) break;  // no gradient in the region: nothing to align on
+    const Eigen::Vector4d step = a.ldlt().solve(rhs);
+    if (!step.allFinite()) break;
+    double sy = step(0), sx = step(1);
+    const double len = std::hypot(sy, sx);
+    if (len > 0.5) sy *= 0.5 / len, sx *= 0.5 / len;
+    bool accepted = false;
+    for (int halving = 0; halving < 7 && !accepted; ++halving) {
+      const ImageOffset trial{d.dy + sy, d.dx + sx};
+      ShiftedEstimate ts = ShiftWithGradient(spectrum, shape, trial);
+      const RegionFit tf = FitGainAndBias(ts.e, truth, weights);
+      if (tf.j < fit.j) {
+        d = trial;
+        s = std::move(ts);
+        fit = tf;
+        accepted = true;
+      } else {
+        sy *= 0.5;
+        sx *= 0.5;
+      }
+    }
+    if (!accepted || std::hypot(sy, sx) < 1e-5) break;
+  }
+  return {d, fit.j};
+}
+
+// The offset in a region (header): the peak of the cross-correlation of the images apodised by `window`, then the
+// least-squares offset of the region itself, Σ v (S_{−d} e − t)² with weights v (the scored pixels), by
+// Gauss-Newton from that peak and from 0, keeping the lower misfit. nullopt when the truth or the estimate has no
+// structure under the window. Arguments already checked.
+std::optional<ImageOffset> RegionOffset(const Image& truth, const Image& estimate, const Image& window,
+                                        const Image& weights) {
   const double sum_w = window.sum();
   const std::optional<Image> a = Apodised(truth, window, sum_w);
   const std::optional<Image> b = Apodised(estimate, window, sum_w);
   if (!a || !b) return std::nullopt;
   const ComplexImage cross = FftForward(b->cast<Complex>()) * FftForward(a->cast<Complex>()).conjugate();
-  return PeakOfCrossSpectrum(cross);
+  const ImageOffset peak = PeakOfCrossSpectrum(cross);
+  const ComplexImage spectrum = FftForward(MirrorExtend(estimate).cast<Complex>());
+  std::pair<ImageOffset, double> best = RefineShift(spectrum, truth, weights, ImageOffset{});
+  if (peak.dy != 0.0 || peak.dx != 0.0) {
+    const std::pair<ImageOffset, double> from_peak = RefineShift(spectrum, truth, weights, peak);
+    if (from_peak.second < best.second) best = from_peak;
+  }
+  ImageOffset d = best.first;
+  // A one-pixel-wide image axis has no sub-pixel information along it.
+  if (truth.rows() == 1) d.dy = 0.0;
+  if (truth.cols() == 1) d.dx = 0.0;
+  return d;
 }
 
 }  // namespace
@@ -249,7 +384,7 @@ ImageOffset MeasureImageOffsetInWindow(const Image& truth, const Image& estimate
                 "an image with structure in the windowed region (a constant has no correlation peak)");
   CheckArgument(Apodised(estimate, window, sum_w).has_value(), f, "estimate", "constant under the window",
                 "an image with structure in the windowed region (a constant has no correlation peak)");
-  return *WindowedOffset(truth, estimate, window);
+  return *RegionOffset(truth, estimate, window, window);
 }
 
 Image ScoreWindow(Shape shape, int crop_px, const ScoreRing& ring) {
@@ -268,7 +403,7 @@ Image ScoreWindow(Shape shape, int crop_px, const ScoreRing& ring) {
   auto taper = [](double delta, double tau) {
     if (delta <= 0.0) return 0.0;
     if (delta >= tau) return 1.0;
-    return 0.5 * (1.0 - std::cos(kTwoPiMetrics * 0.5 * delta / tau));
+    return 0.5 * (1.0 - std::cos(kPi * delta / tau));
   };
   const double ring_tau = has_ring ? 0.25 * (ring.outer_px - ring.inner_px) : 0.0;
   const double tau_y = has_ring ? ring_tau : rows / 8.0;
@@ -316,7 +451,11 @@ AlignedImageMetrics CompareImagesAligned(const Image& truth, const Image& estima
   AlignedImageMetrics m;
   m.raw = CompareImages(truth, estimate, opts);  // checks shapes, values and options first
   m.aligned = m.raw;
-  const std::optional<ImageOffset> d = WindowedOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px));
+  Image scored = Image::Zero(truth.rows(), truth.cols());
+  const Index c = opts.crop_px;
+  scored.block(c, c, truth.rows() - 2 * c, truth.cols() - 2 * c).setOnes();
+  const std::optional<ImageOffset> d =
+      RegionOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px), scored);
   if (!d) return m;  // no structure on the crop: no peak, nothing to align
   m.measured_offset = *d;
   if (d->dy == 0.0 && d->dx == 0.0) {
@@ -324,7 +463,7 @@ AlignedImageMetrics CompareImagesAligned(const Image& truth, const Image& estima
     return m;
   }
   // Applied only when it raises neither the crop's MSE nor lowers its SSIM (header: aligned >= raw).
-  const ImageMetrics a = CompareImages(truth, FourierShiftImage(estimate, -d->dy, -d->dx), opts);
+  const ImageMetrics a = CompareImages(truth, ShiftBackMirrored(estimate, *d), opts);
   if (a.rmse <= m.raw.rmse && a.ssim >= m.raw.ssim) {
     m.aligned = a;
     m.offset = *d;
@@ -458,7 +597,7 @@ RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, cons
     ring.outer_px = k + 1 == k_rings ? rho_max : rho_min + (k + 1) * width;
     ring.pixels = raw.pixels[std::size_t(k)];
     ring.ssim_positions = raw.positions[std::size_t(k)];
-    ring.area_px = 0.5 * kTwoPiMetrics * (ring.outer_px * ring.outer_px - ring.inner_px * ring.inner_px);
+    ring.area_px = kPi * (ring.outer_px * ring.outer_px - ring.inner_px * ring.inner_px);
     CheckArgument(ring.pixels > 0 && ring.ssim_positions > 0, f, "rings", k_rings,
                   "fewer rings: ring " + std::to_string(k) + " (" + ToString(ring.inner_px) + " <= rho < " +
                       ToString(ring.outer_px) + " px) holds " + std::to_string(ring.pixels) + " scored pixels and " +
@@ -472,14 +611,19 @@ RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, cons
     m.aligned = m.raw;
     // The ring's own window (the innermost ring about a centre inside the crop has inner_px = 0: a disc).
     const ScoreRing sr{cy, cx, ring.inner_px, ring.outer_px};
-    const std::optional<ImageOffset> d = WindowedOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px, sr));
+    Image in_ring = Image::Zero(truth.rows(), truth.cols());
+    for (Index y = 0; y < ring_of.rows(); ++y)
+      for (Index x = 0; x < ring_of.cols(); ++x)
+        if (ring_of(y, x) == k) in_ring(y + c, x + c) = 1.0;
+    const std::optional<ImageOffset> d =
+        RegionOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px, sr), in_ring);
     if (!d) continue;
     m.measured_offset = *d;
     if (d->dy == 0.0 && d->dx == 0.0) {
       m.offset_applied = true;
       continue;
     }
-    const Image moved = FourierShiftImage(estimate, -d->dy, -d->dx);
+    const Image moved = ShiftBackMirrored(estimate, *d);
     const Region shifted{region.truth, moved.block(c, c, region.truth.rows(), region.truth.cols())};
     const ImageMetrics a = RingScores(SumRings(shifted, SsimMapOfRegion(shifted, out.peak), ring_of, k_rings), k, out.peak);
     if (a.rmse <= m.raw.rmse && a.ssim >= m.raw.ssim) {

@@ -55,7 +55,7 @@ bool OutputKeepsSky(const std::string& fits_path) {
 
 namespace {
 
-double Median(std::vector<double> v) {
+double EvaluationMedian(std::vector<double> v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
   const std::size_t h = v.size() / 2;
   std::nth_element(v.begin(), v.begin() + h, v.end());
@@ -91,10 +91,10 @@ std::vector<RingPhotometry> RingStars(const Image& truth, const Image& estimate,
   std::vector<RingPhotometry> out(k_rings);
   for (std::size_t k = 0; k < k_rings; ++k) {
     out[k].stars = int(errors[k].size());
-    out[k].flux_bias = Median(errors[k]);
+    out[k].flux_bias = EvaluationMedian(errors[k]);
     std::vector<double> abs_errors;
     for (double v : errors[k]) abs_errors.push_back(std::abs(v));
-    out[k].median_abs_flux_error = Median(abs_errors);
+    out[k].median_abs_flux_error = EvaluationMedian(abs_errors);
   }
   return out;
 }

@@ -367,7 +367,10 @@ Image WithWrappedBorder(const Image& img, int border) {
 
 // The failure, reproduced: an estimate that is the truth blurred symmetrically (no offset at all) with
 // a border a periodic reconstructor gets wrong. The whole-image correlation is pulled by the border and the
-// wrap; the offset measured on the apodised crop is ~0, and the aligned scores are at least the raw ones.
+// wrap (0.3-11 px here); the offset measured on the crop is ~0, and the aligned scores are at least the raw ones.
+// Tolerance 0.03 px: the least-squares shift of a BLURRED estimate against the sharp truth over a finite region
+// carries a boundary term (Σ over the region of t·∇(Bt) vanishes only on an unbounded domain), largest where the
+// scene is brightest at the region's edge (the tilted plane here); measured 0.001-0.021 px.
 TEST(MetricsTest, OffsetMeasuredOnTheCropIsNotPulledByTheBorder) {
   const Shape s{96, 112};
   for (std::uint64_t seed : {1u, 2u, 3u}) {
@@ -378,15 +381,17 @@ TEST(MetricsTest, OffsetMeasuredOnTheCropIsNotPulledByTheBorder) {
     std::printf("seed %d: whole-image offset (%+.4f, %+.4f), on the crop (%+.4f, %+.4f), applied %d; PSNR raw %.3f "
                 "aligned %.3f dB\n", int(seed), whole.dy, whole.dx, a.measured_offset.dy, a.measured_offset.dx,
                 int(a.offset_applied), a.raw.psnr, a.aligned.psnr);
-    EXPECT_NEAR(a.measured_offset.dy, 0.0, 0.01) << "seed " << seed;
-    EXPECT_NEAR(a.measured_offset.dx, 0.0, 0.01) << "seed " << seed;
+    EXPECT_NEAR(a.measured_offset.dy, 0.0, 0.03) << "seed " << seed;
+    EXPECT_NEAR(a.measured_offset.dx, 0.0, 0.03) << "seed " << seed;
+    EXPECT_GT(std::hypot(whole.dy, whole.dx), 0.25) << "seed " << seed;  // the whole image's pull, for comparison
     EXPECT_GE(a.aligned.psnr, a.raw.psnr);
     EXPECT_GE(a.aligned.ssim, a.raw.ssim);
   }
 }
 
 // A known sub-pixel shift of a non-periodic scene (the plane makes a step where the grid wraps): recovered on the
-// crop to 0.01 px, with and without a symmetric blur and noise.
+// crop to 0.01 px with noise, and to 0.03 px when the estimate is also blurred (the boundary term above; measured
+// up to 0.024 px), where alignment then recovers the part of the loss that the offset causes (the blur stays).
 TEST(MetricsTest, KnownShiftOfANonPeriodicSceneIsRecoveredOnTheCrop) {
   const Shape s{80, 96};
   for (const auto& d : std::vector<ImageOffset>{{0.31, -0.47}, {-0.5, 0.12}, {1.73, 0.66}}) {
@@ -394,10 +399,13 @@ TEST(MetricsTest, KnownShiftOfANonPeriodicSceneIsRecoveredOnTheCrop) {
       const Image truth = SmoothNonPeriodic(s, 0, 0, 0.0, 7);
       const Image estimate = AddNoise(SmoothNonPeriodic(s, d.dy, d.dx, blur, 7), 0.005, 8);
       const AlignedImageMetrics a = CompareImagesAligned(truth, estimate, MetricOptions{6, 0.0});
+      const double tolerance = blur > 0 ? 0.03 : 0.01;
       EXPECT_TRUE(a.offset_applied) << d.dy << ", " << d.dx << " blur " << blur;
-      EXPECT_NEAR(a.offset.dy, d.dy, 0.01) << d.dy << ", " << d.dx << " blur " << blur;
-      EXPECT_NEAR(a.offset.dx, d.dx, 0.01) << d.dy << ", " << d.dx << " blur " << blur;
-      EXPECT_GT(a.aligned.psnr, a.raw.psnr + 3.0);
+      EXPECT_NEAR(a.offset.dy, d.dy, tolerance) << d.dy << ", " << d.dx << " blur " << blur;
+      EXPECT_NEAR(a.offset.dx, d.dx, tolerance) << d.dy << ", " << d.dx << " blur " << blur;
+      EXPECT_GT(a.aligned.psnr, a.raw.psnr + (blur > 0 ? 1.0 : 10.0)) << d.dy << ", " << d.dx << " blur " << blur;
+      std::printf("shift (%+.2f, %+.2f) blur %.1f: measured (%+.4f, %+.4f), PSNR raw %.2f aligned %.2f dB\n", d.dy, d.dx,
+                  blur, a.offset.dy, a.offset.dx, a.raw.psnr, a.aligned.psnr);
     }
   }
 }
@@ -463,7 +471,7 @@ TEST(MetricsTest, RingRadiiCountsAndAreas) {
     const RingScore& r = m.rings[std::size_t(k)];
     EXPECT_NEAR(r.inner_px, k * rho_max / k_rings, 1e-12);
     EXPECT_NEAR(r.outer_px, (k + 1) * rho_max / k_rings, 1e-12);
-    EXPECT_NEAR(r.area_px, M_PI * (r.outer_px * r.outer_px - r.inner_px * r.inner_px), 1e-9);
+    EXPECT_NEAR(r.area_px, kPi * (r.outer_px * r.outer_px - r.inner_px * r.inner_px), 1e-9);
     // Brute force: the crop's pixel centres in the ring, and the SSIM window centres (5 px inside the crop).
     Index n = 0, p = 0;
     double se = 0.0;
@@ -480,7 +488,9 @@ TEST(MetricsTest, RingRadiiCountsAndAreas) {
     EXPECT_EQ(r.ssim_positions, p) << "ring " << k;
     EXPECT_NEAR(r.scores.raw.rmse, std::sqrt(se / n), 1e-12);
     // Rings inside the crop hold about their area in pixels (lattice points in an annulus); the outer ring is cut.
-    if (r.outer_px < 43.5) EXPECT_NEAR(double(n), r.area_px, 0.03 * r.area_px + 10) << "ring " << k;
+    if (r.outer_px < 43.5) {
+      EXPECT_NEAR(double(n), r.area_px, 0.03 * r.area_px + 10) << "ring " << k;
+    }
     pixels += n;
     positions += p;
     mse_sum += se;
