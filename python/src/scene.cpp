@@ -1,7 +1,10 @@
 // Bindings of the scene layer: scenes (from a file or a dict), simulate(), datasets (opened from disk, made
 // from a simulation or from the caller's arrays) and evaluate().
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <limits>
+#include <vector>
 
 #include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
@@ -391,12 +394,29 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
   m.def(
       "evaluate",
       [](py::handle estimate, py::handle truth, py::handle dataset, std::optional<int> crop, double peak, int stars,
-         double aperture, std::optional<bool> subtract_sky) {
+         double aperture, std::optional<bool> subtract_sky, int rings, py::object ring_centre) {
         // As `aosr evaluate` (src/cli/evaluate_command.cpp): exactly one of truth and dataset.
         if (truth.is_none() == dataset.is_none())
           throw InvalidArgument("aosr.evaluate", "truth/dataset", truth.is_none() ? "(neither)" : "(both)",
                                 "exactly one of truth= (array or FITS path) and dataset=");
         CheckArgument(!crop || *crop >= 0, "aosr.evaluate", "crop", crop.value_or(0), ">= 0 or None");
+        CheckArgument(rings >= 0, "aosr.evaluate", "rings", rings, ">= 0 (0: no rings)");
+        double centre_x = std::numeric_limits<double>::quiet_NaN(), centre_y = centre_x;
+        if (!ring_centre.is_none()) {
+          std::vector<double> xy;
+          try {
+            xy = ring_centre.cast<std::vector<double>>();
+          } catch (const py::cast_error&) {
+            xy.clear();
+          }
+          CheckArgument(xy.size() == 2 && std::isfinite(xy[0]) && std::isfinite(xy[1]), "aosr.evaluate", "ring_centre",
+                        py::str(ring_centre).cast<std::string>(),
+                        "(x, y): two finite numbers, column then row in HR px, or None for the image centre");
+          CheckArgument(rings > 0, "aosr.evaluate", "ring_centre", py::str(ring_centre).cast<std::string>(),
+                        "only with rings=K (K >= 1)");
+          centre_x = xy[0];
+          centre_y = xy[1];
+        }
         Image t;
         std::vector<PointSource> catalogue;
         int c = crop.value_or(0);
@@ -422,6 +442,9 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         eo.stars = stars;
         eo.aperture_px = aperture;
         eo.hr_pixel_mas = hr_mas;
+        eo.rings = rings;
+        eo.ring_centre_y = centre_y;
+        eo.ring_centre_x = centre_x;
         // None: as `aosr evaluate --subtract-sky auto`, from the file's METHOD keyword (an array has none).
         if (subtract_sky) {
           eo.subtract_sky = *subtract_sky;
@@ -441,6 +464,9 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         j["aligned"] = py::dict(py::arg("psnr_db") = ev.aligned.psnr, py::arg("ssim") = ev.aligned.ssim,
                                 py::arg("rmse") = ev.aligned.rmse);
         j["offset_hr_px"] = py::dict(py::arg("dy") = ev.offset.dy, py::arg("dx") = ev.offset.dx);
+        j["offset_measured_hr_px"] =
+            py::dict(py::arg("dy") = ev.measured_offset.dy, py::arg("dx") = ev.measured_offset.dx);
+        j["offset_applied"] = ev.offset_applied;
         if (ev.offset_mas_known)
           j["offset_mas"] = py::dict(py::arg("dy") = ev.offset_mas[0], py::arg("dx") = ev.offset_mas[1]);
         else
@@ -466,11 +492,12 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
           sd["brightest"] = list;
           j["stars"] = sd;
         }
+        if (ev.measured_rings) j["rings"] = FromJson(EvaluationRingsJson(ev, hr_mas));
         return j;
       },
       py::arg("estimate"), py::kw_only(), py::arg("truth") = py::none(), py::arg("dataset") = py::none(),
       py::arg("crop") = py::none(), py::arg("peak") = 0.0, py::arg("stars") = 20, py::arg("aperture") = 3.0,
-      py::arg("subtract_sky") = py::none(),
+      py::arg("subtract_sky") = py::none(), py::arg("rings") = 0, py::arg("ring_centre") = py::none(),
       R"doc(Compares a reconstruction with the truth, as `aosr evaluate`: PSNR [dB], SSIM, RMSE, raw and after removing
 the global sub-pixel offset of the estimate against the truth ('aligned'), the offset itself ('offset_hr_px' and,
 when the dataset or the truth file's PIXSCALE gives the pixel scale, 'offset_mas'; else None) and, for a dataset
@@ -483,6 +510,12 @@ peak      PSNR/SSIM dynamic range L (0: max - min of the truth)
 subtract_sky  remove the estimate's sky (its median level minus the truth's over the scored region) before scoring;
           None: when the estimate is a FITS file whose METHOD is linear (an output that keeps the frames' sky), as
           `aosr evaluate --subtract-sky auto`. 'sky_subtracted' says what was removed (None when not asked)
+rings     K >= 1: also score K concentric rings about ring_centre, each aligned on its own, with each ring's
+          photometric bias when the dataset has a star list ('rings': {'count', 'centre_hr_px': {'x', 'y'}, 'peak',
+          'rings': [...]}, as `aosr evaluate --rings K --json`); 0 (default): none
+ring_centre  (x, y) [HR px: column, row; 0-based pixel centres], e.g. the guide star; None: the image centre
+The offset is measured on the scored crop and applied only when it lowers neither PSNR nor SSIM there
+('offset_applied'; 'offset_measured_hr_px' is what was found), so the aligned scores are never below the raw ones.
 Returns the dict `aosr evaluate --json` prints (without 'estimate').)doc");
 }
 

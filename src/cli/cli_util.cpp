@@ -135,6 +135,8 @@ void ApplyExecution(const ExecutionArgs& args) {
 void AddAlignedScores(const Evaluation& e, nlohmann::json* j) {
   (*j)["aligned"] = {{"psnr_db", e.aligned.psnr}, {"ssim", e.aligned.ssim}, {"rmse", e.aligned.rmse}};
   (*j)["offset_hr_px"] = {{"dy", e.offset.dy}, {"dx", e.offset.dx}};
+  (*j)["offset_measured_hr_px"] = {{"dy", e.measured_offset.dy}, {"dx", e.measured_offset.dx}};
+  (*j)["offset_applied"] = e.offset_applied;
   if (e.offset_mas_known)
     (*j)["offset_mas"] = {{"dy", e.offset_mas[0]}, {"dx", e.offset_mas[1]}};
   else
@@ -142,14 +144,73 @@ void AddAlignedScores(const Evaluation& e, nlohmann::json* j) {
 }
 
 std::string AlignedScoresLine(const Evaluation& e) {
-  char buf[256];
+  char buf[320];
   if (e.offset_mas_known)
     std::snprintf(buf, sizeof(buf), "aligned (offset dy, dx = %+.3f, %+.3f HR px = %+.2f, %+.2f mas): PSNR %.2f dB, SSIM %.4f",
                   e.offset.dy, e.offset.dx, e.offset_mas[0], e.offset_mas[1], e.aligned.psnr, e.aligned.ssim);
   else
     std::snprintf(buf, sizeof(buf), "aligned (offset dy, dx = %+.3f, %+.3f HR px): PSNR %.2f dB, SSIM %.4f", e.offset.dy,
                   e.offset.dx, e.aligned.psnr, e.aligned.ssim);
-  return buf;
+  std::string line = buf;
+  if (!e.offset_applied) {
+    // The measured offset would have lowered a score in the scored region (core/metrics.hpp): say so.
+    std::snprintf(buf, sizeof(buf), " [measured %+.3f, %+.3f HR px, not applied: it lowered PSNR or SSIM]",
+                  e.measured_offset.dy, e.measured_offset.dx);
+    line += buf;
+  }
+  return line;
+}
+
+void ParseRingCentre(const std::string& command, const std::string& text, double* y, double* x) {
+  const std::size_t comma = text.find(',');
+  bool ok = comma != std::string::npos;
+  if (ok) {
+    try {
+      std::size_t nx = 0, ny = 0;
+      const std::string xs = text.substr(0, comma), ys = text.substr(comma + 1);
+      *x = std::stod(xs, &nx);
+      *y = std::stod(ys, &ny);
+      ok = nx == xs.size() && ny == ys.size() && std::isfinite(*x) && std::isfinite(*y);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  if (!ok)
+    throw InvalidArgument(command, "--ring-centre", text,
+                          "X,Y: two finite numbers, the column then the row of the centre in HR pixels (0-based pixel "
+                          "centres), e.g. 100.5,20");
+}
+
+std::string RingsTable(const Evaluation& ev, double hr_mas, const std::string& indent) {
+  const RingMetrics& rm = ev.rings;
+  const bool stars = !ev.ring_stars.empty();
+  std::string out;
+  char buf[512];
+  std::snprintf(buf, sizeof(buf), "%s%zu rings about (x, y) = (%.2f, %.2f) HR px, each aligned on its own (dynamic range L = %.4g):\n",
+                indent.c_str(), rm.rings.size(), rm.centre_x, rm.centre_y, rm.peak);
+  out += buf;
+  std::snprintf(buf, sizeof(buf), "%s  ring  radius [HR px]%s   pixels  PSNR [dB]  aligned  SSIM    aligned  offset dy, dx [HR px]%s\n",
+                indent.c_str(), hr_mas > 0 ? "  radius [arcsec]" : "", stars ? "  stars  flux bias" : "");
+  out += buf;
+  for (std::size_t k = 0; k < rm.rings.size(); ++k) {
+    const RingScore& r = rm.rings[k];
+    const AlignedImageMetrics& m = r.scores;
+    char radius[64] = "", star_text[64] = "";
+    if (hr_mas > 0) std::snprintf(radius, sizeof(radius), "  %6.3f - %6.3f", r.inner_px * hr_mas / 1000, r.outer_px * hr_mas / 1000);
+    if (stars) {
+      const RingPhotometry& p = ev.ring_stars[k];
+      if (p.stars > 0)
+        std::snprintf(star_text, sizeof(star_text), "  %5d  %+8.2f%%", p.stars, 100 * p.flux_bias);
+      else
+        std::snprintf(star_text, sizeof(star_text), "  %5d  %9s", 0, "-");
+    }
+    std::snprintf(buf, sizeof(buf), "%s  %4zu  %6.1f - %6.1f%s  %7lld  %9.2f  %7.2f  %.4f  %.4f   %+.3f, %+.3f%s%s\n",
+                  indent.c_str(), k, r.inner_px, r.outer_px, radius, static_cast<long long>(r.pixels), m.raw.psnr,
+                  m.aligned.psnr, m.raw.ssim, m.aligned.ssim, m.offset.dy, m.offset.dx,
+                  m.offset_applied ? "" : " (not applied)", star_text);
+    out += buf;
+  }
+  return out;
 }
 
 }  // namespace aosr::cli

@@ -70,11 +70,20 @@ void SetCommandLine(int argc, const char* const* argv);
 const std::string& CommandLine();
 
 // The alignment part of an evaluation (scene/evaluation.hpp) as JSON members added to `*j`: "aligned" {psnr_db,
-// ssim, rmse}, "offset_hr_px" {dy, dx} and "offset_mas" {dy, dx} (null when the pixel scale is unknown). The same
-// names in `aosr evaluate`, the reconstruct summary and the tradeoff table.
+// ssim, rmse}, "offset_hr_px" {dy, dx} (as applied), "offset_measured_hr_px" {dy, dx}, "offset_applied" and
+// "offset_mas" {dy, dx} (null when the pixel scale is unknown). The same names in `aosr evaluate`, the reconstruct
+// summary and the tradeoff table.
 void AddAlignedScores(const Evaluation& e, nlohmann::json* j);
-// One text line: "aligned (offset dy, dx = ... HR px = ... mas): PSNR ... dB, SSIM ...".
+// One text line: "aligned (offset dy, dx = ... HR px = ... mas): PSNR ... dB, SSIM ..." (and, when the measured
+// offset was not applied, " [measured ..., not applied: ...]").
 std::string AlignedScoresLine(const Evaluation& e);
+
+// --ring-centre "X,Y" [HR px, column then row] -> (*y, *x); InvalidArgument naming `command` and --ring-centre.
+void ParseRingCentre(const std::string& command, const std::string& text, double* y, double* x);
+// The rings of an evaluation (scene/evaluation.hpp) as a text table, each line starting with `indent`: radius (and
+// in arcsec when hr_mas > 0), pixels, PSNR and SSIM raw and aligned, the offset, and with a catalogue the stars and
+// their photometric bias. The same table in `aosr evaluate --rings` and `aosr reconstruct --rings`.
+std::string RingsTable(const Evaluation& e, double hr_mas, const std::string& indent);
 
 // Joins a directory and a file name.
 std::string JoinPath(const std::string& dir, const std::string& name);

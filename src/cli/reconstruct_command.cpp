@@ -36,6 +36,8 @@ struct ReconstructArgs {
   std::string out;
   bool json = false;
   bool progress = false;  // --progress: progress on stderr even under --json or without a terminal
+  int rings = 0;            // --rings: scores against the truth in rings (0: none)
+  std::string ring_centre;  // --ring-centre X,Y [HR px]; empty: the image centre
   std::string weights = "auto";
   std::string offsets = "auto";
   double registration_range = 0.5;           // --registration-range [camera px]
@@ -208,8 +210,33 @@ void RunReconstruct(const ReconstructArgs& a) {
     if (!dpo.stars.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--stars-*", why, "valid stars PSF settings");
   }
 
+  if (a.rings == 0 && !a.ring_centre.empty())
+    throw InvalidArgument("aosr reconstruct", "--ring-centre", a.ring_centre, "only with --rings K (K >= 1)");
+  double ring_y = 0, ring_x = 0;
+  if (!a.ring_centre.empty()) ParseRingCentre("aosr reconstruct", a.ring_centre, &ring_y, &ring_x);
+
   progress.Step("reading " + a.dataset);
   const Dataset d = LoadDataset(a.dataset);
+  if (a.rings > 0 && !d.truth)
+    throw InvalidArgument("aosr reconstruct", "--rings", std::to_string(a.rings),
+                          "a dataset with a truth image (the rings score the reconstruction against it)");
+  if (!a.ring_centre.empty() && !(ring_y >= -0.5 && ring_y <= d.hr_frame.rows - 0.5 && ring_x >= -0.5 &&
+                                  ring_x <= d.hr_frame.cols - 0.5))
+    throw InvalidArgument("aosr reconstruct", "--ring-centre", a.ring_centre,
+                          "a point on the " + ToString(d.hr_frame) + " HR image: -0.5 <= X <= " +
+                              ToString(d.hr_frame.cols - 0.5) + ", -0.5 <= Y <= " + ToString(d.hr_frame.rows - 0.5));
+  if (a.rings > 0) {
+    // The crop the scores use (below), and the most rings it holds: refused now, not after the reconstruction.
+    int crop = int(d.trustworthy_border_px * d.r);
+    if (2 * crop + 11 > std::min(d.hr_frame.rows, d.hr_frame.cols)) crop = 0;
+    RingOptions ro;
+    if (!a.ring_centre.empty()) ro.centre_y = ring_y, ro.centre_x = ring_x;
+    const int most = MaxRings(d.hr_frame, crop, ro);
+    if (a.rings > most)
+      throw InvalidArgument("aosr reconstruct", "--rings", std::to_string(a.rings),
+                            "1 .. " + std::to_string(most) + " for this dataset, crop and centre (rings at least " +
+                                ToString(kMinRingWidthPx) + " HR px wide, the SSIM window)");
+  }
   const fs::path out_canonical = fs::weakly_canonical(a.out);
   const std::set<fs::path> inputs = DatasetInputFiles(d);
   for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std"), a.stars_psf_out})
@@ -397,7 +424,7 @@ void RunReconstruct(const ReconstructArgs& a) {
     if (noise_unscaled)
       j["linear"]["noise_note"] = "weights are a validity mask: noise figures assume sigma = 1 e- per pixel; pass --noise-sigma";
   }
-  std::string aligned_line;
+  std::string aligned_line, rings_table;
   if (d.truth) {
     MetricOptions mo;
     mo.crop_px = int(d.trustworthy_border_px * d.r);
@@ -418,11 +445,27 @@ void RunReconstruct(const ReconstructArgs& a) {
     EvaluationOptions eo;
     eo.crop_px = mo.crop_px;
     eo.hr_pixel_mas = DatasetHrPixelMas(d);
-    const Evaluation ev = EvaluateReconstruction(*d.truth, estimate, {}, eo);
+    eo.rings = a.rings;
+    if (!a.ring_centre.empty()) ParseRingCentre("aosr reconstruct", a.ring_centre, &eo.ring_centre_y, &eo.ring_centre_x);
+    Evaluation ev;
+    try {
+      // The dataset's star list only for the rings' photometry (the summary reports no other star figures).
+      ev = EvaluateReconstruction(*d.truth, estimate, a.rings > 0 ? d.stars : std::vector<PointSource>{}, eo);
+    } catch (const InvalidArgument& e) {
+      const std::string what = e.what();
+      if (a.rings > 0 && (what.find("rings") != std::string::npos || what.find("centre") != std::string::npos))
+        throw InvalidArgument("aosr reconstruct: --rings " + std::to_string(a.rings) +
+                              (a.ring_centre.empty() ? "" : " --ring-centre " + a.ring_centre) + ": " + what);
+      throw;
+    }
     const ImageMetrics& m = ev.metrics;
     j["against_truth"] = {{"psnr_db", m.psnr}, {"ssim", m.ssim}, {"rmse", m.rmse}, {"crop_px", mo.crop_px}};
     AddAlignedScores(ev, &j["against_truth"]);
     aligned_line = AlignedScoresLine(ev);
+    if (ev.measured_rings) {
+      j["against_truth"]["rings"] = EvaluationRingsJson(ev, eo.hr_pixel_mas);
+      rings_table = RingsTable(ev, eo.hr_pixel_mas, "    ");
+    }
     if (seen) {
       // A linear output with a known PSF estimates the truth seen through that PSF: compare with that too.
       const ImageMetrics t = CompareImages(*seen, estimate, mo);
@@ -462,6 +505,7 @@ void RunReconstruct(const ReconstructArgs& a) {
     std::printf("  against the truth (crop %d HR px): PSNR %.2f dB, SSIM %.4f\n", j["against_truth"]["crop_px"].get<int>(),
                 j["against_truth"]["psnr_db"].get<double>(), j["against_truth"]["ssim"].get<double>());
   if (!aligned_line.empty()) std::printf("    %s\n", aligned_line.c_str());
+  if (!rings_table.empty()) std::printf("%s", rings_table.c_str());
   if (j.contains("against_truth_through_psf"))
     std::printf("  against the truth seen through the output's effective PSF: PSNR %.2f dB, SSIM %.4f\n",
                 j["against_truth_through_psf"]["psnr_db"].get<double>(),
@@ -483,6 +527,12 @@ void RegisterReconstruct(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("-o,--output", a->out, "output FITS image")->required();
   cmd->add_flag("--json", a->json, "print the summary as JSON");
+  cmd->add_option("--rings", a->rings,
+                  "with a truth: also score K concentric rings about --ring-centre, each aligned on its own, and on a "
+                  "star field each ring's photometric bias (as aosr evaluate --rings)")
+      ->check(CLI::Range(1, 100000));
+  cmd->add_option("--ring-centre", a->ring_centre,
+                  "X,Y: the rings' centre in HR pixels, column then row (e.g. the guide star); default the image centre");
   cmd->add_flag(
       "--progress", a->progress,
       "show progress on stderr even with --json or when stderr is not a terminal (then as lines, at most "

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <string>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/metrics.hpp"
@@ -105,6 +106,59 @@ TEST(MetricsErrorsTest, OffsetAndShiftArguments) {
               AllOf(HasSubstr("FourierShiftImage"), HasSubstr("dy")));
   EXPECT_THAT(ErrorOf([&] { FourierShiftImage(Image(), 0.0, 0.0); }),
               AllOf(HasSubstr("FourierShiftImage"), HasSubstr("non-empty")));
+}
+
+TEST(MetricsErrorsTest, RingArguments) {
+  const Image a = Ramp(64, 64), b = Ramp(64, 64) * 1.1;
+  // K < 1, and the options' own check.
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, b, RingOptions{0}); }),
+              AllOf(HasSubstr("CompareImagesInRings"), HasSubstr("rings = 0"), HasSubstr(">= 1")));
+  std::string why;
+  EXPECT_FALSE((RingOptions{-2}).IsValid(&why));
+  EXPECT_THAT(why, HasSubstr("rings = -2"));
+  // Too many rings for the field: rings from 0 to hypot(31.5, 31.5) = 44.5 px at >= 11 px: at most 4.
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, b, RingOptions{5}); }),
+              AllOf(HasSubstr("CompareImagesInRings"), HasSubstr("invalid rings = 5"), HasSubstr("1 .. 4"),
+                    HasSubstr("11 px wide")));
+  // A centre off the image, or not finite.
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, b, RingOptions{2, 10.0, 64.0}); }),
+              AllOf(HasSubstr("CompareImagesInRings"), HasSubstr("centre"), HasSubstr("10, 64"),
+                    HasSubstr("-0.5 <= x <= 63.5")));
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, b, RingOptions{2, -3.0, 5.0}); }),
+              AllOf(HasSubstr("centre"), HasSubstr("-3, 5")));
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, b, RingOptions{2, std::numeric_limits<double>::infinity(), 5.0}); }),
+              AllOf(HasSubstr("CompareImagesInRings"), HasSubstr("centre"), HasSubstr("finite")));
+  // Sizes that differ, values that are not finite, a crop that leaves less than the SSIM window.
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, Ramp(64, 63), RingOptions{2}); }),
+              AllOf(HasSubstr("CompareImagesInRings"), HasSubstr("estimate shape"), HasSubstr("64x63")));
+  Image nan = b;
+  nan(3, 3) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, nan, RingOptions{2}); }),
+              AllOf(HasSubstr("CompareImagesInRings"), HasSubstr("estimate"), HasSubstr("finite")));
+  EXPECT_THAT(ErrorOf([&] { CompareImagesInRings(a, b, RingOptions{1}, MetricOptions{27, 0.0}); }),
+              AllOf(HasSubstr("CompareImagesInRings"), HasSubstr("crop_px")));
+}
+
+TEST(MetricsErrorsTest, WindowArguments) {
+  const Image a = Ramp(20, 20), b = Ramp(20, 20) + 1.0;
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffsetInWindow(a, b, Image::Ones(20, 21)); }),
+              AllOf(HasSubstr("MeasureImageOffsetInWindow"), HasSubstr("window shape"), HasSubstr("20x21")));
+  Image negative = Image::Ones(20, 20);
+  negative(2, 2) = -1.0;
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffsetInWindow(a, b, negative); }),
+              AllOf(HasSubstr("MeasureImageOffsetInWindow"), HasSubstr("window"), HasSubstr(">= 0")));
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffsetInWindow(a, b, Image::Zero(20, 20)); }),
+              AllOf(HasSubstr("window"), HasSubstr("positive sum")));
+  // Structure only outside the window: the truth is constant where it looks.
+  Image flat_inside = a;
+  flat_inside.block(5, 5, 10, 10).setConstant(0.5);
+  Image inside = Image::Zero(20, 20);
+  inside.block(6, 6, 8, 8).setOnes();
+  EXPECT_THAT(ErrorOf([&] { MeasureImageOffsetInWindow(flat_inside, b, inside); }),
+              AllOf(HasSubstr("truth"), HasSubstr("constant under the window")));
+  EXPECT_THAT(ErrorOf([&] { ScoreWindow(Shape{20, 20}, 10); }), AllOf(HasSubstr("ScoreWindow"), HasSubstr("crop_px")));
+  EXPECT_THAT(ErrorOf([&] { ScoreWindow(Shape{20, 20}, 0, ScoreRing{5, 5, 4, 3}); }),
+              AllOf(HasSubstr("ScoreWindow"), HasSubstr("outer_px")));
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 namespace aosr {
 namespace AOSR_TEST_NS {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using ::testing::ThrowsMessage;
 
@@ -46,6 +47,28 @@ TEST(EvaluationErrorsTest, SkyLevelDifferenceRejectsShapesAndCropsNamingThem) {
 
 TEST(EvaluationErrorsTest, OutputKeepsSkyNeedsAReadableFile) {
   EXPECT_ANY_THROW(OutputKeepsSky("/nonexistent/aosr_estimate.fits"));
+}
+
+// Rings: a negative count, too many for the field, a centre off the image and a shape mismatch are refused,
+// naming what is wrong.
+TEST(EvaluationErrorsTest, RingOptionsAreCheckedNamingTheField) {
+  const Image t = Ramp(48, 48), e = Ramp(48, 48) * 1.01;
+  EvaluationOptions o;
+  o.rings = -1;
+  EXPECT_THAT([&] { EvaluateReconstruction(t, e, {}, o); },
+              ThrowsMessage<InvalidArgument>(AllOf(HasSubstr("EvaluateReconstruction"), HasSubstr("rings = -1"))));
+  o.rings = 9;
+  EXPECT_THAT([&] { EvaluateReconstruction(t, e, {}, o); },
+              ThrowsMessage<InvalidArgument>(AllOf(HasSubstr("rings = 9"), HasSubstr("1 .. 3"))));
+  o.rings = 2;
+  o.ring_centre_y = 50.0;
+  o.ring_centre_x = 3.0;
+  EXPECT_THAT([&] { EvaluateReconstruction(t, e, {}, o); },
+              ThrowsMessage<InvalidArgument>(AllOf(HasSubstr("centre"), HasSubstr("50, 3"))));
+  o.ring_centre_y = 10.0;
+  EXPECT_NO_THROW(EvaluateReconstruction(t, e, {}, o));
+  EXPECT_THAT([&] { EvaluateReconstruction(t, Ramp(48, 47), {}, o); },
+              ThrowsMessage<InvalidArgument>(HasSubstr("estimate")));
 }
 
 }  // namespace
