@@ -18,6 +18,8 @@ constexpr double kBadRowFraction = 0.1;          // rows without a rising edge t
 constexpr double kPlateauTolerance = 1e-6;       // of the region's range
 constexpr double kPlateauFraction = 0.01;        // of the region's pixels
 constexpr double kCrossingGrid = 0.005;          // cycles/px, the scan for MTF50/MTF10
+constexpr double kNoiseFloor = 1e-9;             // of the contrast: rounding, not noise
+constexpr double kMaxTailSmoothingPx = 4.0;      // half-width cap of the LSF tails' running mean
 
 // sinc(x) = sin(πx)/(πx), 1 at 0.
 double Sinc(double x) {
@@ -46,6 +48,7 @@ struct LineFit {
   double b = 0.0;
   double rms = 0.0;
   int bad_rows = 0;
+  int inner_bad_rows = 0;  // bad rows between the first and the last good one
 };
 
 // Step 2 of the header: per-row centroids of the windowed derivative around centre(y) = a + b y, and the
@@ -74,6 +77,7 @@ LineFit FitEdge(const Image& a, double polarity, double contrast, double centre_
     xs.push_back(s1 / s0);
   }
   const std::size_t n = ys.size();
+  if (n >= 2) fit.inner_bad_rows = int(ys.back() - ys.front() + 1) - int(n);
   if (n < 2) {
     fit.bad_rows = int(rows);
     return fit;
@@ -154,6 +158,32 @@ class LsfSpectrum {
   std::vector<double> weighted_;
   std::vector<double> offset_;
 };
+
+// Step 4's tail smoothing: beyond T = 2 h + 2 px from the ESF's 50 % point (h: the larger of its distances to the
+// 5 % and 95 % points), each LSF bin becomes the mean of the bins within ±min(4, (|d − d50| − T)/2) px.
+std::vector<double> SmoothTails(const std::vector<double>& d, const std::vector<double>& esf, const std::vector<double>& lsf,
+                                double low, double high) {
+  const std::size_t m = esf.size();
+  auto level = [&](double p) { return low + p * (high - low); };
+  std::size_t k50 = 0;
+  while (k50 + 1 < m && esf[k50] < level(0.5)) ++k50;
+  std::size_t k05 = k50, k95 = k50;
+  while (k05 > 0 && esf[k05] > level(0.05)) --k05;
+  while (k95 + 1 < m && esf[k95] < level(0.95)) ++k95;
+  const double d50 = d[k50];
+  const double t = 2.0 * std::max(d50 - d[k05], d[k95] - d50) + 2.0;
+  std::vector<double> prefix(m + 1, 0.0);
+  for (std::size_t k = 0; k < m; ++k) prefix[k + 1] = prefix[k] + lsf[k];
+  std::vector<double> out = lsf;
+  for (std::size_t k = 0; k < m; ++k) {
+    const double beyond = std::abs(d[k] - d50) - t;
+    if (beyond <= 0) continue;
+    const long h = long(std::floor(std::min(kMaxTailSmoothingPx, 0.5 * beyond) / kBin));
+    const long lo = std::max(0L, long(k) - h), hi = std::min(long(m) - 1, long(k) + h);
+    out[k] = (prefix[std::size_t(hi) + 1] - prefix[std::size_t(lo)]) / double(hi - lo + 1);
+  }
+  return out;
+}
 
 MtfCrossing FindCrossing(const LsfSpectrum& mtf, double level) {
   MtfCrossing c;
@@ -273,11 +303,27 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   const double left = a.leftCols(q).mean(), right = a.rightCols(q).mean();
   const double polarity = right >= left ? 1.0 : -1.0;
   const double contrast0 = std::abs(right - left);
-  if (!(contrast0 > 0.0)) Refuse(where, "no edge: the two sides of the region have the same mean level");
+  if (!(contrast0 > 0.25 * (vmax - vmin)))
+    Refuse(where, "no edge: the outer quarters of the region differ by " + ToString(contrast0) + ", less than a quarter of its range " +
+                      ToString(vmax - vmin) + ": a bar, a line or a spot, not one edge between two levels");
 
   // 2. The edge line, twice.
   LineFit fit = FitEdge(a, polarity, contrast0, 0.5 * double(cols - 1), 0.0);
   if (fit.bad_rows <= int(kBadRowFraction * double(rows))) fit = FitEdge(a, polarity, contrast0, fit.a, fit.b);
+  // The rows without an edge may be those where the edge has left the region: say so when the line through the
+  // others (at least half the rows, the bad ones all at the ends) comes within kMinHalfWidthPx of a side.
+  const auto leaves = [&](const LineFit& f) {
+    const double first = f.a, last = f.a + f.b * double(rows - 1);
+    return std::min(std::min(first, last), double(cols - 1) - std::max(first, last)) / std::sqrt(1.0 + f.b * f.b);
+  };
+  auto refuse_leaving = [&](double margin) {
+    Refuse(where, "the edge leaves the region: in some " + std::string(along) + " it lies " + Fixed(std::max(0.0, margin), 2) +
+                      " px from the region's side (or beyond it), fewer than " + ToString(kMinHalfWidthPx) +
+                      " px; centre the region on the edge or widen it");
+  };
+  if (fit.bad_rows > int(kBadRowFraction * double(rows)) && 2 * fit.bad_rows <= rows && fit.inner_bad_rows == 0 &&
+      leaves(fit) < kMinHalfWidthPx)
+    refuse_leaving(leaves(fit));
   if (fit.bad_rows > int(kBadRowFraction * double(rows)))
     Refuse(where, "no edge: " + std::to_string(fit.bad_rows) + " of " + std::to_string(rows) + " " + along +
                       " hold no single rising edge (their windowed derivative sums to less than a quarter of the "
@@ -303,10 +349,7 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   const double xe_first = fit.a, xe_last = fit.a + b * double(rows - 1);
   const double xe_min = std::min(xe_first, xe_last), xe_max = std::max(xe_first, xe_last);
   double half = std::min(xe_min, double(cols - 1) - xe_max) * cos_t;
-  if (half < kMinHalfWidthPx)
-    Refuse(where, "the edge leaves the region: in some " + std::string(along) + " it lies " +
-                      Fixed(std::max(0.0, half), 2) + " px from the region's side, fewer than " +
-                      ToString(kMinHalfWidthPx) + " px; centre the region on the edge or widen it");
+  if (half < kMinHalfWidthPx) refuse_leaving(half);
   if (options.esf_half_width_px > 0) half = std::min(half, options.esf_half_width_px);
   const int kmax = int(std::floor(half / kBin));
   const std::size_t m = std::size_t(2 * kmax + 1);
@@ -374,6 +417,12 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   out.high = hi_sum / double(quarter);
   const double contrast = out.high - out.low;
   if (!(contrast > 0.0)) Refuse(where, "no edge: the ESF's outer quarters have the same level");
+  // One edge steps from one level to the other; a bar or a line rises and falls back (its ESF spans far more
+  // than the step between its ends). Ringing or overshoot of a sharpened edge stays well inside this.
+  const double esf_range = *std::max_element(esf.begin(), esf.end()) - *std::min_element(esf.begin(), esf.end());
+  if (contrast < 0.5 * esf_range)
+    Refuse(where, "no edge: the ESF spans " + ToString(esf_range) + " but steps by only " + ToString(contrast) +
+                      " between its ends: the region holds a bar or a line, not one edge");
 
   // Noise: the robust residual of the pixels about the ESF (linear between bin centres).
   std::vector<double> residual;
@@ -390,7 +439,9 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   }
   auto mid = residual.begin() + std::ptrdiff_t(residual.size() / 2);
   std::nth_element(residual.begin(), mid, residual.end());
+  // Below 1e-9 of the contrast the residual is the arithmetic's, not noise: a noise-free image.
   out.noise_rms = 1.4826 * *mid;
+  if (out.noise_rms < kNoiseFloor * (out.high - out.low)) out.noise_rms = 0.0;
   out.contrast_to_noise = out.noise_rms > 0 ? contrast / out.noise_rms : std::numeric_limits<double>::infinity();
   if (out.contrast_to_noise < options.min_contrast_to_noise)
     Refuse(where, "too noisy: contrast-to-noise " + Fixed(out.contrast_to_noise, 1) + " (contrast " + ToString(contrast) +
@@ -402,7 +453,7 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   for (std::size_t k = 1; k + 1 < m; ++k) lsf[k] = (esf[k + 1] - esf[k - 1]) / (2.0 * kBin);
   lsf[0] = (esf[1] - esf[0]) / kBin;
   lsf[m - 1] = (esf[m - 1] - esf[m - 2]) / kBin;
-  const LsfSpectrum spectrum(dist, lsf, options);
+  const LsfSpectrum spectrum(dist, options.smooth_tails ? SmoothTails(dist, esf, lsf, out.low, out.high) : lsf, options);
   if (!(spectrum.dc() > 0.0)) Refuse(where, "no edge: the windowed LSF sums to zero");
 
   // 5. The curve and its figures.

@@ -88,8 +88,9 @@ class TabulatedEsf {
   std::vector<double> table_;
 };
 
-inline Image AiryBoxEdge(Shape shape, double theta_deg, double fc) {
-  const double dmax = 0.5 * std::hypot(double(shape.rows), double(shape.cols)) + 2.0;
+// dmax [px]: the ESF is tabulated for |d| <= dmax and held constant beyond (0: the whole image).
+inline Image AiryBoxEdge(Shape shape, double theta_deg, double fc, double dmax = 0.0) {
+  if (dmax <= 0) dmax = 0.5 * std::hypot(double(shape.rows), double(shape.cols)) + 2.0;
   const TabulatedEsf esf([&](double f) { return AiryBoxMtf(fc, theta_deg, f); }, fc, dmax);
   return EdgeImage(shape, theta_deg, [&](double d) { return esf(d); });
 }

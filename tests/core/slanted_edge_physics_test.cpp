@@ -65,8 +65,8 @@ TEST_P(GaussianEdgeTest, NoiseFreeMatchesExpMinus2Pi2Sigma2F2) {
 TEST_P(GaussianEdgeTest, AtSnr100MatchesExpMinus2Pi2Sigma2F2) {
   const double theta = GetParam();
   for (double sigma : {0.6, 1.0}) {
-    // 400 rows, 32 px across: the ESF's noise grows with its length and falls with the rows.
-    const Image img = WithNoise(GaussianEdge(EdgeShape(400, 32, theta), theta, sigma), 0.01, 7);
+    // 800 rows, 32 px across: the MTF's noise grows with the ESF's length and falls with the rows.
+    const Image img = WithNoise(GaussianEdge(EdgeShape(800, 32, theta), theta, sigma), 0.01, 7);
     Check("gaussian sigma " + std::to_string(sigma).substr(0, 3) + " px, " + std::to_string(int(theta)) + " deg, SNR 100",
           img, [sigma](double f) { return GaussianMtf(sigma, f); });
   }
@@ -77,8 +77,8 @@ class AiryEdgeTest : public ::testing::TestWithParam<double> {};
 TEST_P(AiryEdgeTest, NoiseFreeMatchesCircularOtfTimesPixelSinc) {
   const double theta = GetParam();
   for (double lod : {2.0, 1.3}) {  // λ/D in pixels: Nyquist-sampled, and undersampled (cut-off 0.77 cycles/px)
-    // ±64 px across: the Airy LSF's 1/x² tails need a long ESF (±15 px reads the MTF 0.03 high).
-    const Image img = AiryBoxEdge(EdgeShape(200, 128, theta), theta, 1.0 / lod);
+    // ±96 px across: the Airy LSF's 1/x² tails need a long ESF (±15 px reads the MTF 0.03 high, MTF50 2.4 %).
+    const Image img = AiryBoxEdge(EdgeShape(200, 192, theta), theta, 1.0 / lod, 220.0);
     Check("airy x box, lambda/D " + std::to_string(lod).substr(0, 3) + " px, " + std::to_string(int(theta)) + " deg",
           img, [=](double f) { return AiryBoxMtf(1.0 / lod, theta, f); });
   }
@@ -87,7 +87,8 @@ TEST_P(AiryEdgeTest, NoiseFreeMatchesCircularOtfTimesPixelSinc) {
 TEST_P(AiryEdgeTest, AtSnr100MatchesCircularOtfTimesPixelSinc) {
   const double theta = GetParam();
   for (double lod : {2.0, 1.3}) {
-    const Image img = WithNoise(AiryBoxEdge(EdgeShape(800, 96, theta), theta, 1.0 / lod), 0.01, 11);
+    // The long ESF the tails need also gathers noise: 1600 rows (a bench edge imaged over several frames).
+    const Image img = WithNoise(AiryBoxEdge(EdgeShape(1600, 192, theta), theta, 1.0 / lod, 220.0), 0.01, 11);
     Check("airy x box, lambda/D " + std::to_string(lod).substr(0, 3) + " px, " + std::to_string(int(theta)) +
               " deg, SNR 100",
           img, [=](double f) { return AiryBoxMtf(1.0 / lod, theta, f); });

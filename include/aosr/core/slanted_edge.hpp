@@ -51,15 +51,18 @@
 //
 // ## Refusals (aosr::InvalidArgument; the message says which and what would do)
 // An image with no usable edge never gets a curve:
-//  * "no edge": the region is flat, or its rows hold no single rising edge (the windowed derivative sums to
-//    less than a quarter of the contrast in more than a tenth of the rows: two edges, a bar, a corner);
+//  * "no edge": the region is flat, its outer quarters (across the edge) differ by less than a quarter of its
+//    range, or its rows hold no single rising edge (the windowed derivative sums to
+//    less than a quarter of the contrast in more than a tenth of the rows), or its ESF spans more than twice
+//    the step between its ends (a bar or a line: it rises and falls back);
 //  * "too short": fewer than min_edge_length_px rows along the edge, or fewer than 12 px across it;
 //  * "too tilted": more than max_angle_deg (default 40°) from the nearer axis: at 45° rows and columns are
 //    equally good readings and the projected pixel aperture changes;
 //  * "too close to vertical/horizontal": the edge moves across less than one pixel over the rows, so the 4×
 //    binning has empty phases (needs |tan θ| >= 1/R: 2.9° for 20 rows, 0.57° for 100); or two adjacent
 //    bins are empty (a critical angle);
-//  * "leaves the region": the edge comes within 5 px of the region's side in some row;
+//  * "leaves the region": the edge comes within 5 px of the region's side in some row (or crosses it, so that
+//    rows hold no edge);
 //  * "clipped": a plateau of pixels at the region's maximum (minimum) value that starts less than half as
 //    far from the edge as the plateau at the other extreme (or with none there): a symmetric optical
 //    response approaches both levels alike, a saturated detector stops at one. Pixels count as on a plateau
@@ -67,7 +70,8 @@
 //    equally clipped extremes cannot be told from a noise-free edge and pass;
 //  * "too noisy": contrast-to-noise ratio below min_contrast_to_noise (default 10), with the noise the
 //    robust (1.4826 × median absolute) residual of the pixels about the ESF interpolated at their distance,
-//    and the contrast the difference of the ESF's outer quarters.
+//    and the contrast the difference of the ESF's outer quarters (a residual below 1e-9 of the contrast is
+//    rounding: noise 0, contrast-to-noise +infinity).
 // Also refused: an ROI outside the image, non-finite pixels in it, invalid options (IsValid names the field).
 //
 // Accuracy (tests/core/slanted_edge_physics_test.cpp, analytic references, edges at 2°, 5°, 10°): Gaussian
@@ -108,6 +112,10 @@ struct SlantedEdgeOptions {
   LsfWindow window = LsfWindow::kTukey;
   // Tukey's cosine-tapered fraction of each half, (0, 1]; 1 is the Hann window. Default 0.5.
   double tukey_taper = 0.5;
+  // Smooth the LSF's tails before the DFT (step 4): far from the edge a running mean whose half-width grows with
+  // the distance (up to 4 px) removes the tails' high-frequency noise and keeps their low-frequency content,
+  // which is what a long-tailed LSF contributes. Default true; false: the plain ISO 12233 estimate.
+  bool smooth_tails = true;
   // Cap on the ESF's half-length X [px], 0 (default) or >= 5: 0 uses all the region gives. A shorter ESF cuts
   // noise (its variance grows with the window's length) but also the LSF's tails.
   double esf_half_width_px = 0.0;
