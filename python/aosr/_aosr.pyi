@@ -129,6 +129,9 @@ def evaluate(estimate: Union[ArrayLike, PathLike], *, truth: Union[ArrayLike, Pa
              dataset: Union[Dataset, PathLike, None] = None, crop: Optional[int] = None, peak: float = 0.0,
              stars: int = 20, aperture: float = 3.0, subtract_sky: Optional[bool] = None) -> Dict[str, Any]: ...
 
+def usaf_resolving_power(image: Union[ArrayLike, PathLike], scene: Union[Scene, PathLike], *,
+                         threshold: float = 0.153) -> Dict[str, Any]: ...
+
 # optics (through the scene layer's presets)
 def psf(preset: PathLike, *, mode: Optional[str] = None,
         offsets: Union[Mapping[int, float], Sequence[Tuple[int, float]], None] = None, r: int = 2,

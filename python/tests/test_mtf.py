@@ -49,3 +49,24 @@ def test_mtf_refuses_unusable_edges():
         aosr.mtf(img, roi=(0, 0, 10))
     with pytest.raises(aosr.InvalidArgument, match="window"):
         aosr.mtf(img, window="box")
+
+
+def test_slanted_edge_scene_and_usaf_resolving_power(demo_scene_path):
+    # A scene's slanted-edge object: its truth is the pixel box's edge (MTF50 0.605 cycles/px at 5 degrees).
+    j = aosr.read_json(demo_scene_path)
+    j["detector"]["peak_noise_fraction"] = 0.0
+    j["detector"]["frame_px"] = 48
+    j["objects"] = [{"type": "slanted-edge", "angle_deg": 5.0, "low": 0.0, "high": 1.0}]
+    edge = aosr.simulate(aosr.scene_from_dict(j, source=demo_scene_path))
+    assert aosr.mtf(edge.truth)["mtf50"] == pytest.approx(0.605, abs=0.006)
+    # The USAF truth resolves its representable elements with transfer 1; a flat image none.
+    j["objects"] = [{"type": "usaf", "flux": {"peak_e": 1000}}]
+    j["detector"]["frame_px"] = 64
+    scene = aosr.scene_from_dict(j, source=demo_scene_path)
+    truth = aosr.simulate(scene).truth
+    p = aosr.usaf_resolving_power(truth, scene)
+    assert p["finest"] is not None and p["threshold"] == 0.153
+    assert all(e["transfer"] == pytest.approx(1.0) for e in p["elements"])
+    assert aosr.usaf_resolving_power(np.ones_like(truth), scene)["finest"] is None
+    with pytest.raises(aosr.InvalidArgument, match="HR frame"):
+        aosr.usaf_resolving_power(truth[:10], scene)

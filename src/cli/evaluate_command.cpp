@@ -1,8 +1,9 @@
 // `aosr evaluate`: how close a reconstruction is to the truth — PSNR, SSIM, RMSE, and for star fields the
-// photometric and astrometric errors of the brightest stars.
+// photometric and astrometric errors of the brightest stars; with --usaf, the resolving power on a USAF target.
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -11,7 +12,9 @@
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/scene/evaluation.hpp"
+#include "aosr/scene/scene_spec.hpp"
 #include "aosr/scene/star_metrics.hpp"
+#include "aosr/scene/usaf_contrast.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
 
@@ -27,12 +30,63 @@ struct EvaluateArgs {
   int stars = 20;
   double aperture = 3.0;
   std::string subtract_sky = "auto";  // auto (when the estimate's METHOD is linear) | yes | no
+  std::string usaf;                   // a scene whose USAF target the estimate images: the resolving-power table
+  double usaf_threshold = 0.153;
   bool json = false;
   ExecutionArgs exec;
 };
 
+// The resolving power on the USAF target of `scene` (scene/usaf_contrast.hpp), as JSON and as text lines.
+nlohmann::json UsafJson(const UsafResolvingPower& p) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const UsafElementContrast& e : p.elements) {
+    if (!e.measured) continue;
+    list.push_back({{"group", e.group}, {"element", e.element}, {"bar_width_hr_px", e.bar_width_px},
+                    {"cycles_per_hr_px", e.cycles_per_px}, {"cycles_per_camera_px", e.cycles_per_camera_px},
+                    {"cycles_per_lambda_over_d", e.cycles_per_lambda_over_d}, {"contrast_x", e.contrast_x},
+                    {"contrast_y", e.contrast_y}, {"contrast", e.contrast}, {"transfer", e.transfer}, {"resolved", e.resolved}});
+  }
+  nlohmann::json j = {{"threshold", p.threshold}, {"elements", list}, {"finest", nullptr}};
+  if (p.finest >= 0) {
+    const UsafElementContrast& f = p.elements[std::size_t(p.finest)];
+    j["finest"] = {{"group", f.group}, {"element", f.element}, {"cycles_per_hr_px", f.cycles_per_px},
+                   {"cycles_per_camera_px", f.cycles_per_camera_px}, {"cycles_per_lambda_over_d", f.cycles_per_lambda_over_d}};
+  }
+  return j;
+}
+
+void PrintUsaf(const UsafResolvingPower& p) {
+  std::printf("  USAF resolving power (Michelson contrast of the three bars, min of both orientations; resolved >= %.3f):\n",
+              p.threshold);
+  std::printf("    group/elem  cyc/HR px  cyc/cam px  cyc/(lambda/D)  contrast_x  contrast_y  transfer\n");
+  for (const UsafElementContrast& e : p.elements) {
+    if (!e.measured) continue;
+    std::printf("    %5d/%-4d  %9.4f  %10.4f  %14.4f  %10.3f  %10.3f  %8.3f %s\n", e.group, e.element, e.cycles_per_px,
+                e.cycles_per_camera_px, e.cycles_per_lambda_over_d, e.contrast_x, e.contrast_y, e.transfer,
+                e.resolved ? "resolved" : "");
+  }
+  if (p.finest < 0) {
+    std::printf("  finest resolved element: none\n");
+  } else {
+    const UsafElementContrast& f = p.elements[std::size_t(p.finest)];
+    std::printf("  finest resolved element: group %d element %d: %.4f cycles/HR px, %.4f cycles/camera px, %.4f cycles per lambda/D\n",
+                f.group, f.element, f.cycles_per_px, f.cycles_per_camera_px, f.cycles_per_lambda_over_d);
+  }
+}
+
 void RunEvaluate(const EvaluateArgs& a) {
   ApplyExecution(a.exec);
+  if (!a.usaf.empty() && a.truth.empty() && a.manifest.empty()) {  // the resolving power alone: no truth needed
+    const SceneSpec scene = LoadScene(a.usaf);
+    const UsafResolvingPower p = MeasureSceneUsafResolvingPower(ReadFitsImage(a.estimate), scene, a.usaf_threshold);
+    if (a.json) {
+      std::printf("%s\n", nlohmann::json{{"estimate", a.estimate}, {"usaf", UsafJson(p)}}.dump(2).c_str());
+    } else {
+      std::printf("%s:\n", a.estimate.c_str());
+      PrintUsaf(p);
+    }
+    return;
+  }
   if (a.truth.empty() == a.manifest.empty())
     throw InvalidArgument("aosr evaluate", "--truth/--manifest", a.truth.empty() ? "(neither)" : "(both)",
                           "exactly one of --truth FILE and --manifest DIR");
@@ -86,6 +140,11 @@ void RunEvaluate(const EvaluateArgs& a) {
                   {"aperture_hr_px", a.aperture},
                   {"brightest", list}};
   }
+  std::optional<UsafResolvingPower> usaf;
+  if (!a.usaf.empty()) {
+    usaf = MeasureSceneUsafResolvingPower(estimate, LoadScene(a.usaf), a.usaf_threshold);
+    j["usaf"] = UsafJson(*usaf);
+  }
   if (a.json) {
     std::printf("%s\n", j.dump(2).c_str());
     return;
@@ -97,6 +156,7 @@ void RunEvaluate(const EvaluateArgs& a) {
   if (!stars.empty())
     std::printf("  %zu brightest stars (%d skipped at the edge): median |flux error| %.2f%%, RMS position error %.3f HR px\n",
                 sm.stars.size(), sm.skipped, 100 * sm.median_abs_flux_error, sm.rms_position_error_px);
+  if (usaf) PrintUsaf(*usaf);
 }
 
 }  // namespace
@@ -122,6 +182,13 @@ void RegisterEvaluate(CLI::App& app) {
                   "scoring: auto (when the estimate's METHOD keyword is linear, an output that keeps the frames' sky) | yes | no")
       ->capture_default_str()
       ->check(CLI::IsMember({"auto", "yes", "no"}));
+  cmd->add_option("--usaf", args->usaf,
+                  "a scene file whose USAF target (its first usaf or demo object) the estimate images: print the Michelson "
+                  "contrast of each element's bars in both orientations and the finest element resolved "
+                  "(scene/usaf_contrast.hpp); needs no --truth");
+  cmd->add_option("--usaf-threshold", args->usaf_threshold,
+                  "contrast at which a USAF element counts as resolved (default 0.153, the Rayleigh dip)")
+      ->check(CLI::Range(1e-6, 0.999999));
   cmd->add_flag("--json", args->json, "print the results as JSON");
   AddExecutionOptions(cmd, &args->exec);
   cmd->callback([args] { RunEvaluate(*args); });

@@ -108,14 +108,9 @@ Image RenderExtended(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
   const double r = scene.r;
   Image img;
   switch (o.kind) {
-    case ObjectSpec::Kind::kUsaf: {
-      UsafOptions u = o.usaf;
-      u.pixels_per_mm = 1.0;
-      const UsafSize size = UsafTargetSize(u);
-      u.pixels_per_mm = o.usaf_fill * double(std::min(hr.rows, hr.cols)) / std::max(size.height_mm, size.width_mm);
-      img = UsafTarget(hr, u);
+    case ObjectSpec::Kind::kUsaf:
+      img = UsafTarget(hr, ObjectUsafOptions(o, hr));
       break;
-    }
     case ObjectSpec::Kind::kDemo:
       img = DemoObject(hr);
       break;

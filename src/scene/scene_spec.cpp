@@ -531,6 +531,17 @@ SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
   return s;
 }
 
+UsafOptions ObjectUsafOptions(const ObjectSpec& o, Shape hr) {
+  if (o.kind == ObjectSpec::Kind::kDemo) return DemoUsafOptions(hr);
+  if (o.kind != ObjectSpec::Kind::kUsaf)
+    throw InvalidArgument("ObjectUsafOptions", "object", o.type, "a usaf or demo object");
+  UsafOptions u = o.usaf;
+  u.pixels_per_mm = 1.0;
+  const UsafSize size = UsafTargetSize(u);
+  u.pixels_per_mm = o.usaf_fill * double(std::min(hr.rows, hr.cols)) / std::max(size.height_mm, size.width_mm);
+  return u;
+}
+
 SceneSpec LoadScene(const std::string& path) { return ParseScene(ReadJsonFile(path), path); }
 
 std::vector<DmOffset> LoadDesignFile(const std::string& path) {

@@ -124,4 +124,20 @@ UsafResolvingPower MeasureUsafResolvingPower(const Image& image, const UsafOptio
   return out;
 }
 
+UsafResolvingPower MeasureSceneUsafResolvingPower(const Image& hr_image, const SceneSpec& scene, double threshold) {
+  const char* f = "MeasureSceneUsafResolvingPower";
+  const ObjectSpec* usaf = nullptr;
+  for (const ObjectSpec& o : scene.objects)
+    if (!usaf && (o.kind == ObjectSpec::Kind::kUsaf || o.kind == ObjectSpec::Kind::kDemo)) usaf = &o;
+  if (!usaf) throw InvalidArgument(f, "scene", scene.source, "a scene with a usaf or demo object");
+  if (ShapeOf(hr_image) != scene.HrFrame())
+    throw InvalidArgument(f, "image", ToString(ShapeOf(hr_image)),
+                          "an image of the scene's HR frame " + ToString(scene.HrFrame()) + " (rows x cols)");
+  UsafContrastOptions o;
+  o.threshold = threshold;
+  o.r = scene.r;
+  o.hr_pixel_lambda_over_d = scene.HrPixelLambdaOverD();
+  return MeasureUsafResolvingPower(hr_image, ObjectUsafOptions(*usaf, scene.HrFrame()), o);
+}
+
 }  // namespace aosr

@@ -205,6 +205,10 @@ struct SceneSpec {
   double ElectronsPerFrameForMagnitude(double magnitude) const;
 };
 
+// The USAF target options a usaf or demo object renders with on the HR grid `hr` (its pixels_per_mm from `fill`
+// for usaf; DemoUsafOptions for demo). InvalidArgument for another kind of object.
+UsafOptions ObjectUsafOptions(const ObjectSpec& object, Shape hr);
+
 // Reads and validates a scene file. Relative paths inside (telescope preset files, design files, images,
 // bad-pixel maps) are resolved against the scene's folder; a bare telescope name is a preset of
 // data/telescopes/.

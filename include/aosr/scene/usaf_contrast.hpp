@@ -30,6 +30,7 @@
 
 #include "aosr/core/image.hpp"
 #include "aosr/scene/objects.hpp"
+#include "aosr/scene/scene_spec.hpp"
 
 namespace aosr {
 
@@ -69,5 +70,10 @@ struct UsafResolvingPower {
 // (the placement of UsafBars(ShapeOf(image), target)).
 UsafResolvingPower MeasureUsafResolvingPower(const Image& image, const UsafOptions& target,
                                              const UsafContrastOptions& options = {});
+
+// The same for an HR image of a scene (a truth, a reconstruction): the target is the scene's first usaf or demo
+// object as the scene renders it on its HR frame, r and the HR pixel's λ/D are the scene's. InvalidArgument when
+// the scene has no such object or the image is not of the HR frame's shape.
+UsafResolvingPower MeasureSceneUsafResolvingPower(const Image& hr_image, const SceneSpec& scene, double threshold = 0.153);
 
 }  // namespace aosr
