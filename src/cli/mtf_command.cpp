@@ -6,6 +6,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "aosr/core/error.hpp"
@@ -33,6 +34,20 @@ struct MtfArgs {
   std::string out;  // PNG of the curve
 };
 
+// The super-resolution factor of an HR image from its header: SRFACTOR on the files aosr writes on the HR grid (a
+// simulation's truth, a reconstruction: AOSRDATA "truth" / "reconstruction", or HRPIXRAD); 0 for anything else
+// (frames carry SRFACTOR too, but their pixels are the camera's).
+int HrImageFactor(const FitsHeader& h) {
+  const FitsKeyword* f = h.Find("SRFACTOR");
+  if (f == nullptr || !std::holds_alternative<long long>(f->value)) return 0;
+  const FitsKeyword* what = h.Find("AOSRDATA");
+  const bool hr = h.Find("HRPIXRAD") != nullptr ||
+                  (what != nullptr && std::holds_alternative<std::string>(what->value) &&
+                   (std::get<std::string>(what->value) == "truth" || std::get<std::string>(what->value) == "reconstruction"));
+  const long long r = std::get<long long>(f->value);
+  return hr && r >= 1 && r <= 64 ? int(r) : 0;
+}
+
 nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 nlohmann::json Crossing(const MtfCrossing& c) { return c.reached ? nlohmann::json(c.frequency) : nlohmann::json(nullptr); }
@@ -51,10 +66,7 @@ void RunMtf(const MtfArgs& a) {
   if (fits.planes.size() != 1)
     throw InvalidArgument("aosr mtf", "IMAGE", a.image + " (" + std::to_string(fits.planes.size()) + " planes)", "a 2-D image");
   int r = a.r;
-  if (r < 0) {
-    r = 0;
-    if (fits.header.Find("SRFACTOR") != nullptr) r = int(fits.header.GetInt("SRFACTOR"));
-  }
+  if (r < 0) r = HrImageFactor(fits.header);
   o.r = r;
   o.pixel_lambda_over_d = a.pixel_lod;
   o.frequencies = a.frequencies;
@@ -142,7 +154,7 @@ void RegisterMtf(CLI::App& app) {
       ->expected(4);
   cmd->add_option("--r", args->r,
                   "super-resolution factor of an HR image: report the MTF at the camera's Nyquist 1/(2r) cycles/px "
-                  "(default: the FITS keyword SRFACTOR when present; 0: none)")
+                  "(default: the FITS keyword SRFACTOR of an HR image aosr wrote, a truth or a reconstruction; 0: none)")
       ->check(CLI::Range(0, 64));
   cmd->add_option("--pixel-lod", args->pixel_lod,
                   "the pixel's size in lambda/D: report the MTF at the optical cut-off D/lambda = this many cycles/px")
