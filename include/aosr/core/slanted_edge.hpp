@@ -26,7 +26,12 @@
 //    a window centred on the LSF peak (the LSF centroid within ±2 px of its maximum) and as long as the
 //    ESF allows on the shorter side: Tukey (cosine tapers on the outer `tukey_taper` fraction, default 0.5) or
 //    Hamming (ISO 12233's). The window trades noise against the bias of cutting the LSF's tails: on an Airy
-//    pattern (tails ∝ 1/x²) a ±15 px window reads the MTF up to 0.03 high, ±50 px 0.01 (tests below).
+//    pattern (tails ∝ 1/x²) a ±15 px window reads the MTF up to 0.03 high, ±50 px 0.01, ±96 px 0.003.
+//    Before the window, the tails are smoothed (smooth_tails, default on): beyond T = 2h + 2 px from the ESF's
+//    50 % point (h: the larger of its distances to the 5 % and 95 % points) each LSF bin becomes the mean of the
+//    bins within ±min(4 px, (|d − d50| − T)/2). A smooth tail keeps its low-frequency content, which is all a
+//    long-tailed LSF contributes beyond the core, and loses its bin-to-bin noise: at contrast-to-noise 100 on an
+//    Airy edge read over ±96 px, the worst MTF50 error of 8 noise draws fell from 1.2 % to 0.6 %.
 // 5. MTF: the DFT of the windowed LSF evaluated at any frequency f [cycles/px] (a direct sum, not an FFT grid),
 //        MTF(f) = | Σ_k LSF_k w_k exp(−2πi f (d_k − c)) | / | Σ_k LSF_k w_k |    (normalised at f = 0),
 //    divided by two known transfer functions of the method itself:
@@ -74,9 +79,14 @@
 //    rounding: noise 0, contrast-to-noise +infinity).
 // Also refused: an ROI outside the image, non-finite pixels in it, invalid options (IsValid names the field).
 //
-// Accuracy (tests/core/slanted_edge_physics_test.cpp, analytic references, edges at 2°, 5°, 10°): Gaussian
-// blur (point-sampled, MTF exp(−2π²σ²f²)) and Airy pattern × pixel box (circular-pupil OTF × sinc sinc),
-// noise-free and at contrast-to-noise 100: max |ΔMTF| up to 0.5 cycles/px and the MTF50 error are stated there.
+// Accuracy (tests/core/slanted_edge_physics_test.cpp, analytic references, edges at 2°, 5° and 10°), max |ΔMTF|
+// for 0 <= f <= 0.5 cycles/px and the worst MTF50 error:
+//   Gaussian σ = 0.6, 1, 2 px (point-sampled, exp(−2π²σ²f²)), 100 rows × ±32 px, noise-free:   0.0035, 0.44 %
+//   the same at contrast-to-noise 100 (σ = 0.6, 1 px), 800 rows × ±16 px:                      0.0036, 0.26 %
+//   Airy × pixel box (OTF_circ(f/fc) sinc(f cos θ) sinc(f sin θ)), λ/D = 2 and 1.3 px,
+//     200 rows × ±96 px, noise-free:                                                           0.0029, 0.38 %
+//     1600 rows × ±96 px, contrast-to-noise 100:                                               0.0053, 0.43 %
+// The noisy cases need many rows: the MTF's noise grows with the ESF's length and falls as 1/sqrt(rows).
 #pragma once
 
 #include <limits>
