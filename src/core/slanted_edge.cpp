@@ -191,14 +191,12 @@ MtfCrossing FindCrossing(const LsfSpectrum& mtf, double level) {
   MtfCrossing c;
   c.level = level;
   double f0 = 0.0;
-  double m0 = mtf(0.0);
   const int steps = int(std::floor(kMaxMtfFrequency / kCrossingGrid + 1e-9));
   for (int i = 1; i <= steps; ++i) {
     const double f1 = i * kCrossingGrid;
     const double m1 = mtf(f1);
     if (m1 <= level) {
       double lo = f0, hi = f1;  // MTF(lo) > level >= MTF(hi)
-      (void)m0;
       while (hi - lo > 1e-7) {
         const double mid = 0.5 * (lo + hi);
         if (mtf(mid) > level) lo = mid; else hi = mid;
@@ -208,7 +206,6 @@ MtfCrossing FindCrossing(const LsfSpectrum& mtf, double level) {
       return c;
     }
     f0 = f1;
-    m0 = m1;
   }
   return c;
 }
