@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/memory.hpp"
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/core/fft.hpp"
@@ -40,7 +41,6 @@ namespace {
 using namespace aosr;
 using Clock = std::chrono::steady_clock;
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kD = 8.0;
 constexpr double kLambda = 2.2e-6;
 constexpr Index kPsfSize = 128;

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/memory.hpp"
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/ao/closed_loop.hpp"
@@ -33,7 +34,6 @@ namespace {
 using namespace aosr;
 using Clock = std::chrono::steady_clock;
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kD = 8.0;
 
 double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }

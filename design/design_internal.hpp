@@ -10,7 +10,6 @@
 
 namespace aosr::design_internal {
 
-constexpr double kTwoPi = 6.283185307179586476925286766559;
 
 // Σ_{k=0}^{r-1} exp(+2πi f k / n) for every bin f of an axis of length n (forward_model.hpp's B).
 inline std::vector<Complex> BoxTransfer(Index n, int r) {

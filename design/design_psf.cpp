@@ -12,7 +12,6 @@
 
 namespace aosr {
 
-using design_internal::kTwoPi;
 
 DesignOptics DesignOpticsFromScene(const SceneSpec& scene) {
   DesignOptics o;

@@ -17,7 +17,6 @@ namespace aosr {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kMinSlope = -2.0, kMaxSlope = 12.0;
 
 std::string Fmt(const char* f, double v) {

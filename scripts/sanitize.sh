@@ -44,7 +44,9 @@ campaign_runs=${CAMPAIGN_RUNS:-100}
 # NDEBUG undefined (Eigen's eigen_assert checks every coefficient index); its flags are replaced, so
 # nothing else of Debug applies. SANITIZE_CXX_FLAGS overrides them (e.g. "-O1 -g" to debug a finding).
 cxx_flags=${SANITIZE_CXX_FLAGS:-"-O1 -g1"}
-cmake -S . -B "$build_dir" -DAOSR_SANITIZE=ON -DAOSR_BUILD_BENCH=OFF -DAOSR_BUILD_TESTS=ON \
+generator=()
+if [ ! -f "$build_dir/CMakeCache.txt" ] && command -v ninja > /dev/null; then generator=(-G Ninja); fi
+cmake -S . -B "$build_dir" "${generator[@]}" -DAOSR_SANITIZE=ON -DAOSR_BUILD_BENCH=OFF -DAOSR_BUILD_TESTS=ON \
   -DCMAKE_BUILD_TYPE=Debug -DCMAKE_CXX_FLAGS_DEBUG="$cxx_flags" \
   -DAOSR_FUZZ_MAX_SECONDS="$fuzz_seconds" -DAOSR_CAMPAIGN_RUNS="$campaign_runs" > "$build_dir.configure.log" 2>&1 ||
   { cat "$build_dir.configure.log"; exit 1; }
@@ -52,7 +54,11 @@ rm -f "$build_dir.configure.log"
 
 # Targets: the covered executables that exist, plus the fuzz targets and the campaign when fuzz/ is present
 # and enabled.
-all_targets=$(cmake --build "$build_dir" --target help | sed -n 's/^\.\.\. \([^ ]*\).*/\1/p')
+if [ -f "$build_dir/build.ninja" ]; then
+  all_targets=$(ninja -C "$build_dir" -t targets all | sed -n 's/^\([A-Za-z0-9_]*\): phony$/\1/p')
+else
+  all_targets=$(cmake --build "$build_dir" --target help | sed -n 's/^\.\.\. \([^ ]*\).*/\1/p')
+fi
 targets=()
 for t in "${COVERED[@]}"; do
   if grep -qx "$t" <<< "$all_targets"; then targets+=("$t"); fi

@@ -14,7 +14,7 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFn = "ProblemFromDataset";
+constexpr const char* kDatasetProblemFn = "ProblemFromDataset";
 
 // Folds a centred kernel onto a periodic grid of shape s (sums the entries that land on the same pixel
 // modulo s) and returns it centred on a grid of shape s: the periodic model cannot tell the two apart.
@@ -171,20 +171,20 @@ FrameOffset KernelCentroid(const Image& k) {
 
 DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions& options) {
   const std::size_t n = d.frames.size();
-  CheckArgument(n > 0, kFn, "dataset frames", 0, "at least one frame");
+  CheckArgument(n > 0, kDatasetProblemFn, "dataset frames", 0, "at least one frame");
   DatasetProblem out;
 
   // ---- PSFs of the model. ---------------------------------------------------------------------------------
   ImageStack psfs = d.psfs;
-  CheckArgument(!(options.nominal_psfs && !options.model_psfs.empty()), kFn, "nominal_psfs", "true with model_psfs",
+  CheckArgument(!(options.nominal_psfs && !options.model_psfs.empty()), kDatasetProblemFn, "nominal_psfs", "true with model_psfs",
                 "one of nominal_psfs and model_psfs");
   if (options.nominal_psfs) {
-    CheckArgument(d.nominal_psfs.size() == n, kFn, "nominal_psfs", "true",
+    CheckArgument(d.nominal_psfs.size() == n, kDatasetProblemFn, "nominal_psfs", "true",
                   "a dataset whose manifest gives nominal_psfs (closed-loop simulations write them)");
     psfs = d.nominal_psfs;
     out.model_psfs_replaced = true;
   }
-  CheckArgument(!(options.stars_psfs && (options.nominal_psfs || !options.model_psfs.empty())), kFn, "stars_psfs",
+  CheckArgument(!(options.stars_psfs && (options.nominal_psfs || !options.model_psfs.empty())), kDatasetProblemFn, "stars_psfs",
                 "true with nominal_psfs or model_psfs", "one source of model PSFs");
   if (options.stars_psfs) {
     out.stars_psf = EstimateStarsPsf(d, options.stars);
@@ -193,13 +193,13 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   }
   if (!options.model_psfs.empty()) {
     const ImageStack& m = options.model_psfs;
-    CheckArgument(m.size() == n || m.size() == 1, kFn, "model_psfs count", m.size(),
+    CheckArgument(m.size() == n || m.size() == 1, kDatasetProblemFn, "model_psfs count", m.size(),
                   "1 or one per frame (" + std::to_string(n) + ")");
     psfs.clear();
     for (std::size_t i = 0; i < n; ++i) {
       const Image& k = m[m.size() == 1 ? 0 : i];
       const double s = k.size() > 0 && AllFinite(k) ? k.sum() : 0.0;
-      CheckArgument(s > 0, kFn, "model_psfs[" + std::to_string(i) + "]",
+      CheckArgument(s > 0, kDatasetProblemFn, "model_psfs[" + std::to_string(i) + "]",
                     k.size() == 0 ? std::string("empty") : "sum " + ToString(s), "finite values with a positive sum");
       psfs.push_back(k / s);
     }
@@ -216,7 +216,7 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   // real kernel: refuse a dataset whose r and frame count cannot fit before building them.
   const double hr_pixels = double(d.hr_frame.rows) * double(d.hr_frame.cols);
   CheckMemory(double(n) * 16.0 * hr_pixels / 2 + 16.0 * hr_pixels,
-              std::string(kFn) + ": the model of " + std::to_string(n) + " frames on the HR grid " + ToString(d.hr_frame) +
+              std::string(kDatasetProblemFn) + ": the model of " + std::to_string(n) + " frames on the HR grid " + ToString(d.hr_frame) +
                   " (r = " + std::to_string(d.r) + ")");
   out.problem.model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(d.hr_frame, d.r, psfs));
 
@@ -232,7 +232,7 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     out.weights_source = "validity mask";
   };
   if (use_dataset) {
-    CheckArgument(bool(d.weights), kFn, "weights", "dataset", "a dataset whose manifest gives `weights`");
+    CheckArgument(bool(d.weights), kDatasetProblemFn, "weights", "dataset", "a dataset whose manifest gives `weights`");
     const double g2 = d.gain_e_per_adu * d.gain_e_per_adu;
     for (std::size_t i = 0; i < n; ++i) out.problem.weights.push_back((*d.weights)[i] * d.valid[i] / g2);
     out.weights_source = "dataset inverse variances (e-^-2)";
@@ -297,7 +297,7 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     }
   }
   out.offsets_source = dm ? "dm shifts" : "psf centroids";
-  out.problem.Validate(kFn);
+  out.problem.Validate(kDatasetProblemFn);
   if (options.offsets == DatasetOffsets::kEstimate) {
     RegistrationResult reg = RegisterFrames(out.problem, options.registration);
     out.problem = reg.problem;

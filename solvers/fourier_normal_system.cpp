@@ -364,10 +364,10 @@ Image FourierNormalSystem::Solve(const Image& rhs) const {
 }
 
 void FourierNormalSystem::SolveInto(const Image& rhs, Image* x, Workspace* ws) const {
-  constexpr const char* kFn = "FourierNormalSystem::Solve";
-  if (!factorized_) throw InvalidArgument(std::string(kFn) + ": call Factorize first");
-  CheckArgument(ShapeOf(rhs) == hr_, kFn, "rhs shape", ToString(ShapeOf(rhs)), "the HR shape " + ToString(hr_));
-  CheckArgument(x != nullptr && ws != nullptr, kFn, "x, ws", "null", "an output image and a workspace");
+  constexpr const char* kFourierNormalSystemFn = "FourierNormalSystem::Solve";
+  if (!factorized_) throw InvalidArgument(std::string(kFourierNormalSystemFn) + ": call Factorize first");
+  CheckArgument(ShapeOf(rhs) == hr_, kFourierNormalSystemFn, "rhs shape", ToString(ShapeOf(rhs)), "the HR shape " + ToString(hr_));
+  CheckArgument(x != nullptr && ws != nullptr, kFourierNormalSystemFn, "x, ws", "null", "an output image and a workspace");
   FftR2CInto(rhs, &ws->half);
   // Solutions go to a separate half spectrum: a bin may read the mirror of a value another bin writes.
   ws->out.resize(ws->half.rows(), ws->half.cols());
@@ -376,22 +376,22 @@ void FourierNormalSystem::SolveInto(const Image& rhs, Image* x, Workspace* ws) c
 }
 
 void FourierNormalSystem::SolveWithData(const Image& rhs, const ImageStack& v, Image* x, ImageStack* ax) const {
-  constexpr const char* kFn = "FourierNormalSystem::SolveWithData";
-  CheckArgument(AllFinite(rhs), kFn, "rhs", "(non-finite values)", "finite values");
-  for (const Image& f : v) CheckArgument(AllFinite(f), kFn, "v", "(non-finite values)", "finite values");
+  constexpr const char* kFourierNormalSystemFn = "FourierNormalSystem::SolveWithData";
+  CheckArgument(AllFinite(rhs), kFourierNormalSystemFn, "rhs", "(non-finite values)", "finite values");
+  for (const Image& f : v) CheckArgument(AllFinite(f), kFourierNormalSystemFn, "v", "(non-finite values)", "finite values");
   Workspace ws;
   SolveWithDataInto(rhs, v, x, ax, &ws);
 }
 
 void FourierNormalSystem::SolveWithDataInto(const Image& rhs, const ImageStack& v, Image* x, ImageStack* ax,
                                             Workspace* ws) const {
-  constexpr const char* kFn = "FourierNormalSystem::SolveWithData";
-  if (!factorized_) throw InvalidArgument(std::string(kFn) + ": call Factorize first");
-  CheckArgument(ShapeOf(rhs) == hr_, kFn, "rhs shape", ToString(ShapeOf(rhs)), "the HR shape " + ToString(hr_));
-  CheckArgument(Index(v.size()) == n_, kFn, "v frames", std::to_string(v.size()), std::to_string(n_));
-  CheckArgument(x != nullptr && ws != nullptr, kFn, "x, ws", "null", "an output image and a workspace");
+  constexpr const char* kFourierNormalSystemFn = "FourierNormalSystem::SolveWithData";
+  if (!factorized_) throw InvalidArgument(std::string(kFourierNormalSystemFn) + ": call Factorize first");
+  CheckArgument(ShapeOf(rhs) == hr_, kFourierNormalSystemFn, "rhs shape", ToString(ShapeOf(rhs)), "the HR shape " + ToString(hr_));
+  CheckArgument(Index(v.size()) == n_, kFourierNormalSystemFn, "v frames", std::to_string(v.size()), std::to_string(n_));
+  CheckArgument(x != nullptr && ws != nullptr, kFourierNormalSystemFn, "x, ws", "null", "an output image and a workspace");
   for (const Image& f : v)
-    CheckArgument(ShapeOf(f) == lr_, kFn, "v frame shape", ToString(ShapeOf(f)), "the LR shape " + ToString(lr_));
+    CheckArgument(ShapeOf(f) == lr_, kFourierNormalSystemFn, "v frame shape", ToString(ShapeOf(f)), "the LR shape " + ToString(lr_));
   FftR2CInto(rhs, &ws->half);
   ws->spectra.resize(n_);
   ParallelFor(n_, [&](Index i) { FftR2CInto(v[i], &ws->spectra[i]); });

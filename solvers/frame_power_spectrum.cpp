@@ -16,7 +16,6 @@ namespace aosr {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kMaxSlope = 8.0, kMaxCorner = 0.5;
 
 std::string Fmt(const char* f, double v) {

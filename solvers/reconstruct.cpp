@@ -11,7 +11,7 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFn = "Reconstruct";
+constexpr const char* kReconstructFn = "Reconstruct";
 
 double Quantile(const Image& x, double q) {
   std::vector<double> v(x.data(), x.data() + x.size());
@@ -132,26 +132,26 @@ ReconstructionMethod ParseReconstructionMethod(const std::string& name) {
 }
 
 Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options) {
-  problem.Validate(kFn);
+  problem.Validate(kReconstructFn);
   {
     // The largest solvers hold a few tens of HR images (TV's ADMM variables, L-BFGS's history, the posterior
     // std) and per-bin matrices of N x r² complex entries per LR frequency, i.e. about 2N HR images.
     const Shape hr = problem.model->hr_shape();
     const double hr_bytes = 8.0 * double(hr.rows) * double(hr.cols);
     CheckMemory(hr_bytes * (32.0 + 2.0 * problem.frame_count()),
-                std::string(kFn) + ": " + ToString(options.method) + " on the HR grid " + ToString(hr) + " from " +
+                std::string(kReconstructFn) + ": " + ToString(options.method) + " on the HR grid " + ToString(hr) + " from " +
                     std::to_string(problem.frame_count()) + " frames");
   }
   std::string why;
   const auto check = [&why](bool ok, const char* what) {
-    if (!ok) throw InvalidArgument(std::string(kFn) + ": options." + what + "." + why);
+    if (!ok) throw InvalidArgument(std::string(kReconstructFn) + ": options." + what + "." + why);
   };
   const auto start = std::chrono::steady_clock::now();
   Reconstruction out;
   switch (options.method) {
     case ReconstructionMethod::kShiftAddMean:
     case ReconstructionMethod::kShiftAddMedian: {
-      CheckArgument(problem.offsets.size() == problem.frames.size(), kFn, "problem.offsets",
+      CheckArgument(problem.offsets.size() == problem.frames.size(), kReconstructFn, "problem.offsets",
                     std::to_string(problem.offsets.size()) + " entries", "one per frame for shift-and-add");
       out.image = ShiftAndAdd(problem,
                               options.method == ReconstructionMethod::kShiftAddMean ? Combine::kMean : Combine::kMedian,

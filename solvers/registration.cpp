@@ -13,7 +13,7 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFn = "RegisterFrames";
+constexpr const char* kRegistrationFn = "RegisterFrames";
 
 std::string FrameName(int i) { return "frame " + std::to_string(i); }
 
@@ -71,8 +71,8 @@ ReconstructionProblem ShiftProblemFrames(const ReconstructionProblem& p, const s
 RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const RegistrationOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument(kFn, "options", why, "valid RegistrationOptions");
-  problem.Validate(kFn);
+  if (!options.IsValid(&why)) throw InvalidArgument(kRegistrationFn, "options", why, "valid RegistrationOptions");
+  problem.Validate(kRegistrationFn);
   const int n = problem.frame_count();
   const Shape hr = problem.model->hr_shape();
   const int r = problem.model->r();
@@ -100,7 +100,7 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
       const Image z = ToImage(PeriodicConvolution(hr, current.model->otf(i))->Apply(AsVector(x)), hr);
       const Image& w = sqrt_w[i];
       const Index used = (w > 0).count();
-      CheckArgument(used > 2, kFn, FrameName(i) + " weighted pixels", used,
+      CheckArgument(used > 2, kRegistrationFn, FrameName(i) + " weighted pixels", used,
                     "more than 2 (a frame with no usable pixel has no offset to estimate)");
       double dy = 0, dx = 0;
       if (round == 0) {
@@ -110,13 +110,13 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
         try {
           c = MeasureImageOffset(pred, frames[i]);
         } catch (const InvalidArgument& e) {
-          throw InvalidArgument(kFn, FrameName(i), "no correlation peak",
+          throw InvalidArgument(kRegistrationFn, FrameName(i), "no correlation peak",
                                 "a frame and a reconstruction with structure to register on (" + std::string(e.what()) + ")");
         }
         dy = c.dy * r;
         dx = c.dx * r;
         if (std::max(std::abs(dy), std::abs(dx)) > range_hr)
-          throw InvalidArgument(kFn, FrameName(i) + " offset from the commanded one (cross-correlation)",
+          throw InvalidArgument(kRegistrationFn, FrameName(i) + " offset from the commanded one (cross-correlation)",
                                 ToString(dy / r) + ", " + ToString(dx / r) + " camera px",
                                 "within the search range ±" + ToString(options.search_range_camera_px) +
                                     " camera px (RegistrationOptions::search_range_camera_px, `aosr reconstruct --registration-range`)");
@@ -135,13 +135,13 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
         rss = (res * res).sum();
         const double det = jtj.determinant(), tr = jtj.trace();
         if (!(tr > 0) || !(det > 1e-10 * tr * tr))
-          throw InvalidArgument(kFn, FrameName(i), "a singular registration system (det JtWJ = " + ToString(det) + ")",
+          throw InvalidArgument(kRegistrationFn, FrameName(i), "a singular registration system (det JtWJ = " + ToString(det) + ")",
                                 "a frame with structure along both axes to register on");
         const Eigen::Vector2d step = jtj.ldlt().solve(g);
         dy += step(0);
         dx += step(1);
         if (!std::isfinite(dy) || !std::isfinite(dx) || std::max(std::abs(dy), std::abs(dx)) > range_hr)
-          throw InvalidArgument(kFn, FrameName(i) + " offset from the commanded one (refinement)",
+          throw InvalidArgument(kRegistrationFn, FrameName(i) + " offset from the commanded one (refinement)",
                                 ToString(dy / r) + ", " + ToString(dx / r) + " camera px",
                                 "within the search range ±" + ToString(options.search_range_camera_px) +
                                     " camera px (RegistrationOptions::search_range_camera_px, `aosr reconstruct --registration-range`)");
@@ -151,7 +151,7 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
       const Eigen::Matrix2d cov = s2 * jtj.inverse();
       const double sigma = std::sqrt(std::max(cov(0, 0), cov(1, 1)));
       if (!(sigma <= range_hr))
-        throw InvalidArgument(kFn, FrameName(i) + " offset standard error", ToString(sigma / r) + " camera px",
+        throw InvalidArgument(kRegistrationFn, FrameName(i) + " offset standard error", ToString(sigma / r) + " camera px",
                               "below the search range ±" + ToString(options.search_range_camera_px) +
                                   " camera px: the frame has too little structure (or too much noise) to register");
       out.sigma_hr_px[i] = sigma;
@@ -172,7 +172,7 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
       delta[i].dx += ddx;
       moved = std::max({moved, std::abs(ddy), std::abs(ddx)});
       if (std::max(std::abs(delta[i].dy), std::abs(delta[i].dx)) > range_hr)
-        throw InvalidArgument(kFn, FrameName(i) + " offset from the commanded one",
+        throw InvalidArgument(kRegistrationFn, FrameName(i) + " offset from the commanded one",
                               ToString(delta[i].dy / r) + ", " + ToString(delta[i].dx / r) + " camera px",
                               "within the search range ±" + ToString(options.search_range_camera_px) + " camera px");
     }

@@ -83,9 +83,9 @@ Image ShiftAndAdd(const ImageStack& frames, const std::vector<FrameOffset>& offs
 }
 
 Image ShiftAndAdd(const ReconstructionProblem& problem, Combine combine, SolverSummary* summary) {
-  constexpr const char* kFn = "ShiftAndAdd";
-  problem.Validate(kFn);
-  CheckArgument(problem.offsets.size() == problem.frames.size(), kFn, "problem.offsets count",
+  constexpr const char* kShiftAndAddFn = "ShiftAndAdd";
+  problem.Validate(kShiftAndAddFn);
+  CheckArgument(problem.offsets.size() == problem.frames.size(), kShiftAndAddFn, "problem.offsets count",
                 problem.offsets.size(), "one per frame (" + std::to_string(problem.frames.size()) + ")");
   const auto start = std::chrono::steady_clock::now();
   const int r = problem.model->r();

@@ -16,8 +16,7 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFn = "EstimateStarsPsf";
-constexpr double kPi = 3.14159265358979323846;
+constexpr const char* kStarsPsfFn = "EstimateStarsPsf";
 // A star whose fitted flux is below kDropSnr standard errors, or that moves more than kDropMove camera px
 // from where it was detected, is dropped (header).
 constexpr double kDropSnr = 3.0;
@@ -411,24 +410,24 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
                                 const std::vector<FrameOffset>& offsets, int r, const StarsPsfOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument(kFn, "options", why, "valid StarsPsfOptions");
+  if (!options.IsValid(&why)) throw InvalidArgument(kStarsPsfFn, "options", why, "valid StarsPsfOptions");
   const Index n = Index(y.size());
-  CheckArgument(n > 0, kFn, "frames", 0, "at least one frame");
-  CheckArgument(r >= 1 && r <= 16, kFn, "r", r, "1..16");
+  CheckArgument(n > 0, kStarsPsfFn, "frames", 0, "at least one frame");
+  CheckArgument(r >= 1 && r <= 16, kStarsPsfFn, "r", r, "1..16");
   const Shape lr = ShapeOf(y[0]);
-  CheckArgument(Index(valid_in.size()) == n, kFn, "valid count", valid_in.size(), "one per frame (" + std::to_string(n) + ")");
-  CheckArgument(weights_in.empty() || Index(weights_in.size()) == n, kFn, "weights count", weights_in.size(),
+  CheckArgument(Index(valid_in.size()) == n, kStarsPsfFn, "valid count", valid_in.size(), "one per frame (" + std::to_string(n) + ")");
+  CheckArgument(weights_in.empty() || Index(weights_in.size()) == n, kStarsPsfFn, "weights count", weights_in.size(),
                 "0 (from the background and the model) or one per frame (" + std::to_string(n) + ")");
-  CheckArgument(Index(offsets.size()) == n, kFn, "offsets count", offsets.size(), "one per frame (" + std::to_string(n) + ")");
+  CheckArgument(Index(offsets.size()) == n, kStarsPsfFn, "offsets count", offsets.size(), "one per frame (" + std::to_string(n) + ")");
   for (Index i = 0; i < n; ++i) {
     const std::string tag = "[" + std::to_string(i) + "]";
-    CheckArgument(ShapeOf(y[i]) == lr, kFn, "frames" + tag + " shape", ToString(ShapeOf(y[i])), "frame 0's " + ToString(lr));
-    CheckArgument(ShapeOf(valid_in[i]) == lr, kFn, "valid" + tag + " shape", ToString(ShapeOf(valid_in[i])), ToString(lr));
-    CheckArgument(std::isfinite(offsets[i].dy) && std::isfinite(offsets[i].dx), kFn, "offsets" + tag,
+    CheckArgument(ShapeOf(y[i]) == lr, kStarsPsfFn, "frames" + tag + " shape", ToString(ShapeOf(y[i])), "frame 0's " + ToString(lr));
+    CheckArgument(ShapeOf(valid_in[i]) == lr, kStarsPsfFn, "valid" + tag + " shape", ToString(ShapeOf(valid_in[i])), ToString(lr));
+    CheckArgument(std::isfinite(offsets[i].dy) && std::isfinite(offsets[i].dx), kStarsPsfFn, "offsets" + tag,
                   ToString(offsets[i].dy) + ", " + ToString(offsets[i].dx), "finite HR px");
     if (!weights_in.empty()) {
-      CheckArgument(ShapeOf(weights_in[i]) == lr, kFn, "weights" + tag + " shape", ToString(ShapeOf(weights_in[i])), ToString(lr));
-      CheckArgument(AllFinite(weights_in[i]) && (weights_in[i] >= 0).all(), kFn, "weights" + tag, "negative or non-finite",
+      CheckArgument(ShapeOf(weights_in[i]) == lr, kStarsPsfFn, "weights" + tag + " shape", ToString(ShapeOf(weights_in[i])), ToString(lr));
+      CheckArgument(AllFinite(weights_in[i]) && (weights_in[i] >= 0).all(), kStarsPsfFn, "weights" + tag, "negative or non-finite",
                     "finite inverse variances >= 0");
     }
   }
@@ -437,7 +436,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
   k -= k % 2;
   const Index rfit = options.fit_radius_px;
   const Index k_min = std::max<Index>(4 * r, 2 * r * (rfit + 1));
-  CheckArgument(k >= k_min && k <= std::min(hr.rows, hr.cols), kFn, "psf_size_hr_px", k,
+  CheckArgument(k >= k_min && k <= std::min(hr.rows, hr.cols), kStarsPsfFn, "psf_size_hr_px", k,
                 "even, >= max(4 r, 2 r (fit_radius_px + 1)) = " + std::to_string(k_min) + " and <= the HR frame " +
                     ToString(hr));
 
@@ -455,7 +454,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
     std::vector<double> v;
     for (Index p = 0; p < yi.size(); ++p)
       if (valid[i](p) > 0) v.push_back(yi(p));
-    CheckArgument(v.size() >= 16, kFn, "valid[" + std::to_string(i) + "]", std::to_string(v.size()) + " valid pixels",
+    CheckArgument(v.size() >= 16, kStarsPsfFn, "valid[" + std::to_string(i) + "]", std::to_string(v.size()) + " valid pixels",
                   "at least 16 valid pixels per frame");
     bg[i] = Median(v);
     sigma[i] = EstimateBackgroundSigma(yi, valid[i]);
@@ -499,7 +498,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
   if (!options.known_stars.empty()) {
     stars.clear();
     for (const PointSource& p : options.known_stars) {
-      CheckArgument(std::isfinite(p.y) && std::isfinite(p.x) && p.flux > 0 && std::isfinite(p.flux), kFn,
+      CheckArgument(std::isfinite(p.y) && std::isfinite(p.x) && p.flux > 0 && std::isfinite(p.flux), kStarsPsfFn,
                     "known_stars", ToString(p.y) + ", " + ToString(p.x) + ", flux " + ToString(p.flux),
                     "finite positions and positive fluxes");
       Star s;
@@ -524,18 +523,18 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
   const std::string threshold_text = ToString(options.detection_sigma) + " sigma = " + ToString(threshold0) +
                                      " e- above the background " + ToString(bg[0]) + " e- of frame 0";
   if (stars.empty() && saturated.empty())
-    throw InvalidArgument(kFn, "frames", "no point source above " + threshold_text,
+    throw InvalidArgument(kStarsPsfFn, "frames", "no point source above " + threshold_text,
                           "frames with at least " + std::to_string(res.min_required) +
                               " unsaturated point sources above the threshold (detection_sigma)");
   if (stars.empty())
-    throw InvalidArgument(kFn, "frames",
+    throw InvalidArgument(kStarsPsfFn, "frames",
                           "only saturated stars (" + std::to_string(saturated.size()) +
                               " detections touch invalid or saturated pixels, none above " + threshold_text + " is unsaturated)",
                           "at least " + std::to_string(res.min_required) +
                               " unsaturated point sources: a saturated core cannot constrain the PSF's core");
   auto too_few = [&](std::size_t count, const char* stage) {
     return InvalidArgument(
-        kFn, "usable stars", std::to_string(count) + " " + stage + " (" + std::to_string(saturated.size()) +
+        kStarsPsfFn, "usable stars", std::to_string(count) + " " + stage + " (" + std::to_string(saturated.size()) +
                                  " saturated excluded; threshold " + threshold_text + ")",
         ">= " + std::to_string(res.min_required) + " = max(min_stars " + std::to_string(options.min_stars) +
             ", ceil(r^2/N) = " + std::to_string((r * r + n - 1) / n) +
@@ -608,7 +607,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
     Image img = ToImage(h, kk);
     const double s = img.sum();
     if (!(s > 0) || !std::isfinite(s))
-      throw InvalidArgument(kFn, "fitted PSF sum", ToString(s),
+      throw InvalidArgument(kStarsPsfFn, "fitted PSF sum", ToString(s),
                             "> 0: the stars' pixels do not determine a PSF (too faint or too few stars for K = " +
                                 std::to_string(k) + ")");
     img /= s;
@@ -794,13 +793,13 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
 
 StarsPsfResult EstimateStarsPsf(const Dataset& d, const StarsPsfOptions& options) {
   const std::size_t n = d.frames.size();
-  CheckArgument(n > 0, kFn, "dataset frames", 0, "at least one frame");
+  CheckArgument(n > 0, kStarsPsfFn, "dataset frames", 0, "at least one frame");
   std::vector<FrameOffset> offsets(n);
   for (std::size_t i = 0; i < n && i < d.offsets.size(); ++i) {
     const DmOffset& o = d.offsets[i];
     bool shape = !o.zernike.empty();
     for (double a : o.actuators_m) shape = shape || a != 0;
-    CheckArgument(!shape, kFn, "dataset offsets[" + std::to_string(i) + "]", "Zernike or actuator terms",
+    CheckArgument(!shape, kStarsPsfFn, "dataset offsets[" + std::to_string(i) + "]", "Zernike or actuator terms",
                   "tip/tilt shifts only (shift_px): the stars PSF is one shape shared by all frames, and these "
                   "offsets change the PSF's shape from frame to frame");
     offsets[i] = {o.shift_y_px * d.r, o.shift_x_px * d.r};

@@ -21,7 +21,7 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFn = "ReconstructTargetPsf";
+constexpr const char* kTargetPsfFn = "ReconstructTargetPsf";
 // ℓ threshold of the reported band and of "unreachable" frequencies (target_psf.hpp).
 constexpr double kBandLeakage = 1e-3;
 // Eigenvalues below this fraction of the largest count as directions the data do not see (U_min, ℓ_min):
@@ -89,7 +89,7 @@ Target MakeTarget(const MultiFrameModel& model, const TargetPsfOptions& o) {
       break;
     case TargetPsfKind::kImage: {
       if (o.image.rows() > hr.rows || o.image.cols() > hr.cols)
-        throw InvalidArgument(std::string(kFn) + ": options.image is " + ToString(ShapeOf(o.image)) +
+        throw InvalidArgument(std::string(kTargetPsfFn) + ": options.image is " + ToString(ShapeOf(o.image)) +
                               ", larger than the HR grid " + ToString(hr));
       const Image k = o.image / o.image.sum();
       t.half = FftR2C(CentredToOrigin(k, hr));
@@ -273,9 +273,9 @@ Image GaussianTargetKernel(double fwhm_px, Index size) {
 
 TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const TargetPsfOptions& options) {
   const auto start = std::chrono::steady_clock::now();
-  problem.Validate(kFn);
+  problem.Validate(kTargetPsfFn);
   std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kFn) + ": options." + why);
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kTargetPsfFn) + ": options." + why);
   const MultiFrameModel& model = *problem.model;
   const Shape hr = model.hr_shape(), lr = model.lr_shape();
   const int r = model.r(), rr = r * r, n = model.frames();
@@ -292,7 +292,7 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   s.target = target.description;
   s.target_fwhm_hr_px = target.fwhm;
   const SearchData sd = CollectSearchData(model, target);
-  if (!(sd.e_max > 0)) throw InvalidArgument(std::string(kFn) + ": the model's transfer functions are all zero");
+  if (!(sd.e_max > 0)) throw InvalidArgument(std::string(kTargetPsfFn) + ": the model's transfer functions are all zero");
   s.leakage_unreachable = Leakage(sd, 0.0);
   const double goal = s.leakage_unreachable + options.leakage;
   double lo = std::log(1e-14 * sd.e_max), hi = std::log(1e4 * sd.e_max);
@@ -319,7 +319,7 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
     for (Index j = 0; j < m.e.size(); ++j) r00 += std::norm(m.g(0, j)) / (m.e[j] + kappa);
     dc = r00.real();
   }
-  if (!(dc > 0)) throw InvalidArgument(std::string(kFn) + ": the frames carry no flux information (zero DC transfer)");
+  if (!(dc > 0)) throw InvalidArgument(std::string(kTargetPsfFn) + ": the frames carry no flux information (zero DC transfer)");
   s.dc_transfer = dc;
 
   // --- per-bin pass: effective transfer, leakage, noise spectrum and cell, and (Fourier path) the solution --

@@ -10,7 +10,6 @@
 
 namespace aosr {
 
-using analytic_ao_internal::kTwoPi;
 
 namespace {
 

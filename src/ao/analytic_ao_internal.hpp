@@ -9,8 +9,6 @@
 namespace aosr {
 namespace analytic_ao_internal {
 
-constexpr double kPi = 3.141592653589793238462643383279;
-constexpr double kTwoPi = 2.0 * kPi;
 
 // Throws InvalidArgument("<function>: invalid options. <why>") unless options.IsValid().
 void CheckOptions(const AnalyticAoOptions& options, const char* function);

@@ -9,8 +9,6 @@
 
 namespace aosr {
 
-using analytic_ao_internal::kPi;
-using analytic_ao_internal::kTwoPi;
 
 namespace analytic_ao_internal {
 
@@ -48,10 +46,6 @@ LoopModel::Squares LoopModel::At(double x) const {
 
 namespace {
 
-bool Fail(std::string* why, const std::string& message) {
-  if (why != nullptr) *why = message;
-  return false;
-}
 
 bool PositiveFinite(double v) { return std::isfinite(v) && v > 0.0; }
 

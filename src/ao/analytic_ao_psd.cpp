@@ -11,8 +11,6 @@
 
 namespace aosr {
 
-using analytic_ao_internal::kPi;
-using analytic_ao_internal::kTwoPi;
 
 namespace analytic_ao_internal {
 namespace {

@@ -10,7 +10,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // cos/sin with round-off snapped to exact 0 and +-1, so that winds along the axes (theta = k pi/2) move the
 // screen by exact whole pixels.

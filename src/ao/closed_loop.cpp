@@ -17,7 +17,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kTwoPi = 6.283185307179586476925286766559;
 
 using Clock = std::chrono::steady_clock;
 
@@ -25,10 +24,6 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
 }
 
-bool Fail(std::string* why, const std::string& msg) {
-  if (why != nullptr) *why = msg;
-  return false;
-}
 
 void CheckStaticOpd(const Image& opd, const Image& amplitude, const char* name) {
   if (opd.size() == 0) return;

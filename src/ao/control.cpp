@@ -10,10 +10,6 @@
 namespace aosr {
 namespace {
 
-bool Fail(std::string* why, const std::string& msg) {
-  if (why != nullptr) *why = msg;
-  return false;
-}
 
 }  // namespace
 

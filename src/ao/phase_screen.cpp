@@ -13,7 +13,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // FFT bins with |k|_inf <= kInnerRing are re-sampled on the level-1 grid of spacing df/3 (header).
 constexpr int kInnerRing = 4;
 using ComplexMatrix = Eigen::Matrix<Complex, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;

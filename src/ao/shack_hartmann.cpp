@@ -15,12 +15,7 @@
 namespace aosr {
 namespace {
 
-constexpr double kTwoPi = 6.283185307179586476925286766559;
 
-bool Fail(std::string* why, const std::string& msg) {
-  if (why != nullptr) *why = msg;
-  return false;
-}
 
 // Validates the pupil arguments shared by the operator and the sensor; returns p = n / M.
 Index CheckGeometry(const Image& amplitude, double diameter_m, const ShackHartmannOptions& o,

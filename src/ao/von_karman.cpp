@@ -11,7 +11,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kNu = 5.0 / 6.0;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 

@@ -12,7 +12,7 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFn = "RenderFigure";
+constexpr const char* kPlotFn = "RenderFigure";
 constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
 constexpr double kTickFont = 0.42, kLabelFont = 0.5, kTitleFont = 0.55, kLegendFont = 0.45;
 const cv::Scalar kBlack(0, 0, 0), kGrid(225, 225, 225), kAxisGrey(90, 90, 90), kWhite(255, 255, 255);
@@ -386,16 +386,16 @@ std::array<std::uint8_t, 3> SeriesColour(int i) {
 
 RgbImage RenderFigure(const std::vector<LinePlot>& panels, const FigureOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kFn) + ": invalid FigureOptions: " + why);
-  CheckArgument(!panels.empty(), kFn, "panels", "0 panels", "at least one");
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kPlotFn) + ": invalid FigureOptions: " + why);
+  CheckArgument(!panels.empty(), kPlotFn, "panels", "0 panels", "at least one");
   for (std::size_t i = 0; i < panels.size(); ++i)
     if (!panels[i].IsValid(&why))
-      throw InvalidArgument(std::string(kFn) + ": panel " + std::to_string(i) +
+      throw InvalidArgument(std::string(kPlotFn) + ": panel " + std::to_string(i) +
                             (panels[i].title.empty() ? "" : " ('" + panels[i].title + "')") + ": " + why);
   const int n = int(panels.size());
   const int cols = std::min(options.columns, n), rows = (n + cols - 1) / cols;
   CheckMemory(6.0 * rows * options.panel_height * double(cols) * options.panel_width,
-              std::string(kFn) + ": a figure of " + std::to_string(n) + " panels");
+              std::string(kPlotFn) + ": a figure of " + std::to_string(n) + " panels");
   cv::Mat fig(rows * options.panel_height, cols * options.panel_width, CV_8UC3, kWhite);
   for (int i = 0; i < n; ++i) {
     cv::Mat panel = fig(cv::Rect((i % cols) * options.panel_width, (i / cols) * options.panel_height,

@@ -50,11 +50,11 @@ void CheckWcs(const char* fn, const Wcs& w) {
 
 // ---- Header reading --------------------------------------------------------------------------------------
 
-constexpr const char* kFn = "WcsFromHeader";
+constexpr const char* kWcsFn = "WcsFromHeader";
 
 double Number(const FitsHeader& h, const std::string& name) {
   const FitsKeyword* k = h.Find(name);
-  if (k == nullptr) throw InvalidArgument(kFn, name, "(missing)", "a real number");
+  if (k == nullptr) throw InvalidArgument(kWcsFn, name, "(missing)", "a real number");
   double v = 0;
   if (const double* d = std::get_if<double>(&k->value)) {
     v = *d;
@@ -62,9 +62,9 @@ double Number(const FitsHeader& h, const std::string& name) {
     v = double(*i);
   } else {
     const std::string* s = std::get_if<std::string>(&k->value);
-    throw InvalidArgument(kFn, name, s ? "'" + *s + "'" : std::string("a logical"), "a real number");
+    throw InvalidArgument(kWcsFn, name, s ? "'" + *s + "'" : std::string("a logical"), "a real number");
   }
-  CheckArgument(std::isfinite(v), kFn, name, v, "a finite real number");
+  CheckArgument(std::isfinite(v), kWcsFn, name, v, "a finite real number");
   return v;
 }
 
@@ -74,9 +74,9 @@ double NumberOr(const FitsHeader& h, const std::string& name, double fallback) {
 
 std::string Text(const FitsHeader& h, const std::string& name) {
   const FitsKeyword* k = h.Find(name);
-  if (k == nullptr) throw InvalidArgument(kFn, name, "(missing)", "a string");
+  if (k == nullptr) throw InvalidArgument(kWcsFn, name, "(missing)", "a string");
   const std::string* s = std::get_if<std::string>(&k->value);
-  if (s == nullptr) throw InvalidArgument(kFn, name, "(not a string)", "a string");
+  if (s == nullptr) throw InvalidArgument(kWcsFn, name, "(not a string)", "a string");
   return Trimmed(*s);
 }
 
@@ -84,7 +84,7 @@ std::string Text(const FitsHeader& h, const std::string& name) {
 void RefuseDistortions(const FitsHeader& h) {
   for (const char* k : {"A_ORDER", "B_ORDER", "AP_ORDER", "BP_ORDER"})
     if (h.Has(k))
-      throw InvalidArgument(kFn, k, "(present)",
+      throw InvalidArgument(kWcsFn, k, "(present)",
                             "no SIP distortion: aosr's WCS is the plain TAN projection (SIP is not supported)");
   for (const FitsKeyword& k : h.keywords()) {
     const std::string& n = k.name;
@@ -92,10 +92,10 @@ void RefuseDistortions(const FitsHeader& h) {
     const bool table = n.compare(0, 5, "CPDIS") == 0 || n.compare(0, 5, "CQDIS") == 0 ||
                        n.compare(0, 6, "D2IMDIS") == 0 || n == "DP1" || n == "DP2" || n == "DQ1" || n == "DQ2";
     if (pv)
-      throw InvalidArgument(kFn, n, "(present)",
+      throw InvalidArgument(kWcsFn, n, "(present)",
                             "no projection parameters: TAN takes none, and the TPV distortion they encode is not "
                             "supported");
-    if (table) throw InvalidArgument(kFn, n, "(present)", "no distortion tables (not supported)");
+    if (table) throw InvalidArgument(kWcsFn, n, "(present)", "no distortion tables (not supported)");
   }
 }
 
@@ -207,26 +207,26 @@ Wcs WcsFromHeader(const FitsHeader& h) {
     if (value == expected) continue;
     const std::string v = "'" + value + "'";
     if (value.size() > 8 && value.compare(0, 8, expected) == 0)
-      throw InvalidArgument(kFn, name, v,
+      throw InvalidArgument(kWcsFn, name, v,
                             std::string("'") + expected + "' without a distortion suffix (" + value.substr(8) +
                                 " is not supported)");
     if (value.size() == 8 && value.compare(0, 4, std::string(expected).substr(0, 4)) == 0)
-      throw InvalidArgument(kFn, name, v,
+      throw InvalidArgument(kWcsFn, name, v,
                             std::string("'") + expected + "': only the gnomonic TAN projection is supported, not " +
                                 value.substr(5));
-    throw InvalidArgument(kFn, name, v,
+    throw InvalidArgument(kWcsFn, name, v,
                           std::string("'") + expected + "' (celestial RA/Dec axes in this order, TAN projection)");
   }
   RefuseDistortions(h);
   for (const char* k : {"CUNIT1", "CUNIT2"})
-    if (h.Has(k) && Text(h, k) != "DEG") throw InvalidArgument(kFn, k, "'" + Text(h, k) + "'", "'deg'");
+    if (h.Has(k) && Text(h, k) != "DEG") throw InvalidArgument(kWcsFn, k, "'" + Text(h, k) + "'", "'deg'");
 
   Wcs w;
   w.crpix[0] = Number(h, "CRPIX1");
   w.crpix[1] = Number(h, "CRPIX2");
   w.crval[0] = Number(h, "CRVAL1");
   w.crval[1] = Number(h, "CRVAL2");
-  CheckArgument(std::abs(w.crval[1]) <= 90.0, kFn, "CRVAL2", w.crval[1], "a declination in [-90, 90] deg");
+  CheckArgument(std::abs(w.crval[1]) <= 90.0, kWcsFn, "CRVAL2", w.crval[1], "a declination in [-90, 90] deg");
   w.crval[0] = NormaliseRa(w.crval[0]);
 
   // The linear part, in one of the three forms of [I] §2.1.2.
@@ -237,22 +237,22 @@ Wcs WcsFromHeader(const FitsHeader& h) {
     for (int j = 0; j < 2; ++j) has_cd = has_cd || h.Has(kCd[i][j]), has_pc = has_pc || h.Has(kPc[i][j]);
   const bool has_crota = h.Has("CROTA2");
   if (h.Has("CROTA1") && Number(h, "CROTA1") != NumberOr(h, "CROTA2", 0.0))
-    throw InvalidArgument(kFn, "CROTA1", ToString(Number(h, "CROTA1")),
+    throw InvalidArgument(kWcsFn, "CROTA1", ToString(Number(h, "CROTA1")),
                           "absent, or equal to CROTA2 (the rotation of the celestial axes is CROTA2)");
   if (has_cd) {
     if (has_pc)
-      throw InvalidArgument(kFn, "PCi_j", "(given with CDi_j)",
+      throw InvalidArgument(kWcsFn, "PCi_j", "(given with CDi_j)",
                             "either a CDi_j matrix or PCi_j with CDELTi, not both (Greisen & Calabretta 2002)");
     for (int i = 0; i < 2; ++i)
       for (int j = 0; j < 2; ++j) w.cd[i][j] = NumberOr(h, kCd[i][j], 0.0);  // CDELTi and CROTA2 ignored
   } else {
     if (!h.Has("CDELT1") || !h.Has("CDELT2"))
-      throw InvalidArgument(kFn, h.Has("CDELT1") ? "CDELT2" : "CDELT1", "(missing)",
+      throw InvalidArgument(kWcsFn, h.Has("CDELT1") ? "CDELT2" : "CDELT1", "(missing)",
                             "the pixel scale: a CDi_j matrix, or CDELT1 and CDELT2 (with PCi_j or CROTA2)");
     const double cdelt[2] = {Number(h, "CDELT1"), Number(h, "CDELT2")};
     if (has_pc) {
       if (has_crota)
-        throw InvalidArgument(kFn, "CROTA2", "(given with PCi_j)",
+        throw InvalidArgument(kWcsFn, "CROTA2", "(given with PCi_j)",
                               "either PCi_j or CROTA2, not both (Greisen & Calabretta 2002)");
       for (int i = 0; i < 2; ++i)
         for (int j = 0; j < 2; ++j) w.cd[i][j] = cdelt[i] * NumberOr(h, kPc[i][j], i == j ? 1.0 : 0.0);
@@ -266,12 +266,12 @@ Wcs WcsFromHeader(const FitsHeader& h) {
     }
   }
   const double det = Determinant(w);
-  CheckArgument(std::isfinite(det) && det != 0.0, kFn, has_cd ? "CDi_j" : (has_pc ? "PCi_j, CDELTi" : "CDELTi"),
+  CheckArgument(std::isfinite(det) && det != 0.0, kWcsFn, has_cd ? "CDi_j" : (has_pc ? "PCi_j, CDELTi" : "CDELTi"),
                 "a matrix of determinant " + ToString(det), "an invertible pixel-to-sky matrix");
   if (h.Has("LONPOLE")) {
     const double lonpole = Number(h, "LONPOLE"), expected = DefaultLonpoleDeg(w.crval[1]);
     if (std::abs(lonpole - expected) > 1e-9)
-      throw InvalidArgument(kFn, "LONPOLE", ToString(lonpole),
+      throw InvalidArgument(kWcsFn, "LONPOLE", ToString(lonpole),
                             ToString(expected) + " (its default for this CRVAL2; other values are not supported)");
   }
   w.radesys = h.Has("RADESYS") ? Text(h, "RADESYS") : h.Has("RADECSYS") ? Text(h, "RADECSYS") : std::string();

@@ -11,7 +11,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kSqrt3 = 1.7320508075688772935;
 
 // cos/sin with values within 1e-15 of 0 or +-1 snapped, so vanes and lattices at multiples of 90° are exactly
@@ -27,10 +26,6 @@ void SnappedDirection(double angle, double* c, double* s) {
   *s = snap(std::sin(angle));
 }
 
-bool Fail(std::string* why, const std::string& msg) {
-  if (why != nullptr) *why = msg;
-  return false;
-}
 
 // Everything in normalised pupil units (radius D/2 = 1), see pupil.hpp.
 class ApertureModel {

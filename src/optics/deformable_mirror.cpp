@@ -10,10 +10,6 @@ namespace {
 
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-bool Fail(std::string* why, const std::string& msg) {
-  if (why != nullptr) *why = msg;
-  return false;
-}
 
 // Validates everything DeformableMirror needs, then returns the active actuators' grid indices.
 std::vector<Index> ActiveActuators(Index pupil_n, const PupilGeometry& pupil,

@@ -7,7 +7,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kTwoPi = 6.283185307179586476925286766559;
 
 void CheckDiameter(double diameter_m, const char* function) {
   CheckArgument(std::isfinite(diameter_m) && diameter_m > 0.0, function, "diameter_m", diameter_m,

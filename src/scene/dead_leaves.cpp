@@ -16,10 +16,6 @@ constexpr std::uint64_t kLeavesStream = 3;
 constexpr Index kTile = 16;
 constexpr double kMaxRadius = 1e4;
 
-bool Fail(std::string* why, const std::string& message) {
-  if (why != nullptr) *why = message;
-  return false;
-}
 
 // Distance² from (y, x) to the rectangle [y0, y1] x [x0, x1] (0 inside).
 double DistanceToRect2(double y, double x, double y0, double y1, double x0, double x1) {

@@ -11,10 +11,6 @@
 namespace aosr {
 namespace {
 
-bool Fail(std::string* why, const std::string& message) {
-  if (why) *why = message;
-  return false;
-}
 
 bool FiniteNonNegative(double v) { return std::isfinite(v) && v >= 0; }
 

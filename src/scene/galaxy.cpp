@@ -20,10 +20,6 @@ constexpr int kMaxIterations = 100000;
 constexpr double kEps = 1e-16;
 constexpr double kTiny = 1e-300;
 
-bool Fail(std::string* why, const std::string& message) {
-  if (why != nullptr) *why = message;
-  return false;
-}
 
 bool ValidN(double n) { return std::isfinite(n) && n > kMinN && n <= kMaxN; }
 

@@ -14,10 +14,6 @@ namespace {
 using SparseRows = Eigen::SparseMatrix<double, Eigen::RowMajor>;
 using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-bool Fail(std::string* why, const std::string& message) {
-  if (why != nullptr) *why = message;
-  return false;
-}
 
 // The (bins x n) overlap matrix of `bins` equal intervals tiling the window [w0, w0 + length] with the unit
 // source intervals [j, j + 1), j = 0 .. n-1. Edges are computed once each, so adjacent bins share them and

@@ -41,10 +41,6 @@ const std::vector<PhotometricBand>& Table() {
   return table;
 }
 
-bool Fail(std::string* why, const std::string& message) {
-  if (why) *why = message;
-  return false;
-}
 
 void CheckCollector(const char* function, const LightCollectorOptions& collector) {
   std::string why;

@@ -17,10 +17,6 @@ constexpr double kMaxPackingFraction = 0.4;
 constexpr std::uint64_t kPositionStream = 0;
 constexpr std::uint64_t kFluxStream = 1;
 
-bool Fail(std::string* why, const std::string& message) {
-  if (why != nullptr) *why = message;
-  return false;
-}
 
 // ∫_1^ratio t^k dt, stable for k near -1.
 double PowerIntegral(double k, double ratio) {

@@ -17,13 +17,13 @@ double Median(std::vector<double> v) {
   return 0.5 * (hi + *std::max_element(v.begin(), v.begin() + h));
 }
 
-struct Aperture {
+struct ApertureMeasure {
   double flux = 0.0;
   double cy = 0.0, cx = 0.0;
 };
 
 // Background-subtracted aperture flux and centroid around (y, x); false if the annulus leaves the image.
-bool Measure(const Image& img, double y, double x, const StarMetricsOptions& o, Aperture* out) {
+bool Measure(const Image& img, double y, double x, const StarMetricsOptions& o, ApertureMeasure* out) {
   const double ro = o.annulus_outer_px;
   if (y - ro < -0.5 || x - ro < -0.5 || y + ro > img.rows() - 0.5 || x + ro > img.cols() - 0.5) return false;
   std::vector<double> ring;
@@ -35,7 +35,7 @@ bool Measure(const Image& img, double y, double x, const StarMetricsOptions& o, 
       if (d >= o.annulus_inner_px && d < ro) ring.push_back(img(i, j));
     }
   const double b = Median(ring);
-  Aperture a;
+  ApertureMeasure a;
   double w = 0, sy = 0, sx = 0;
   for (Index i = std::max<Index>(0, y0); i <= std::min(img.rows() - 1, y1); ++i)
     for (Index j = std::max<Index>(0, x0); j <= std::min(img.cols() - 1, x1); ++j) {
@@ -52,12 +52,12 @@ bool Measure(const Image& img, double y, double x, const StarMetricsOptions& o, 
 }
 
 // Iterated centroid (aperture re-centred), flux at the first (true-position) aperture.
-bool MeasureStar(const Image& img, const PointSource& s, const StarMetricsOptions& o, Aperture* out) {
-  Aperture a;
+bool MeasureStar(const Image& img, const PointSource& s, const StarMetricsOptions& o, ApertureMeasure* out) {
+  ApertureMeasure a;
   if (!Measure(img, s.y, s.x, o, &a)) return false;
   const double flux = a.flux;
   for (int k = 1; k < o.centroid_iterations; ++k) {
-    Aperture next;
+    ApertureMeasure next;
     if (!Measure(img, a.cy, a.cx, o, &next)) break;
     a = next;
   }
@@ -97,7 +97,7 @@ StarMetrics MeasureStars(const Image& truth, const Image& estimate, const std::v
   double sq = 0;
   for (const PointSource& s : sorted) {
     if (int(m.stars.size()) == options.brightest) break;
-    Aperture t, e;
+    ApertureMeasure t, e;
     if (!MeasureStar(truth, s, options, &t) || !MeasureStar(estimate, s, options, &e) || !(t.flux > 0)) {
       ++m.skipped;
       continue;

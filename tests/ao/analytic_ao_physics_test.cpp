@@ -9,6 +9,7 @@
 #include <iostream>
 #include <limits>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/optics/psf.hpp"
 #include "aosr/optics/pupil.hpp"
@@ -17,7 +18,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.141592653589793238462643383279;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The system of the issue (item 9): 8 m, 17 x 17 DM (pitch 0.5 m), 800 Hz, integrator gain 0.35,

@@ -1,5 +1,6 @@
 // Unit tests of the analytic AO model: options, loop transfer functions, PSD terms and their integrals,
 // structure-function geometry (include/aosr/ao/analytic_ao.hpp).
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/analytic_ao.hpp"
 
 #include <gtest/gtest.h>
@@ -13,7 +14,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.141592653589793238462643383279;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // The von Karman constant, written out independently of the library.

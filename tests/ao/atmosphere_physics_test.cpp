@@ -8,13 +8,13 @@
 #include <cstdio>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/ao/von_karman.hpp"
 
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 AtmosphereOptions OneLayer(double speed, double direction, std::uint64_t seed) {
   AtmosphereOptions o;

@@ -433,7 +433,7 @@ TEST(ClosedLoopPhysicsTest, WfsNoiseMeasuredThroughTheReconstructorPredictsTheNo
     ClosedLoopOptions options;
     options.compute_psf = false;
     const ClosedLoopResult r = s.MakeLoop(options)->Run(0.4, 0.05);
-    const double residual = std::pow(2 * test::kPi / wavelength * r.RmsResidualM(), 2);
+    const double residual = std::pow(2 * kPi / wavelength * r.RmsResidualM(), 2);
     const double g = control.gain;
     const double discrete_gain = (1 + g) * g / ((1 - g) * (2 + g));
     const double predicted = discrete_gain * per_frame;

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/ao/ao_system.hpp"
 #include "aosr/ao/atmosphere.hpp"
@@ -20,7 +21,6 @@
 namespace aosr::test {
 
 constexpr double kPaperDiameter = 8.0;
-constexpr double kPi = 3.14159265358979323846;
 
 
 inline AtmosphereOptions PaperAtmosphere(std::uint64_t seed) {

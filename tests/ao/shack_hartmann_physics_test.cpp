@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/ao/shack_hartmann.hpp"
 #include "aosr/optics/pupil.hpp"
 #include "aosr/optics/zernike.hpp"
@@ -15,7 +16,6 @@ namespace aosr {
 namespace {
 
 constexpr double kD = 8.0;
-constexpr double kPi = 3.14159265358979323846;
 
 Image TiltOpd(Index n, double sx, double sy) {
   Image w(n, n);

@@ -1,6 +1,7 @@
 // von_karman.hpp: constants, K_nu, covariance/structure function (closed form vs an independent Hankel
 // integral of the PSD, Kolmogorov limit), r0 scaling, Zernike variances vs Noll (1976).
 #include "aosr/ao/von_karman.hpp"
+#include "aosr/core/image.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +11,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 TEST(VonKarmanTest, Constants) {

@@ -1,3 +1,4 @@
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/optics/aperture.hpp"
 
 #include <gtest/gtest.h>
@@ -11,7 +12,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kSqrt3 = 1.7320508075688772935;
 
 // Area [m^2] of the aperture image on the n x n grid spanning D.

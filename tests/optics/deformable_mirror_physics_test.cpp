@@ -18,6 +18,7 @@
 #include <random>
 #include <vector>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/fft.hpp"
 #include "aosr/optics/deformable_mirror.hpp"
 #include "aosr/optics/psf.hpp"
@@ -26,7 +27,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDiameter = 8.0;
 constexpr Index kPupilN = 128;
 constexpr double kPixel = kDiameter / kPupilN;  // 1/16 m

@@ -1,3 +1,4 @@
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/optics/deformable_mirror.hpp"
 
 #include <gtest/gtest.h>
@@ -16,7 +17,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // The 8 m telescope with 16 x 16 subapertures in Fried geometry: 17 x 17 actuators of pitch D/16 = 0.5 m,
 // on a 128-pixel pupil (8 pixels per pitch).

@@ -1,3 +1,4 @@
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/optics/mft.hpp"
 
 #include <gtest/gtest.h>
@@ -11,7 +12,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 ComplexImage RandomField(Shape s, std::uint64_t seed) {
   std::mt19937_64 rng(seed);

@@ -8,6 +8,7 @@
 #include <map>
 #include <random>
 
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/core/fft.hpp"
 #include "aosr/optics/psf.hpp"
 #include "aosr/optics/pupil.hpp"
@@ -16,7 +17,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDiameter = 8.0;        // m
 constexpr double kWavelength = 1.65e-6;  // m (H band)
 constexpr double kLambdaOverD = kWavelength / kDiameter;

@@ -1,3 +1,4 @@
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/optics/pupil.hpp"
 
 #include <gtest/gtest.h>
@@ -8,7 +9,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 TEST(PupilTest, GridCoordinatesSpanTheDiameterSymmetrically) {
   // Even n: centres at +-1/n, ..., +-(n-1)/n; odd n: the middle pixel is the centre.

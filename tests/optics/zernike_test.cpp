@@ -1,3 +1,4 @@
+#include "aosr/core/image.hpp"  // kPi
 #include "aosr/optics/zernike.hpp"
 
 #include <gtest/gtest.h>
@@ -14,7 +15,6 @@
 namespace aosr {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // Noll (1976), Table 1: (n, m) of Z_1 .. Z_22, with m < 0 for the sin modes.
 TEST(ZernikeTest, NollTableMatchesNoll1976) {

@@ -60,6 +60,13 @@ std::string ToString(const T& value) {
   return os.str();
 }
 
+// Sets *why (when `why` is not null) to `msg` and returns false: the exit of an Options::IsValid(why) that names
+// its bad field.
+inline bool Fail(std::string* why, const std::string& msg) {
+  if (why != nullptr) *why = msg;
+  return false;
+}
+
 // Throws InvalidArgument(function, argument, ToString(value), allowed) unless `ok`.
 template <typename T>
 void CheckArgument(bool ok, const std::string& function, const std::string& argument, const T& value,

@@ -18,6 +18,10 @@
 
 namespace aosr {
 
+// π and 2π in double precision (one definition for every file).
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kTwoPi = 2.0 * kPi;
+
 using Index = Eigen::Index;
 using Complex = std::complex<double>;
 using Image = Eigen::Array<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;

@@ -1,0 +1,80 @@
+# How aosr is compiled quickly (issue 35; measurements and their commands in bench/results/build.md). None of this
+# changes what is computed: the same sources, flags and optimisation level; only how many times headers are parsed,
+# which linker runs and whether an unchanged file is compiled again.
+#
+#  * ccache, when installed and no launcher is set: a file compiled before with the same flags is not compiled
+#    again (rebuilds, a second build folder, another worktree of the checkout). Precompiled headers need ccache's
+#    pch_defines and time_macros sloppiness and GCC's -fpch-preprocess (ccache's manual, "Precompiled headers").
+#  * mold (else lld), when installed: linking the ~40 executables and the Python module is a large share of an
+#    incremental build; GNU ld takes seconds per test executable, mold a fraction of one.
+#  * Precompiled headers (aosr_precompile): the standard library, Eigen and (tests) GoogleTest, parsed once per
+#    target instead of once per file. The test executables share one precompiled header (REUSE_FROM), built once.
+#  * Unity builds of the test executables (aosr_unity): a few test files compiled as one, in small batches so that
+#    a compile error still names its file (CMake includes the sources by path, so diagnostics and __FILE__ keep it).
+#
+# AOSR_FAST_BUILD=OFF turns the precompiled headers and unity builds off (e.g. to check that every file includes
+# what it uses); ccache and the linker follow what is installed (CMAKE_CXX_COMPILER_LAUNCHER and
+# AOSR_LINKER override them).
+option(AOSR_FAST_BUILD "Precompiled headers and unity builds of the test suites (bench/results/build.md)" ON)
+set(AOSR_UNITY_BATCH 6 CACHE STRING "Test files compiled together in one unity translation unit")
+
+if(NOT CMAKE_CXX_COMPILER_LAUNCHER AND NOT DEFINED ENV{CMAKE_CXX_COMPILER_LAUNCHER})
+  find_program(AOSR_CCACHE ccache)
+  if(AOSR_CCACHE)
+    set(CMAKE_CXX_COMPILER_LAUNCHER ${CMAKE_COMMAND} -E env
+        "CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime" ${AOSR_CCACHE})
+    # ccache's preprocessor mode sees a precompiled header only through -fpch-preprocess (no effect without -E).
+    if(AOSR_FAST_BUILD AND CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+      add_compile_options(-fpch-preprocess)
+    endif()
+    message(STATUS "aosr: compiling through ccache (${AOSR_CCACHE})")
+  endif()
+endif()
+
+set(AOSR_LINKER "" CACHE STRING "Linker for -fuse-ld= (mold, lld, bfd, gold); empty: mold, else lld, else the default")
+if(AOSR_LINKER STREQUAL "")
+  find_program(_aosr_mold mold)
+  find_program(_aosr_lld ld.lld)
+  if(_aosr_mold)
+    set(_aosr_ld mold)
+  elseif(_aosr_lld)
+    set(_aosr_ld lld)
+  endif()
+else()
+  set(_aosr_ld ${AOSR_LINKER})
+endif()
+if(_aosr_ld)
+  include(CheckLinkerFlag)
+  check_linker_flag(CXX "-fuse-ld=${_aosr_ld}" AOSR_HAVE_LINKER_${_aosr_ld})
+  if(AOSR_HAVE_LINKER_${_aosr_ld})
+    add_link_options(-fuse-ld=${_aosr_ld})
+    message(STATUS "aosr: linking with ${_aosr_ld}")
+  endif()
+endif()
+
+# The headers worth precompiling: parsed by most files of a target and slow to parse (Eigen's templates above all;
+# <Eigen/Dense> brings the decompositions that the optics, AO, solver and design code instantiate; nlohmann's JSON
+# comes with the io layer's public config header).
+set(AOSR_PCH_LIBRARY_HEADERS <algorithm> <cmath> <complex> <functional> <memory> <string> <vector> <Eigen/Core>
+    <Eigen/Dense>)
+set(AOSR_PCH_JSON_HEADERS ${AOSR_PCH_LIBRARY_HEADERS} <nlohmann/json.hpp>)
+set(AOSR_PCH_TEST_HEADERS ${AOSR_PCH_JSON_HEADERS} <gtest/gtest.h> <gmock/gmock.h>)
+
+# aosr_precompile(TARGET HEADERS...): TARGET's files start from a precompiled header of HEADERS.
+function(aosr_precompile target)
+  if(AOSR_FAST_BUILD)
+    target_precompile_headers(${target} PRIVATE ${ARGN})
+  endif()
+endfunction()
+
+# aosr_unity(TARGET [BATCH]): TARGET's sources compiled in unity batches of BATCH (default AOSR_UNITY_BATCH)
+# files. A file with its own compile options is compiled alone (SKIP_UNITY_BUILD_INCLUSION where it is set).
+function(aosr_unity target)
+  set(batch ${AOSR_UNITY_BATCH})
+  if(ARGC GREATER 1)
+    set(batch ${ARGV1})
+  endif()
+  if(AOSR_FAST_BUILD)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_MODE BATCH UNITY_BUILD_BATCH_SIZE ${batch})
+  endif()
+endfunction()
