@@ -48,9 +48,9 @@ int HrImageFactor(const FitsHeader& h) {
   return hr && r >= 1 && r <= 64 ? int(r) : 0;
 }
 
-nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+nlohmann::json MtfNumber(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-nlohmann::json Crossing(const MtfCrossing& c) { return c.reached ? nlohmann::json(c.frequency) : nlohmann::json(nullptr); }
+nlohmann::json MtfCrossingJson(const MtfCrossing& c) { return c.reached ? nlohmann::json(c.frequency) : nlohmann::json(nullptr); }
 
 void RunMtf(const MtfArgs& a) {
   SlantedEdgeOptions o;
@@ -112,10 +112,10 @@ void RunMtf(const MtfArgs& a) {
           {"low", m.low},
           {"high", m.high},
           {"noise_rms", m.noise_rms},
-          {"contrast_to_noise", Number(m.contrast_to_noise)},
+          {"contrast_to_noise", MtfNumber(m.contrast_to_noise)},
           {"empty_bins", m.empty_bins}}},
-        {"mtf50_cycles_per_px", Crossing(m.mtf50)},
-        {"mtf10_cycles_per_px", Crossing(m.mtf10)},
+        {"mtf50_cycles_per_px", MtfCrossingJson(m.mtf50)},
+        {"mtf10_cycles_per_px", MtfCrossingJson(m.mtf10)},
         {"at", at},
         {"nyquist", m.has_nyquist ? nlohmann::json{{"r", r}, {"frequency", m.nyquist.frequency}, {"mtf", m.nyquist.mtf}}
                                   : nlohmann::json(nullptr)},

@@ -10,40 +10,40 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFunction = "MeasureSlantedEdgeMtf";
-constexpr double kBin = 1.0 / kEsfOversampling;  // Δ, px
-constexpr double kMinHalfWidthPx = 5.0;          // the ESF must reach this far on both sides of the edge
-constexpr Index kMinAcrossPx = 12;               // columns across the edge
-constexpr double kBadRowFraction = 0.1;          // rows without a rising edge tolerated
-constexpr double kPlateauTolerance = 1e-6;       // of the region's range
-constexpr double kPlateauFraction = 0.01;        // of the region's pixels
-constexpr double kCrossingGrid = 0.005;          // cycles/px, the scan for MTF50/MTF10
-constexpr double kNoiseFloor = 1e-9;             // of the contrast: rounding, not noise
-constexpr double kMaxTailSmoothingPx = 4.0;      // half-width cap of the LSF tails' running mean
+constexpr const char* kSlantedEdgeFn = "MeasureSlantedEdgeMtf";
+constexpr double kEsfBin = 1.0 / kEsfOversampling;  // Δ, px
+constexpr double kEsfMinHalfWidthPx = 5.0;          // the ESF must reach this far on both sides of the edge
+constexpr Index kEdgeMinAcrossPx = 12;               // columns across the edge
+constexpr double kEdgeBadRowFraction = 0.1;          // rows without a rising edge tolerated
+constexpr double kEdgePlateauTolerance = 1e-6;       // of the region's range
+constexpr double kEdgePlateauFraction = 0.01;        // of the region's pixels
+constexpr double kMtfCrossingGrid = 0.005;          // cycles/px, the scan for MTF50/MTF10
+constexpr double kEdgeNoiseFloor = 1e-9;             // of the contrast: rounding, not noise
+constexpr double kLsfMaxTailSmoothingPx = 4.0;      // half-width cap of the LSF tails' running mean
 
 // sinc(x) = sin(πx)/(πx), 1 at 0.
-double Sinc(double x) {
+double EdgeSinc(double x) {
   if (std::abs(x) < 1e-12) return 1.0;
   return std::sin(M_PI * x) / (M_PI * x);
 }
 
-std::string Fixed(double v, int digits) {
+std::string EdgeFixed(double v, int digits) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*f", digits, v);
   return buf;
 }
 
-[[noreturn]] void Refuse(const std::string& where, const std::string& what) {
-  throw InvalidArgument(std::string(kFunction) + ": no usable edge in " + where + ": " + what);
+[[noreturn]] void RefuseEdge(const std::string& where, const std::string& what) {
+  throw InvalidArgument(std::string(kSlantedEdgeFn) + ": no usable edge in " + where + ": " + what);
 }
 
 // A window of half-width h centred on c: Hamming 0.54 + 0.46 cos(π u), u = |x − c| / h, held at 0.08 beyond.
-double HammingAt(double x, double c, double h) {
+double EdgeHamming(double x, double c, double h) {
   const double u = std::min(1.0, std::abs(x - c) / h);
   return 0.54 + 0.46 * std::cos(M_PI * u);
 }
 
-struct LineFit {
+struct EdgeLineFit {
   double a = 0.0;  // x_e(y) = a + b y
   double b = 0.0;
   double rms = 0.0;
@@ -53,20 +53,20 @@ struct LineFit {
 
 // Step 2 of the header: per-row centroids of the windowed derivative around centre(y) = a + b y, and the
 // least-squares line through the good rows.
-LineFit FitEdge(const Image& a, double polarity, double contrast, double centre_a, double centre_b, Index y_first = 0,
+EdgeLineFit FitEdge(const Image& a, double polarity, double contrast, double centre_a, double centre_b, Index y_first = 0,
                 Index y_last = -1) {
   const Index rows = a.rows(), cols = a.cols();
   const double h = 0.5 * double(cols);
   std::vector<double> ys, xs;
   ys.reserve(rows);
   xs.reserve(rows);
-  LineFit fit;
+  EdgeLineFit fit;
   if (y_last < 0) y_last = rows - 1;
   for (Index y = y_first; y <= y_last; ++y) {
     const double c = centre_a + centre_b * double(y);
     double s0 = 0.0, s1 = 0.0;
     for (Index x = 1; x + 1 < cols; ++x) {
-      const double g = polarity * 0.5 * (a(y, x + 1) - a(y, x - 1)) * HammingAt(double(x), c, h);
+      const double g = polarity * 0.5 * (a(y, x + 1) - a(y, x - 1)) * EdgeHamming(double(x), c, h);
       s0 += g;
       s1 += g * double(x);
     }
@@ -151,7 +151,7 @@ class LsfSpectrum {
       re += weighted_[k] * std::cos(phase);
       im += weighted_[k] * std::sin(phase);
     }
-    return std::hypot(re, im) / dc_ / (Sinc(2.0 * f * kBin) * Sinc(f * kBin));
+    return std::hypot(re, im) / dc_ / (EdgeSinc(2.0 * f * kEsfBin) * EdgeSinc(f * kEsfBin));
   }
 
  private:
@@ -163,7 +163,7 @@ class LsfSpectrum {
 
 // Step 4's tail smoothing: beyond T = 2 h + 2 px from the ESF's 50 % point (h: the larger of its distances to the
 // 5 % and 95 % points), each LSF bin becomes the mean of the bins within ±min(4, (|d − d50| − T)/2) px.
-std::vector<double> SmoothTails(const std::vector<double>& d, const std::vector<double>& esf, const std::vector<double>& lsf,
+std::vector<double> SmoothLsfTails(const std::vector<double>& d, const std::vector<double>& esf, const std::vector<double>& lsf,
                                 double low, double high) {
   const std::size_t m = esf.size();
   auto level = [&](double p) { return low + p * (high - low); };
@@ -180,20 +180,20 @@ std::vector<double> SmoothTails(const std::vector<double>& d, const std::vector<
   for (std::size_t k = 0; k < m; ++k) {
     const double beyond = std::abs(d[k] - d50) - t;
     if (beyond <= 0) continue;
-    const long h = long(std::floor(std::min(kMaxTailSmoothingPx, 0.5 * beyond) / kBin));
+    const long h = long(std::floor(std::min(kLsfMaxTailSmoothingPx, 0.5 * beyond) / kEsfBin));
     const long lo = std::max(0L, long(k) - h), hi = std::min(long(m) - 1, long(k) + h);
     out[k] = (prefix[std::size_t(hi) + 1] - prefix[std::size_t(lo)]) / double(hi - lo + 1);
   }
   return out;
 }
 
-MtfCrossing FindCrossing(const LsfSpectrum& mtf, double level) {
+MtfCrossing FindMtfCrossing(const LsfSpectrum& mtf, double level) {
   MtfCrossing c;
   c.level = level;
   double f0 = 0.0;
-  const int steps = int(std::floor(kMaxMtfFrequency / kCrossingGrid + 1e-9));
+  const int steps = int(std::floor(kMaxMtfFrequency / kMtfCrossingGrid + 1e-9));
   for (int i = 1; i <= steps; ++i) {
-    const double f1 = i * kCrossingGrid;
+    const double f1 = i * kMtfCrossingGrid;
     const double m1 = mtf(f1);
     if (m1 <= level) {
       double lo = f0, hi = f1;  // MTF(lo) > level >= MTF(hi)
@@ -210,7 +210,7 @@ MtfCrossing FindCrossing(const LsfSpectrum& mtf, double level) {
   return c;
 }
 
-std::string RoiName(const PixelRoi& r) {
+std::string EdgeRoiName(const PixelRoi& r) {
   return "the region x0 = " + std::to_string(r.x0) + ", y0 = " + std::to_string(r.y0) + ", " +
          std::to_string(r.width) + " x " + std::to_string(r.height) + " px (width x height)";
 }
@@ -226,7 +226,7 @@ bool SlantedEdgeOptions::IsValid(std::string* why) const {
     return fail("roi = (" + std::to_string(roi.x0) + ", " + std::to_string(roi.y0) + ", " + std::to_string(roi.width) +
                 ", " + std::to_string(roi.height) + "): x0, y0, width, height must be >= 0");
   if (!(tukey_taper > 0.0 && tukey_taper <= 1.0)) return fail("tukey_taper = " + ToString(tukey_taper) + ": must be in (0, 1]");
-  if (!(esf_half_width_px == 0.0 || (esf_half_width_px >= kMinHalfWidthPx && esf_half_width_px <= 1e6)))
+  if (!(esf_half_width_px == 0.0 || (esf_half_width_px >= kEsfMinHalfWidthPx && esf_half_width_px <= 1e6)))
     return fail("esf_half_width_px = " + ToString(esf_half_width_px) + ": must be 0 (all the region gives) or in [5, 1e6]");
   if (min_edge_length_px < 8 || min_edge_length_px > 1000000)
     return fail("min_edge_length_px = " + std::to_string(min_edge_length_px) + ": must be in [8, 1e6]");
@@ -250,31 +250,31 @@ bool SlantedEdgeOptions::IsValid(std::string* why) const {
 }
 
 std::string SlantedEdgeMtf::BriefReport() const {
-  auto f = [](const MtfCrossing& c) { return c.reached ? Fixed(c.frequency, 4) + " cyc/px" : std::string("not reached"); };
+  auto f = [](const MtfCrossing& c) { return c.reached ? EdgeFixed(c.frequency, 4) + " cyc/px" : std::string("not reached"); };
   return "MTF50 " + f(mtf50) + ", MTF10 " + f(mtf10) + ", " + (vertical ? "near-vertical" : "near-horizontal") +
-         " edge at " + Fixed(angle_deg, 2) + " deg, contrast-to-noise " +
-         (std::isfinite(contrast_to_noise) ? Fixed(contrast_to_noise, 1) : std::string("inf"));
+         " edge at " + EdgeFixed(angle_deg, 2) + " deg, contrast-to-noise " +
+         (std::isfinite(contrast_to_noise) ? EdgeFixed(contrast_to_noise, 1) : std::string("inf"));
 }
 
 SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kFunction) + ": invalid options: " + why);
-  CheckArgument(image.size() > 0, kFunction, "image", ToString(ShapeOf(image)), "a non-empty image");
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kSlantedEdgeFn) + ": invalid options: " + why);
+  CheckArgument(image.size() > 0, kSlantedEdgeFn, "image", ToString(ShapeOf(image)), "a non-empty image");
   PixelRoi roi = options.roi;
   if (roi.width == 0) roi.width = image.cols() - roi.x0;
   if (roi.height == 0) roi.height = image.rows() - roi.y0;
   if (roi.x0 >= image.cols() || roi.y0 >= image.rows() || roi.width <= 0 || roi.height <= 0 ||
       roi.x0 + roi.width > image.cols() || roi.y0 + roi.height > image.rows())
-    throw InvalidArgument(kFunction, "roi",
+    throw InvalidArgument(kSlantedEdgeFn, "roi",
                           "x0 = " + std::to_string(options.roi.x0) + ", y0 = " + std::to_string(options.roi.y0) +
                               ", width = " + std::to_string(options.roi.width) +
                               ", height = " + std::to_string(options.roi.height),
                           "a region inside the " + ToString(ShapeOf(image)) + " image (rows x cols)");
-  const std::string where = RoiName(roi);
+  const std::string where = EdgeRoiName(roi);
   const Image region = image.block(roi.y0, roi.x0, roi.height, roi.width);
-  if (!AllFinite(region)) throw InvalidArgument(kFunction, "image", "(NaN or Inf in " + where + ")", "finite pixels");
+  if (!AllFinite(region)) throw InvalidArgument(kSlantedEdgeFn, "image", "(NaN or Inf in " + where + ")", "finite pixels");
   const double vmax = region.maxCoeff(), vmin = region.minCoeff();
-  if (!(vmax > vmin)) Refuse(where, "no edge: the region is flat (every pixel is " + ToString(vmin) + ")");
+  if (!(vmax > vmin)) RefuseEdge(where, "no edge: the region is flat (every pixel is " + ToString(vmin) + ")");
 
   // 1. Orientation: the edge runs along the direction of the smaller summed differences.
   double sum_dx = 0.0, sum_dy = 0.0;
@@ -290,12 +290,12 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   const char* across = out.vertical ? "columns" : "rows";
   out.edge_length_px = rows;
   if (rows < options.min_edge_length_px)
-    Refuse(where, std::string("too short: the ") + (out.vertical ? "near-vertical" : "near-horizontal") + " edge spans " +
+    RefuseEdge(where, std::string("too short: the ") + (out.vertical ? "near-vertical" : "near-horizontal") + " edge spans " +
                       std::to_string(rows) + " " + along + ", fewer than min_edge_length_px = " +
                       std::to_string(options.min_edge_length_px) + "; use a longer region");
-  if (cols < kMinAcrossPx)
-    Refuse(where, "too short across the edge: " + std::to_string(cols) + " " + across + ", fewer than " +
-                      std::to_string(kMinAcrossPx));
+  if (cols < kEdgeMinAcrossPx)
+    RefuseEdge(where, "too short across the edge: " + std::to_string(cols) + " " + across + ", fewer than " +
+                      std::to_string(kEdgeMinAcrossPx));
 
   // Polarity and a first contrast: the outer quarters of the columns.
   const Index q = std::max<Index>(1, cols / 4);
@@ -303,12 +303,12 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   const double polarity = right >= left ? 1.0 : -1.0;
   const double contrast0 = std::abs(right - left);
   if (!(contrast0 > 0.25 * (vmax - vmin)))
-    Refuse(where, "no edge: the outer quarters of the region differ by " + ToString(contrast0) + ", less than a quarter of its range " +
+    RefuseEdge(where, "no edge: the outer quarters of the region differ by " + ToString(contrast0) + ", less than a quarter of its range " +
                       ToString(vmax - vmin) + ": a bar, a line or a spot, not one edge between two levels");
 
   // 2. The edge line, twice.
-  LineFit fit = FitEdge(a, polarity, contrast0, 0.5 * double(cols - 1), 0.0);
-  if (fit.bad_rows <= int(kBadRowFraction * double(rows))) {
+  EdgeLineFit fit = FitEdge(a, polarity, contrast0, 0.5 * double(cols - 1), 0.0);
+  if (fit.bad_rows <= int(kEdgeBadRowFraction * double(rows))) {
     // The second pass fits the centred rows spanning a whole number of pixels of phase (step 3): a sharp edge's
     // centroids carry a bias periodic in the phase, which a whole number of periods leaves out of the slope.
     const double span = double(rows) * std::abs(fit.b) / std::sqrt(1.0 + fit.b * fit.b);
@@ -321,21 +321,21 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
     fit = FitEdge(a, polarity, contrast0, fit.a, fit.b, first, last);
   }
   // The rows without an edge may be those where the edge has left the region: say so when the line through the
-  // others (at least half the rows, the bad ones all at the ends) comes within kMinHalfWidthPx of a side.
-  const auto leaves = [&](const LineFit& f) {
+  // others (at least half the rows, the bad ones all at the ends) comes within kEsfMinHalfWidthPx of a side.
+  const auto leaves = [&](const EdgeLineFit& f) {
     const double first = f.a, last = f.a + f.b * double(rows - 1);
     return std::min(std::min(first, last), double(cols - 1) - std::max(first, last)) / std::sqrt(1.0 + f.b * f.b);
   };
   auto refuse_leaving = [&](double margin) {
-    Refuse(where, "the edge leaves the region: in some " + std::string(along) + " it lies " + Fixed(std::max(0.0, margin), 2) +
-                      " px from the region's side (or beyond it), fewer than " + ToString(kMinHalfWidthPx) +
+    RefuseEdge(where, "the edge leaves the region: in some " + std::string(along) + " it lies " + EdgeFixed(std::max(0.0, margin), 2) +
+                      " px from the region's side (or beyond it), fewer than " + ToString(kEsfMinHalfWidthPx) +
                       " px; centre the region on the edge or widen it");
   };
-  if (fit.bad_rows > int(kBadRowFraction * double(rows)) && 2 * fit.bad_rows <= rows && fit.inner_bad_rows == 0 &&
-      leaves(fit) < kMinHalfWidthPx)
+  if (fit.bad_rows > int(kEdgeBadRowFraction * double(rows)) && 2 * fit.bad_rows <= rows && fit.inner_bad_rows == 0 &&
+      leaves(fit) < kEsfMinHalfWidthPx)
     refuse_leaving(leaves(fit));
-  if (fit.bad_rows > int(kBadRowFraction * double(rows)))
-    Refuse(where, "no edge: " + std::to_string(fit.bad_rows) + " of " + std::to_string(rows) + " " + along +
+  if (fit.bad_rows > int(kEdgeBadRowFraction * double(rows)))
+    RefuseEdge(where, "no edge: " + std::to_string(fit.bad_rows) + " of " + std::to_string(rows) + " " + along +
                       " hold no single rising edge (their windowed derivative sums to less than a quarter of the "
                       "contrast " + ToString(contrast0) + "); the region must hold one straight edge, not a bar or "
                       "a corner");
@@ -344,24 +344,24 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   out.angle_deg = std::atan(b) * 180.0 / M_PI;
   out.fit_rms_px = fit.rms;
   if (std::abs(out.angle_deg) > options.max_angle_deg)
-    Refuse(where, "too tilted: the edge is " + Fixed(std::abs(out.angle_deg), 1) + " deg from the " +
+    RefuseEdge(where, "too tilted: the edge is " + EdgeFixed(std::abs(out.angle_deg), 1) + " deg from the " +
                       (out.vertical ? "vertical" : "horizontal") + ", more than max_angle_deg = " +
                       ToString(options.max_angle_deg) + " (ISO 12233 edges are ~5 deg off an axis)");
   const double phase_span = double(rows) * std::abs(b) * cos_t;
   if (phase_span < 1.0)
-    Refuse(where, std::string("too close to ") + (out.vertical ? "vertical" : "horizontal") + ": the edge is at " +
-                      Fixed(out.angle_deg, 2) + " deg, so over its " + std::to_string(rows) + " " + along +
-                      " it moves across by " + Fixed(phase_span, 2) +
+    RefuseEdge(where, std::string("too close to ") + (out.vertical ? "vertical" : "horizontal") + ": the edge is at " +
+                      EdgeFixed(out.angle_deg, 2) + " deg, so over its " + std::to_string(rows) + " " + along +
+                      " it moves across by " + EdgeFixed(phase_span, 2) +
                       " px, less than one pixel, and the 4x oversampled ESF has empty phases; tilt it by at least " +
-                      Fixed(std::atan(1.0 / double(rows)) * 180.0 / M_PI, 2) + " deg (2-10 deg is usual) or use a longer region");
+                      EdgeFixed(std::atan(1.0 / double(rows)) * 180.0 / M_PI, 2) + " deg (2-10 deg is usual) or use a longer region");
 
   // 3. The range every row covers, symmetric about the edge.
   const double xe_first = fit.a, xe_last = fit.a + b * double(rows - 1);
   const double xe_min = std::min(xe_first, xe_last), xe_max = std::max(xe_first, xe_last);
   double half = std::min(xe_min, double(cols - 1) - xe_max) * cos_t;
-  if (half < kMinHalfWidthPx) refuse_leaving(half);
+  if (half < kEsfMinHalfWidthPx) refuse_leaving(half);
   if (options.esf_half_width_px > 0) half = std::min(half, options.esf_half_width_px);
-  const int kmax = int(std::floor(half / kBin));
+  const int kmax = int(std::floor(half / kEsfBin));
   const std::size_t m = std::size_t(2 * kmax + 1);
 
   // The rows binned: a whole number of phase cycles (the edge crosses a whole number of pixels over them, as
@@ -375,7 +375,7 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
 
   // Distances (+ toward the bright side), bins, and the clipping plateaus over the binned rows.
   const double range = vmax - vmin;
-  const double tol = kPlateauTolerance * range;
+  const double tol = kEdgePlateauTolerance * range;
   std::vector<double> sum(m, 0.0), sum_d(m, 0.0);
   std::vector<int> count(m, 0);
   Index n_top = 0, n_bottom = 0, n_in = 0;
@@ -385,7 +385,7 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
     for (Index x = 0; x < cols; ++x) {
       const double d = polarity * (double(x) - xe) * cos_t;
       const double v = a(y, x);
-      const long k = std::lround(d / kBin);
+      const long k = std::lround(d / kEsfBin);
       if (k < -kmax || k > kmax) continue;
       ++n_in;
       if (v >= vmax - tol) ++n_top, d_top = std::min(d_top, std::abs(d));
@@ -395,7 +395,7 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
       ++count[std::size_t(k + kmax)];
     }
   }
-  const Index plateau_min = std::max<Index>(4, Index(std::ceil(kPlateauFraction * double(n_in))));
+  const Index plateau_min = std::max<Index>(4, Index(std::ceil(kEdgePlateauFraction * double(n_in))));
   const bool top = n_top >= plateau_min, bottom = n_bottom >= plateau_min;
   auto clipped = [&](bool here, bool there, double d_here, double d_there) { return here && (!there || d_here < 0.5 * d_there); };
   const bool clip_top = clipped(top, bottom, d_top, d_bottom), clip_bottom = clipped(bottom, top, d_bottom, d_top);
@@ -403,10 +403,10 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
     const bool t = clip_top;
     const Index n = t ? n_top : n_bottom;
     const double d_here = t ? d_top : d_bottom, d_there = t ? d_bottom : d_top;
-    Refuse(where, std::string("clipped (saturated) at its ") + (t ? "maximum " : "minimum ") + ToString(t ? vmax : vmin) +
-                      ": " + std::to_string(n) + " pixels sit at that value from " + Fixed(d_here, 2) +
+    RefuseEdge(where, std::string("clipped (saturated) at its ") + (t ? "maximum " : "minimum ") + ToString(t ? vmax : vmin) +
+                      ": " + std::to_string(n) + " pixels sit at that value from " + EdgeFixed(d_here, 2) +
                       " px of the edge on, while the " + (t ? "minimum" : "maximum") + "'s plateau " +
-                      (std::isfinite(d_there) && (t ? bottom : top) ? "starts " + Fixed(d_there, 2) + " px away"
+                      (std::isfinite(d_there) && (t ? bottom : top) ? "starts " + EdgeFixed(d_there, 2) + " px away"
                                                                       : "does not exist") +
                       "; a symmetric blur approaches both levels alike: lower the exposure or pick an unsaturated edge");
   }
@@ -422,26 +422,26 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
       ++out.empty_bins;
       continue;
     }
-    Refuse(where, "too close to a critical angle: at " + Fixed(out.angle_deg, 2) +
+    RefuseEdge(where, "too close to a critical angle: at " + EdgeFixed(out.angle_deg, 2) +
                       " deg the pixels' distances to the edge fall on a lattice and the 4x oversampled ESF has two "
-                      "empty bins in a row near d = " + Fixed((double(k) - kmax) * kBin, 2) +
+                      "empty bins in a row near d = " + EdgeFixed((double(k) - kmax) * kEsfBin, 2) +
                       " px; change the angle slightly (2-10 deg off a small-integer ratio) or the region's length");
   }
 
   std::vector<double> dist(m);
-  for (std::size_t k = 0; k < m; ++k) dist[k] = (double(k) - kmax) * kBin;
+  for (std::size_t k = 0; k < m; ++k) dist[k] = (double(k) - kmax) * kEsfBin;
   const std::size_t quarter = std::max<std::size_t>(1, m / 4);
   double lo_sum = 0.0, hi_sum = 0.0;
   for (std::size_t k = 0; k < quarter; ++k) lo_sum += esf[k], hi_sum += esf[m - 1 - k];
   out.low = lo_sum / double(quarter);
   out.high = hi_sum / double(quarter);
   const double contrast = out.high - out.low;
-  if (!(contrast > 0.0)) Refuse(where, "no edge: the ESF's outer quarters have the same level");
+  if (!(contrast > 0.0)) RefuseEdge(where, "no edge: the ESF's outer quarters have the same level");
   // One edge steps from one level to the other; a bar or a line rises and falls back (its ESF spans far more
   // than the step between its ends). Ringing or overshoot of a sharpened edge stays well inside this.
   const double esf_range = *std::max_element(esf.begin(), esf.end()) - *std::min_element(esf.begin(), esf.end());
   if (contrast < 0.5 * esf_range)
-    Refuse(where, "no edge: the ESF spans " + ToString(esf_range) + " but steps by only " + ToString(contrast) +
+    RefuseEdge(where, "no edge: the ESF spans " + ToString(esf_range) + " but steps by only " + ToString(contrast) +
                       " between its ends: the region holds a bar or a line, not one edge");
 
   // Noise: the robust residual of the pixels about the ESF (linear between bin centres).
@@ -450,7 +450,7 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   for (Index y = y_begin; y < y_end; ++y) {
     const double xe = fit.a + b * double(y);
     for (Index x = 0; x < cols; ++x) {
-      const double t = polarity * (double(x) - xe) * cos_t / kBin + kmax;
+      const double t = polarity * (double(x) - xe) * cos_t / kEsfBin + kmax;
       if (t < 0.0 || t > double(m - 1)) continue;
       const std::size_t k = std::min(std::size_t(t), m - 2);
       const double w = t - double(k);
@@ -461,23 +461,23 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   std::nth_element(residual.begin(), mid, residual.end());
   // Below 1e-9 of the contrast the residual is the arithmetic's, not noise: a noise-free image.
   out.noise_rms = 1.4826 * *mid;
-  if (out.noise_rms < kNoiseFloor * (out.high - out.low)) out.noise_rms = 0.0;
+  if (out.noise_rms < kEdgeNoiseFloor * (out.high - out.low)) out.noise_rms = 0.0;
   out.contrast_to_noise = out.noise_rms > 0 ? contrast / out.noise_rms : std::numeric_limits<double>::infinity();
   if (out.contrast_to_noise < options.min_contrast_to_noise)
-    Refuse(where, "too noisy: contrast-to-noise " + Fixed(out.contrast_to_noise, 1) + " (contrast " + ToString(contrast) +
+    RefuseEdge(where, "too noisy: contrast-to-noise " + EdgeFixed(out.contrast_to_noise, 1) + " (contrast " + ToString(contrast) +
                       ", noise RMS " + ToString(out.noise_rms) + "), below min_contrast_to_noise = " +
                       ToString(options.min_contrast_to_noise) + "; average more frames or use a higher-contrast edge");
 
   // 4. LSF.
   std::vector<double> lsf(m);
-  for (std::size_t k = 1; k + 1 < m; ++k) lsf[k] = (esf[k + 1] - esf[k - 1]) / (2.0 * kBin);
-  lsf[0] = (esf[1] - esf[0]) / kBin;
-  lsf[m - 1] = (esf[m - 1] - esf[m - 2]) / kBin;
+  for (std::size_t k = 1; k + 1 < m; ++k) lsf[k] = (esf[k + 1] - esf[k - 1]) / (2.0 * kEsfBin);
+  lsf[0] = (esf[1] - esf[0]) / kEsfBin;
+  lsf[m - 1] = (esf[m - 1] - esf[m - 2]) / kEsfBin;
   // The DFT's phases at each bin's mean sample distance rather than its centre (header, step 5).
   std::vector<double> where_k(m);
   for (std::size_t k = 0; k < m; ++k) where_k[k] = count[k] > 0 ? sum_d[k] / count[k] : dist[k];
-  const LsfSpectrum spectrum(where_k, options.smooth_tails ? SmoothTails(dist, esf, lsf, out.low, out.high) : lsf, options);
-  if (!(spectrum.dc() > 0.0)) Refuse(where, "no edge: the windowed LSF sums to zero");
+  const LsfSpectrum spectrum(where_k, options.smooth_tails ? SmoothLsfTails(dist, esf, lsf, out.low, out.high) : lsf, options);
+  if (!(spectrum.dc() > 0.0)) RefuseEdge(where, "no edge: the windowed LSF sums to zero");
 
   // 5. The curve and its figures.
   const int n = int(std::floor(options.curve_max / options.curve_step + 1e-9));
@@ -486,8 +486,8 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
     out.frequency.push_back(f);
     out.mtf.push_back(spectrum(f));
   }
-  out.mtf50 = FindCrossing(spectrum, 0.5);
-  out.mtf10 = FindCrossing(spectrum, 0.1);
+  out.mtf50 = FindMtfCrossing(spectrum, 0.5);
+  out.mtf10 = FindMtfCrossing(spectrum, 0.1);
   for (double f : options.frequencies) out.at.push_back({f, spectrum(f)});
   if (options.r > 0) {
     out.has_nyquist = true;

@@ -10,21 +10,21 @@
 namespace aosr {
 namespace {
 
-constexpr const char* kFunction = "MeasureUsafResolvingPower";
-constexpr double kMinBarWidthPx = 0.5;
+constexpr const char* kUsafContrastFn = "MeasureUsafResolvingPower";
+constexpr double kUsafMinBarWidthPx = 0.5;
 
-struct Triplet {
+struct UsafTriplet {
   std::vector<PixelRect> vertical;    // 3 bars long along y, by increasing x
   std::vector<PixelRect> horizontal;  // 3 bars long along x, by increasing y
 };
 
-bool Inside(const PixelRect& r, Shape s) {
+bool UsafBarInside(const PixelRect& r, Shape s) {
   return r.top >= -0.5 && r.left >= -0.5 && r.bottom() <= double(s.rows) - 0.5 && r.right() <= double(s.cols) - 0.5;
 }
 
 // Michelson contrast of three bars seen in `img` (transposed: the bars are the horizontal ones, read along y).
 // `bars` are in the (possibly transposed) image's coordinates: long along its rows' index, spaced along columns.
-double TripletContrast(const Image& img, const std::vector<PixelRect>& bars) {
+double UsafTripletContrast(const Image& img, const std::vector<PixelRect>& bars) {
   const PixelRect& first = bars.front();
   const double w = first.width;
   // Rows in the middle three fifths of the bars' length.
@@ -55,7 +55,7 @@ double TripletContrast(const Image& img, const std::vector<PixelRect>& bars) {
 }
 
 // Transposes a horizontal bar's rectangle into the transposed image's coordinates.
-PixelRect Transposed(const PixelRect& r) { return {r.left, r.top, r.width, r.height}; }
+PixelRect TransposedRect(const PixelRect& r) { return {r.left, r.top, r.width, r.height}; }
 
 }  // namespace
 
@@ -74,14 +74,14 @@ bool UsafContrastOptions::IsValid(std::string* why) const {
 UsafResolvingPower MeasureUsafResolvingPower(const Image& image, const UsafOptions& target,
                                              const UsafContrastOptions& options) {
   std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kFunction) + ": invalid options: " + why);
-  if (!target.IsValid(&why)) throw InvalidArgument(std::string(kFunction) + ": invalid target: " + why);
-  CheckArgument(image.size() > 0, kFunction, "image", ToString(ShapeOf(image)), "a non-empty image");
-  if (!AllFinite(image)) throw InvalidArgument(kFunction, "image", "(NaN or Inf)", "finite pixels");
+  if (!options.IsValid(&why)) throw InvalidArgument(std::string(kUsafContrastFn) + ": invalid options: " + why);
+  if (!target.IsValid(&why)) throw InvalidArgument(std::string(kUsafContrastFn) + ": invalid target: " + why);
+  CheckArgument(image.size() > 0, kUsafContrastFn, "image", ToString(ShapeOf(image)), "a non-empty image");
+  if (!AllFinite(image)) throw InvalidArgument(kUsafContrastFn, "image", "(NaN or Inf)", "finite pixels");
   const Shape shape = ShapeOf(image);
-  std::map<std::pair<int, int>, Triplet> triplets;
+  std::map<std::pair<int, int>, UsafTriplet> triplets;
   for (const UsafBar& b : UsafBars(shape, target)) {
-    Triplet& t = triplets[{b.group, b.element}];
+    UsafTriplet& t = triplets[{b.group, b.element}];
     (b.horizontal ? t.horizontal : t.vertical).push_back(b.rect);
   }
   const Image reference = UsafTarget(shape, target);
@@ -97,18 +97,18 @@ UsafResolvingPower MeasureUsafResolvingPower(const Image& image, const UsafOptio
     c.cycles_per_px = 0.5 / e.bar_width_px;
     if (options.r > 0) c.cycles_per_camera_px = options.r * c.cycles_per_px;
     if (options.hr_pixel_lambda_over_d > 0) c.cycles_per_lambda_over_d = c.cycles_per_px / options.hr_pixel_lambda_over_d;
-    const Triplet& t = triplets[{e.group, e.element}];
+    const UsafTriplet& t = triplets[{e.group, e.element}];
     bool inside = t.vertical.size() == 3 && t.horizontal.size() == 3;
-    for (const PixelRect& r : t.vertical) inside = inside && Inside(r, shape);
-    for (const PixelRect& r : t.horizontal) inside = inside && Inside(r, shape);
-    c.measured = inside && e.bar_width_px >= kMinBarWidthPx;
+    for (const PixelRect& r : t.vertical) inside = inside && UsafBarInside(r, shape);
+    for (const PixelRect& r : t.horizontal) inside = inside && UsafBarInside(r, shape);
+    c.measured = inside && e.bar_width_px >= kUsafMinBarWidthPx;
     if (c.measured) {
       std::vector<PixelRect> h;
-      for (const PixelRect& r : t.horizontal) h.push_back(Transposed(r));
-      c.contrast_x = TripletContrast(image, t.vertical);
-      c.contrast_y = TripletContrast(image_t, h);
+      for (const PixelRect& r : t.horizontal) h.push_back(TransposedRect(r));
+      c.contrast_x = UsafTripletContrast(image, t.vertical);
+      c.contrast_y = UsafTripletContrast(image_t, h);
       c.contrast = std::min(c.contrast_x, c.contrast_y);
-      const double ref = std::min(TripletContrast(reference, t.vertical), TripletContrast(reference_t, h));
+      const double ref = std::min(UsafTripletContrast(reference, t.vertical), UsafTripletContrast(reference_t, h));
       c.transfer = ref > 0 ? c.contrast / ref : 0.0;
       c.resolved = c.contrast >= options.threshold;
     }
