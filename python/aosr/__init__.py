@@ -42,6 +42,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     evaluate,
     fourier_shift,
     methods,
+    mtf,
     open_dataset,
     psf,
     psnr,
@@ -59,6 +60,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     stars_psf,
     synthesize_calibration,
     threads,
+    usaf_resolving_power,
     write_fits,
 )
 
@@ -66,9 +68,9 @@ __all__ = [
     "CalibrationSet", "Dataset", "Error", "InvalidArgument", "IoError", "NumericalError", "Reconstruction",
     "ResourceError", "Scene", "calibrate", "compare_images", "compare_images_aligned", "compare_images_rings", "data_path", "design",
     "evaluate", "fourier_shift", "load_scene",
-    "methods", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
+    "methods", "mtf", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
     "scene_from_dict", "set_fft_planner", "fft_wisdom_loaded", "allocator_tuned", "tune_allocator", "set_memory_limit", "set_threads", "simulate", "stars_psf",
-    "synthesize_calibration", "threads", "write_fits",
+    "synthesize_calibration", "threads", "usaf_resolving_power", "write_fits",
 ]
 
 

@@ -35,6 +35,10 @@ def compare_images_rings(truth: ArrayLike, estimate: ArrayLike, *, rings: int = 
                          centre: Optional[Tuple[float, float]] = None, crop: int = 0,
                          peak: float = 0.0) -> Dict[str, Any]: ...
 def fourier_shift(image: ArrayLike, dy: float, dx: float) -> np.ndarray: ...
+def mtf(image: ArrayLike, *, roi: Optional[Sequence[int]] = None, r: int = 0, pixel_lambda_over_d: float = 0.0,
+        frequencies: Sequence[float] = (), window: str = "tukey", esf_half_width: float = 0.0,
+        min_contrast_to_noise: float = 10.0, max_angle_deg: float = 40.0, curve_max: float = 1.0,
+        curve_step: float = 0.01) -> Dict[str, Any]: ...
 
 # io
 def read_fits(path: PathLike, *, with_comments: bool = False) -> Tuple[np.ndarray, ...]: ...
@@ -128,6 +132,9 @@ def evaluate(estimate: Union[ArrayLike, PathLike], *, truth: Union[ArrayLike, Pa
              dataset: Union[Dataset, PathLike, None] = None, crop: Optional[int] = None, peak: float = 0.0,
              stars: int = 20, aperture: float = 3.0, subtract_sky: Optional[bool] = None, rings: int = 0,
              ring_centre: Optional[Tuple[float, float]] = None) -> Dict[str, Any]: ...
+
+def usaf_resolving_power(image: Union[ArrayLike, PathLike], scene: Union[Scene, PathLike], *,
+                         threshold: float = 0.153) -> Dict[str, Any]: ...
 
 # optics (through the scene layer's presets)
 def psf(preset: PathLike, *, mode: Optional[str] = None,

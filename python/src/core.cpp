@@ -1,5 +1,5 @@
-// Bindings of the core layer: the error types, execution settings (threads, FFT planner, memory limit) and
-// the image metrics.
+// Bindings of the core layer: the error types, execution settings (threads, FFT planner, memory limit),
+// the image metrics and the slanted-edge MTF.
 #include <algorithm>
 #include <cmath>
 #include <thread>
@@ -9,6 +9,7 @@
 #include "aosr/core/memory.hpp"
 #include "aosr/core/metrics.hpp"
 #include "aosr/core/parallel.hpp"
+#include "aosr/core/slanted_edge.hpp"
 #include "aosr/scene/telescope.hpp"
 #include "common.hpp"
 
@@ -227,6 +228,70 @@ void BindCore(py::module_& m) {
       py::arg("image"), py::arg("dy"), py::arg("dx"),
       "The image moved by (dy, dx) px on its periodic grid, out(y, x) = image(y - dy, x - dx): a Fourier (sinc)\n"
       "shift (core/metrics.hpp FourierShiftImage).");
+  m.def(
+      "mtf",
+      [](py::handle image, py::object roi, int r, double pixel_lambda_over_d, std::vector<double> frequencies,
+         const std::string& window, double esf_half_width, double min_contrast_to_noise, double max_angle_deg,
+         double curve_max, double curve_step) {
+        const Image x = ImageFromArray(image, "image");
+        SlantedEdgeOptions o;
+        if (!roi.is_none()) {
+          const std::vector<long long> v = roi.cast<std::vector<long long>>();
+          if (v.size() != 4 || v[2] <= 0 || v[3] <= 0)
+            throw InvalidArgument("aosr.mtf", "roi", ToString(py::str(roi).cast<std::string>()),
+                                  "(x0, y0, width, height) with width, height >= 1");
+          o.roi = {Index(v[0]), Index(v[1]), Index(v[2]), Index(v[3])};
+        }
+        if (window != "tukey" && window != "hamming")
+          throw InvalidArgument("aosr.mtf", "window", "'" + window + "'", "'tukey' or 'hamming'");
+        o.window = window == "hamming" ? LsfWindow::kHamming : LsfWindow::kTukey;
+        o.r = r;
+        o.pixel_lambda_over_d = pixel_lambda_over_d;
+        o.frequencies = std::move(frequencies);
+        o.esf_half_width_px = esf_half_width;
+        o.min_contrast_to_noise = min_contrast_to_noise;
+        o.max_angle_deg = max_angle_deg;
+        o.curve_max = curve_max;
+        o.curve_step = curve_step;
+        std::string why;
+        if (!o.IsValid(&why)) throw InvalidArgument("aosr.mtf: " + why);
+        const SlantedEdgeMtf e = WithoutGil([&] { return MeasureSlantedEdgeMtf(x, o); });
+        auto array = [](const std::vector<double>& v) { return py::array_t<double>(py::ssize_t(v.size()), v.data()); };
+        auto crossing = [](const MtfCrossing& c) { return c.reached ? py::object(py::float_(c.frequency)) : py::object(py::none()); };
+        py::dict d;
+        d["frequency"] = array(e.frequency);
+        d["mtf"] = array(e.mtf);
+        d["mtf50"] = crossing(e.mtf50);
+        d["mtf10"] = crossing(e.mtf10);
+        py::list at;
+        for (const MtfPoint& p : e.at) at.append(py::make_tuple(p.frequency, p.mtf));
+        d["at"] = at;
+        d["nyquist"] = e.has_nyquist ? py::object(py::dict(py::arg("frequency") = e.nyquist.frequency, py::arg("mtf") = e.nyquist.mtf))
+                                     : py::object(py::none());
+        d["cutoff"] = e.has_cutoff ? py::object(py::dict(py::arg("frequency") = e.cutoff.frequency, py::arg("mtf") = e.cutoff.mtf))
+                                   : py::object(py::none());
+        d["edge"] = py::dict(py::arg("orientation") = e.vertical ? "vertical" : "horizontal", py::arg("angle_deg") = e.angle_deg,
+                             py::arg("centre_px") = py::make_tuple(e.centre_y, e.centre_x), py::arg("length_px") = e.edge_length_px,
+                             py::arg("fit_rms_px") = e.fit_rms_px, py::arg("low") = e.low, py::arg("high") = e.high,
+                             py::arg("noise_rms") = e.noise_rms, py::arg("contrast_to_noise") = e.contrast_to_noise,
+                             py::arg("empty_bins") = e.empty_bins);
+        d["esf_distance"] = array(e.esf_distance);
+        d["esf"] = array(e.esf);
+        d["lsf"] = array(e.lsf);
+        d["report"] = e.BriefReport();
+        return d;
+      },
+      py::arg("image"), py::kw_only(), py::arg("roi") = py::none(), py::arg("r") = 0, py::arg("pixel_lambda_over_d") = 0.0,
+      py::arg("frequencies") = std::vector<double>{}, py::arg("window") = "tukey", py::arg("esf_half_width") = 0.0,
+      py::arg("min_contrast_to_noise") = 10.0, py::arg("max_angle_deg") = 40.0, py::arg("curve_max") = 1.0,
+      py::arg("curve_step") = 0.01,
+      "Slanted-edge MTF (ISO 12233 e-SFR) of a 2-D image, or of roi = (x0, y0, width, height) in it\n"
+      "(include/aosr/core/slanted_edge.hpp). Returns {'frequency', 'mtf' (arrays, cycles/px), 'mtf50', 'mtf10'\n"
+      "(cycles/px, None when not reached), 'at' [(f, mtf)] at `frequencies`, 'nyquist' {frequency, mtf} at 1/(2r)\n"
+      "when r > 0, 'cutoff' at D/lambda = pixel_lambda_over_d cycles/px when given, 'edge' {orientation,\n"
+      "angle_deg, centre_px, length_px, fit_rms_px, low, high, noise_rms, contrast_to_noise, empty_bins},\n"
+      "'esf_distance', 'esf', 'lsf', 'report'}. An edge too short, too tilted, too close to an axis, clipped\n"
+      "or too noisy raises aosr.InvalidArgument saying which.");
   m.def(
       "psnr",
       [](py::handle truth, py::handle estimate, int crop, double peak) {

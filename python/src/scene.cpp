@@ -17,6 +17,7 @@
 #include "aosr/scene/pipeline.hpp"
 #include "aosr/scene/scene_spec.hpp"
 #include "aosr/scene/star_metrics.hpp"
+#include "aosr/scene/usaf_contrast.hpp"
 #include "bindings.hpp"
 #include "common.hpp"
 
@@ -91,6 +92,51 @@ std::shared_ptr<const Dataset> DatasetArgument(py::handle object, const std::str
 }
 
 void BindScene(py::module_& m) {
+  m.def(
+      "usaf_resolving_power",
+      [](py::handle image, py::handle scene, double threshold) {
+        const Image x = ImageOrFits(image, "image");
+        std::shared_ptr<const SceneSpec> spec;
+        if (py::isinstance<PyScene>(scene)) {
+          spec = scene.cast<PyScene&>().spec;
+        } else if (py::isinstance<py::str>(scene) || py::hasattr(scene, "__fspath__")) {
+          const std::string path = PathString(scene);
+          spec = std::make_shared<const SceneSpec>(WithoutGil([&] { return LoadScene(path); }));
+        } else {
+          throw InvalidArgument("aosr.usaf_resolving_power", "scene", std::string(py::str(py::type::of(scene).attr("__name__"))),
+                                "an aosr.Scene or a scene file path");
+        }
+        const UsafResolvingPower p = WithoutGil([&] { return MeasureSceneUsafResolvingPower(x, *spec, threshold); });
+        py::list elements;
+        for (const UsafElementContrast& e : p.elements) {
+          if (!e.measured) continue;
+          elements.append(py::dict(py::arg("group") = e.group, py::arg("element") = e.element,
+                                   py::arg("bar_width_hr_px") = e.bar_width_px, py::arg("cycles_per_hr_px") = e.cycles_per_px,
+                                   py::arg("cycles_per_camera_px") = e.cycles_per_camera_px,
+                                   py::arg("cycles_per_lambda_over_d") = e.cycles_per_lambda_over_d,
+                                   py::arg("contrast_x") = e.contrast_x, py::arg("contrast_y") = e.contrast_y,
+                                   py::arg("contrast") = e.contrast, py::arg("transfer") = e.transfer,
+                                   py::arg("resolved") = e.resolved));
+        }
+        py::dict d;
+        d["threshold"] = p.threshold;
+        d["elements"] = elements;
+        d["finest"] = py::none();
+        if (p.finest >= 0) {
+          const UsafElementContrast& f = p.elements[std::size_t(p.finest)];
+          d["finest"] = py::dict(py::arg("group") = f.group, py::arg("element") = f.element,
+                                 py::arg("cycles_per_hr_px") = f.cycles_per_px, py::arg("cycles_per_camera_px") = f.cycles_per_camera_px,
+                                 py::arg("cycles_per_lambda_over_d") = f.cycles_per_lambda_over_d);
+        }
+        return d;
+      },
+      py::arg("image"), py::arg("scene"), py::kw_only(), py::arg("threshold") = 0.153,
+      "Resolving power on the USAF target of `scene` (an aosr.Scene or a scene file; its first usaf or demo object)\n"
+      "seen in `image`, an HR image of the scene (array or FITS path): per element the Michelson contrast of its\n"
+      "three bars along x and y, and the finest element resolved at `threshold` (scene/usaf_contrast.hpp).\n"
+      "Returns {'threshold', 'elements': [{group, element, bar_width_hr_px, cycles_per_hr_px,\n"
+      "cycles_per_camera_px, cycles_per_lambda_over_d, contrast_x, contrast_y, contrast, transfer, resolved}],\n"
+      "'finest': {group, element, cycles_per_hr_px, cycles_per_camera_px, cycles_per_lambda_over_d} or None}.");
   m.def(
       "read_json", [](py::object path) { return FromJson(ReadJsonFile(PathString(path))); }, py::arg("path"),
       "Reads a JSON file as aosr does (errors name the file and position).");

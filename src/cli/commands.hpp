@@ -14,5 +14,6 @@ void RegisterDesign(CLI::App& app);
 void RegisterCalibrate(CLI::App& app);
 void RegisterReconstruct(CLI::App& app);
 void RegisterTradeoff(CLI::App& app);
+void RegisterMtf(CLI::App& app);
 
 }  // namespace aosr::cli

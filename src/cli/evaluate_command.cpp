@@ -1,10 +1,11 @@
 // `aosr evaluate`: how close a reconstruction is to the truth — PSNR, SSIM, RMSE, and for star fields the
-// photometric and astrometric errors of the brightest stars.
+// photometric and astrometric errors of the brightest stars; with --usaf, the resolving power on a USAF target.
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -15,7 +16,9 @@
 #include "aosr/io/plot.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/scene/evaluation.hpp"
+#include "aosr/scene/scene_spec.hpp"
 #include "aosr/scene/star_metrics.hpp"
+#include "aosr/scene/usaf_contrast.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
 
@@ -34,6 +37,8 @@ struct EvaluateArgs {
   int rings = 0;                      // 0: no rings
   std::string ring_centre;            // "X,Y" [HR px]; empty: the image centre
   std::string plot;                   // PNG of the ring curves; empty: none
+  std::string usaf;                   // a scene whose USAF target the estimate images: the resolving-power table
+  double usaf_threshold = 0.153;
   bool json = false;
   ExecutionArgs exec;
 };
@@ -92,8 +97,63 @@ void WriteRingPlot(const std::string& path, const std::vector<std::string>& labe
   WriteFigure(path, panels, fo);
 }
 
+// The resolving power on the USAF target of `scene` (scene/usaf_contrast.hpp), as JSON and as text lines.
+nlohmann::json UsafJson(const UsafResolvingPower& p) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const UsafElementContrast& e : p.elements) {
+    if (!e.measured) continue;
+    list.push_back({{"group", e.group}, {"element", e.element}, {"bar_width_hr_px", e.bar_width_px},
+                    {"cycles_per_hr_px", e.cycles_per_px}, {"cycles_per_camera_px", e.cycles_per_camera_px},
+                    {"cycles_per_lambda_over_d", e.cycles_per_lambda_over_d}, {"contrast_x", e.contrast_x},
+                    {"contrast_y", e.contrast_y}, {"contrast", e.contrast}, {"transfer", e.transfer}, {"resolved", e.resolved}});
+  }
+  nlohmann::json j = {{"threshold", p.threshold}, {"elements", list}, {"finest", nullptr}};
+  if (p.finest >= 0) {
+    const UsafElementContrast& f = p.elements[std::size_t(p.finest)];
+    j["finest"] = {{"group", f.group}, {"element", f.element}, {"cycles_per_hr_px", f.cycles_per_px},
+                   {"cycles_per_camera_px", f.cycles_per_camera_px}, {"cycles_per_lambda_over_d", f.cycles_per_lambda_over_d}};
+  }
+  return j;
+}
+
+void PrintUsaf(const UsafResolvingPower& p) {
+  std::printf("  USAF resolving power (Michelson contrast of the three bars, min of both orientations; resolved >= %.3f):\n",
+              p.threshold);
+  std::printf("    group/elem  cyc/HR px  cyc/cam px  cyc/(lambda/D)  contrast_x  contrast_y  transfer\n");
+  for (const UsafElementContrast& e : p.elements) {
+    if (!e.measured) continue;
+    std::printf("    %5d/%-4d  %9.4f  %10.4f  %14.4f  %10.3f  %10.3f  %8.3f %s\n", e.group, e.element, e.cycles_per_px,
+                e.cycles_per_camera_px, e.cycles_per_lambda_over_d, e.contrast_x, e.contrast_y, e.transfer,
+                e.resolved ? "resolved" : "");
+  }
+  if (p.finest < 0) {
+    std::printf("  finest resolved element: none\n");
+  } else {
+    const UsafElementContrast& f = p.elements[std::size_t(p.finest)];
+    std::printf("  finest resolved element: group %d element %d: %.4f cycles/HR px, %.4f cycles/camera px, %.4f cycles per lambda/D\n",
+                f.group, f.element, f.cycles_per_px, f.cycles_per_camera_px, f.cycles_per_lambda_over_d);
+  }
+}
+
 void RunEvaluate(const EvaluateArgs& a) {
   ApplyExecution(a.exec);
+  if (!a.usaf.empty() && a.truth.empty() && a.manifest.empty()) {  // the resolving power alone: no truth needed
+    const SceneSpec scene = LoadScene(a.usaf);
+    std::vector<nlohmann::json> outputs;
+    for (const std::string& path : a.estimates) {
+      const UsafResolvingPower p = MeasureSceneUsafResolvingPower(ReadFitsImage(path), scene, a.usaf_threshold);
+      outputs.push_back({{"estimate", path}, {"usaf", UsafJson(p)}});
+      if (!a.json) {
+        std::printf("%s:\n", path.c_str());
+        PrintUsaf(p);
+      }
+    }
+    if (a.json) {
+      const nlohmann::json out = outputs.size() == 1 ? outputs[0] : nlohmann::json{{"estimates", outputs}};
+      std::printf("%s\n", out.dump(2).c_str());
+    }
+    return;
+  }
   if (a.truth.empty() == a.manifest.empty())
     throw InvalidArgument("aosr evaluate", "--truth/--manifest", a.truth.empty() ? "(neither)" : "(both)",
                           "exactly one of --truth FILE and --manifest DIR");
@@ -177,6 +237,11 @@ void RunEvaluate(const EvaluateArgs& a) {
                     {"brightest", list}};
     }
     if (ev.measured_rings) j["rings"] = EvaluationRingsJson(ev, hr_mas);
+    std::optional<UsafResolvingPower> usaf;
+    if (!a.usaf.empty()) {
+      usaf = MeasureSceneUsafResolvingPower(estimate, LoadScene(a.usaf), a.usaf_threshold);
+      j["usaf"] = UsafJson(*usaf);
+    }
     if (!a.json) {
       std::printf("%s: PSNR %.2f dB  SSIM %.4f  RMSE %.4g  (crop %d px)\n", path.c_str(), m.psnr, m.ssim, m.rmse, crop);
       std::printf("  %s\n", AlignedScoresLine(ev).c_str());
@@ -186,6 +251,7 @@ void RunEvaluate(const EvaluateArgs& a) {
         std::printf("  %zu brightest stars (%d skipped at the edge): median |flux error| %.2f%%, RMS position error %.3f HR px\n",
                     sm.stars.size(), sm.skipped, 100 * sm.median_abs_flux_error, sm.rms_position_error_px);
       if (ev.measured_rings) std::printf("%s", RingsTable(ev, hr_mas, "  ").c_str());
+      if (usaf) PrintUsaf(*usaf);
     }
     if (!a.plot.empty()) labels.push_back(EstimateLabel(path));
     outputs.push_back(std::move(j));
@@ -243,6 +309,13 @@ void RegisterEvaluate(CLI::App& app) {
   cmd->add_option("--plot", args->plot,
                   "with --rings: write a PNG of aligned PSNR and SSIM (and the photometric bias with a star list) "
                   "against the distance from the centre, one curve per --estimate");
+  cmd->add_option("--usaf", args->usaf,
+                  "a scene file whose USAF target (its first usaf or demo object) the estimate images: print the Michelson "
+                  "contrast of each element's bars in both orientations and the finest element resolved "
+                  "(scene/usaf_contrast.hpp); needs no --truth");
+  cmd->add_option("--usaf-threshold", args->usaf_threshold,
+                  "contrast at which a USAF element counts as resolved (default 0.153, the Rayleigh dip)")
+      ->check(CLI::Range(1e-6, 0.999999));
   cmd->add_flag("--json", args->json, "print the results as JSON");
   AddExecutionOptions(cmd, &args->exec);
   cmd->callback([args] { RunEvaluate(*args); });

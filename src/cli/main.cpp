@@ -29,6 +29,7 @@ int main(int argc, char** argv) {
   aosr::cli::RegisterCalibrate(app);
   aosr::cli::RegisterReconstruct(app);
   aosr::cli::RegisterTradeoff(app);
+  aosr::cli::RegisterMtf(app);
   aosr::cli::SetCommandLine(argc, argv);
   try {
     app.parse(argc, argv);

@@ -247,6 +247,50 @@ void AddPointSources(Image* image, const std::vector<PointSource>& sources) {
   }
 }
 
+bool SlantedEdgeTargetOptions::IsValid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (!(angle_deg >= -180.0 && angle_deg <= 180.0))
+    return fail("angle_deg = " + ToString(angle_deg) + " (must be in [-180, 180])");
+  if (std::isinf(centre_y) || std::isinf(centre_x))
+    return fail("centre = (" + ToString(centre_y) + ", " + ToString(centre_x) + ") (must be finite, or NaN for the field centre)");
+  if (!std::isfinite(low)) return fail("low = " + ToString(low) + " (must be finite)");
+  if (!std::isfinite(high)) return fail("high = " + ToString(high) + " (must be finite)");
+  return true;
+}
+
+Image SlantedEdgeTarget(Shape shape, const SlantedEdgeTargetOptions& options) {
+  CheckShape("SlantedEdgeTarget", shape, 1);
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument("SlantedEdgeTarget: invalid options: " + why);
+  const double theta = options.angle_deg * M_PI / 180.0;
+  const double nx = std::cos(theta), ny = -std::sin(theta);
+  const double cy = std::isnan(options.centre_y) ? 0.5 * double(shape.rows - 1) : options.centre_y;
+  const double cx = std::isnan(options.centre_x) ? 0.5 * double(shape.cols - 1) : options.centre_x;
+  // The signed distance over the pixel is s + t, t = nx u + ny v: the sum of two uniforms of widths p >= q.
+  const double p = std::max(std::abs(nx), std::abs(ny)), q = std::min(std::abs(nx), std::abs(ny));
+  const double h = 0.5 * (p - q), k = 0.5 * (p + q);
+  // F(t) = P(nx u + ny v <= t): 0 below -k, (t + k)²/(2pq) up to -h, (t + p/2)/p across the flat middle, then
+  // the mirror image up to k.
+  auto cdf = [&](double t) {
+    if (t <= -k) return 0.0;
+    if (t >= k) return 1.0;
+    if (t <= -h) return (t + k) * (t + k) / (2.0 * p * q);
+    if (t >= h) return 1.0 - (k - t) * (k - t) / (2.0 * p * q);
+    return (t + 0.5 * p) / p;
+  };
+  Image image(shape.rows, shape.cols);
+  for (Index y = 0; y < shape.rows; ++y)
+    for (Index x = 0; x < shape.cols; ++x) {
+      const double s = nx * (double(x) - cx) + ny * (double(y) - cy);
+      const double covered = 1.0 - cdf(-s);  // area fraction where s + t > 0
+      image(y, x) = options.low + (options.high - options.low) * covered;
+    }
+  return image;
+}
+
 UsafOptions DemoUsafOptions(Shape shape) {
   CheckShape("DemoUsafOptions", shape, kDemoMinSide);
   UsafOptions options;

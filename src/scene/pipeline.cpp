@@ -74,6 +74,7 @@ bool IsSurfaceBrightness(const ObjectSpec& o) {
     case ObjectSpec::Kind::kUsaf:
     case ObjectSpec::Kind::kDemo:
     case ObjectSpec::Kind::kDeadLeaves:
+    case ObjectSpec::Kind::kSlantedEdge:
       return true;
     case ObjectSpec::Kind::kImage:
       return o.image.values == PixelValues::kSurfaceBrightness;
@@ -107,14 +108,9 @@ Image RenderExtended(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
   const double r = scene.r;
   Image img;
   switch (o.kind) {
-    case ObjectSpec::Kind::kUsaf: {
-      UsafOptions u = o.usaf;
-      u.pixels_per_mm = 1.0;
-      const UsafSize size = UsafTargetSize(u);
-      u.pixels_per_mm = o.usaf_fill * double(std::min(hr.rows, hr.cols)) / std::max(size.height_mm, size.width_mm);
-      img = UsafTarget(hr, u);
+    case ObjectSpec::Kind::kUsaf:
+      img = UsafTarget(hr, ObjectUsafOptions(o, hr));
       break;
-    }
     case ObjectSpec::Kind::kDemo:
       img = DemoObject(hr);
       break;
@@ -136,6 +132,13 @@ Image RenderExtended(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
     case ObjectSpec::Kind::kImage:
       img = LoadImageObject(o.image_path, hr, o.image);
       break;
+    case ObjectSpec::Kind::kSlantedEdge: {
+      SlantedEdgeTargetOptions e = o.slanted_edge;  // camera pixel c covers HR pixels c r .. c r + r - 1
+      if (!std::isnan(e.centre_y)) e.centre_y = (e.centre_y + 0.5) * r - 0.5;
+      if (!std::isnan(e.centre_x)) e.centre_x = (e.centre_x + 0.5) * r - 0.5;
+      img = SlantedEdgeTarget(hr, e);
+      break;
+    }
     case ObjectSpec::Kind::kStars:
       throw InvalidArgument("RenderExtended: stars are point sources");
   }

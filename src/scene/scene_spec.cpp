@@ -81,7 +81,7 @@ void CheckOptions(const ConfigNode& n, const Options& o) {
 
 ObjectSpec ParseObject(const ConfigNode& n, const SceneSpec& scene, std::size_t index, bool* needs_magnitudes) {
   ObjectSpec o;
-  o.type = n.Choice("type", {"usaf", "demo", "stars", "galaxies", "dead-leaves", "image"});
+  o.type = n.Choice("type", {"usaf", "demo", "stars", "galaxies", "dead-leaves", "image", "slanted-edge"});
   o.flux = ParseFlux(n);
   o.seed = SeedOr(n, DeriveSeed(scene.seed, kObjectStream + index));
   if (o.flux.kind == FluxSpec::Kind::kMagnitude) *needs_magnitudes = true;
@@ -94,6 +94,18 @@ ObjectSpec ParseObject(const ConfigNode& n, const SceneSpec& scene, std::size_t 
     o.usaf.bar_value = n.NumberOr("bar", o.usaf.bar_value, -1e30, 1e30);
     o.usaf.supersample = int(n.IntegerOr("supersample", o.usaf.supersample, 0, 64));
     CheckOptions(n, o.usaf);
+  } else if (o.type == "slanted-edge") {
+    o.kind = ObjectSpec::Kind::kSlantedEdge;
+    SlantedEdgeTargetOptions& e = o.slanted_edge;
+    e.angle_deg = n.NumberOr("angle_deg", e.angle_deg, -180.0, 180.0);
+    e.low = n.NumberOr("low", e.low, -1e30, 1e30);
+    e.high = n.NumberOr("high", e.high, -1e30, 1e30);
+    if (n.Has("centre_px")) {  // camera pixels of the frame: [y, x]
+      const std::vector<double> c = n.Numbers("centre_px", -1e6, 1e6, 2, 2);
+      e.centre_y = c[0];
+      e.centre_x = c[1];
+    }
+    CheckOptions(n, e);
   } else if (o.type == "demo") {
     o.kind = ObjectSpec::Kind::kDemo;
     // DemoObject draws its bars and stars on at least 64 x 64 HR pixels (objects.hpp).
@@ -517,6 +529,17 @@ SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
     root.Fail("photometry", "(no band or zero point)", "photometry.band or photometry.zero_point_mag when magnitudes are used");
   root.CheckNoOtherFields();
   return s;
+}
+
+UsafOptions ObjectUsafOptions(const ObjectSpec& o, Shape hr) {
+  if (o.kind == ObjectSpec::Kind::kDemo) return DemoUsafOptions(hr);
+  if (o.kind != ObjectSpec::Kind::kUsaf)
+    throw InvalidArgument("ObjectUsafOptions", "object", o.type, "a usaf or demo object");
+  UsafOptions u = o.usaf;
+  u.pixels_per_mm = 1.0;
+  const UsafSize size = UsafTargetSize(u);
+  u.pixels_per_mm = o.usaf_fill * double(std::min(hr.rows, hr.cols)) / std::max(size.height_mm, size.width_mm);
+  return u;
 }
 
 SceneSpec LoadScene(const std::string& path) { return ParseScene(ReadJsonFile(path), path); }

@@ -343,6 +343,33 @@ TEST_F(EvaluateCliTest, AlignedScoresOfAGradientImageThroughPaperSimJR2AreNeverB
       EXPECT_GE(ring["aligned"]["ssim"].get<double>(), ring["ssim"].get<double>()) << ring.dump();
       EXPECT_GT(ring["outer_arcsec"].get<double>(), ring["inner_arcsec"].get<double>());
     }
+// --usaf: the resolving power on the scene's USAF target (scene/usaf_contrast.hpp). The noise-free truth resolves
+// its representable elements with transfer 1; a flat image resolves none. No --truth is needed.
+TEST_F(EvaluateCliTest, UsafResolvingPowerOfTheTruth) {
+  const nlohmann::json scene = {{"name", "usaf"},
+                                {"telescope", "paper-8m"},
+                                {"frames", 1},
+                                {"r", 2},
+                                {"detector", {{"frame_px", 64}, {"noise", "none"}}},
+                                {"objects", nlohmann::json::array({{{"type", "usaf"}}})}};
+  std::ofstream(Path("scene.json")) << scene.dump(2);
+  const CliRun sim = RunCli("simulate " + Path("scene.json") + " -o " + Path("data"));
+  ASSERT_EQ(sim.status, 0) << sim.out;
+  const CliRun r = RunCli("evaluate --estimate " + Path("data/truth.fits") + " --usaf " + Path("scene.json") + " --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ASSERT_FALSE(j["usaf"]["finest"].is_null()) << r.out;
+  EXPECT_GT(j["usaf"]["elements"].size(), 10u);
+  for (const auto& e : j["usaf"]["elements"])  // bars of 1 px or more: the truth's own contrast is well above 0
+    if (e["bar_width_hr_px"].get<double>() >= 1.0) EXPECT_NEAR(e["transfer"].get<double>(), 1.0, 1e-6);
+  EXPECT_DOUBLE_EQ(j["usaf"]["finest"]["cycles_per_camera_px"].get<double>(),
+                   2 * j["usaf"]["finest"]["cycles_per_hr_px"].get<double>());
+  aosr::WriteFits(Path("flat.fits"), Image::Constant(128, 128, 1.0));
+  const CliRun flat = RunCli("evaluate --estimate " + Path("flat.fits") + " --usaf " + Path("scene.json"));
+  ASSERT_EQ(flat.status, 0) << flat.out;
+  EXPECT_THAT(flat.out, HasSubstr("finest resolved element: none"));
+  const CliRun wrong = RunCli("evaluate --estimate " + Path("flat.fits") + " --usaf " + Path("data/manifest.json"));
+  EXPECT_EQ(wrong.status, 1) << wrong.out;
 }
 
 }  // namespace

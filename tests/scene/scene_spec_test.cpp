@@ -15,6 +15,7 @@
 
 #include "../io/temp_dir.hpp"
 #include "aosr/ao/random.hpp"
+#include "aosr/core/error.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/scene/photometry.hpp"
 #include "aosr/scene/raster.hpp"
@@ -374,6 +375,28 @@ TEST(SceneSpecTest, ObjectSizesAreCameraPixelsWhateverR) {
   EXPECT_DOUBLE_EQ(b[2].stars.margin_px, 2.0);
   EXPECT_DOUBLE_EQ(b[3].catalogue[0].y, a[3].catalogue[0].y);
   EXPECT_DOUBLE_EQ(b[3].catalogue[0].x, 7.25);
+}
+
+// The slanted edge: its fields, and its centre in camera pixels placed on the HR grid by the pipeline.
+TEST(SceneSpecTest, SlantedEdgeObjectParses) {
+  Json j = BaseScene();
+  j["objects"] = Json::array({Json{{"type", "slanted-edge"}, {"angle_deg", 7.5}, {"low", 0.1}, {"high", 2.0},
+                                   {"centre_px", {10.0, 12.0}}}});
+  const SceneSpec s = ParseScene(j, "mem.json");
+  ASSERT_EQ(s.objects.size(), 1u);
+  EXPECT_EQ(s.objects[0].kind, ObjectSpec::Kind::kSlantedEdge);
+  EXPECT_DOUBLE_EQ(s.objects[0].slanted_edge.angle_deg, 7.5);
+  EXPECT_DOUBLE_EQ(s.objects[0].slanted_edge.low, 0.1);
+  EXPECT_DOUBLE_EQ(s.objects[0].slanted_edge.high, 2.0);
+  EXPECT_DOUBLE_EQ(s.objects[0].slanted_edge.centre_y, 10.0);
+  EXPECT_DOUBLE_EQ(s.objects[0].slanted_edge.centre_x, 12.0);
+  j["objects"][0]["angle_deg"] = 190;
+  try {
+    ParseScene(j, "mem.json");
+    ADD_FAILURE() << "no exception";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("objects[0].angle_deg = 190"), std::string::npos) << e.what();
+  }
 }
 
 // ---- Detector ----------------------------------------------------------------------------------------------

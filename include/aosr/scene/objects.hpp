@@ -1,5 +1,5 @@
-// Test objects ("truths") on the high-resolution (HR) grid: a 1951 USAF resolution target, point sources,
-// and the demo truth that combines them.
+// Test objects ("truths") on the high-resolution (HR) grid: a 1951 USAF resolution target, a slanted edge,
+// point sources, and the demo truth that combines them.
 //
 // Coordinates (image.hpp): continuous HR pixel coordinates (y, x), pixel (y, x) centred at integers and
 // covering [y - 1/2, y + 1/2) x [x - 1/2, x + 1/2). Values are flux per HR pixel.
@@ -43,6 +43,7 @@
 // Errors: aosr::InvalidArgument naming the function and the argument.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -139,6 +140,34 @@ struct PointSource {
 // pixel, one at a corner is four quarter-bright ones) and is not band-limited. Exact rendering of an
 // unresolved source goes through sub-pixel-shifted PSFs in the optics layer.
 void AddPointSources(Image* image, const std::vector<PointSource>& sources);
+
+// ## The slanted edge (a knife edge, as bench MTF targets have)
+//
+// A straight edge through the point (centre_y, centre_x) (HR pixels; NaN: the field centre ((rows − 1)/2,
+// (cols − 1)/2)), turned by angle_deg from the column direction: moving one row toward +y moves the edge
+// tan(angle) columns toward +x. Its unit normal, in (x, y), is n = (cos θ, −sin θ); the `high` side is the +n
+// side (at 0° the right, at 90° the top rows). Values: low + (high − low) × the fraction of the pixel's area on
+// the high side, computed exactly: over the pixel square the signed distance to the line is
+// s + n_x u + n_y v with (u, v) uniform on [−1/2, 1/2]², whose distribution is the convolution of two boxes of
+// widths |n_x| and |n_y| (a trapezoid), so the covered fraction is 1 − F(−s) with F the trapezoid's CDF,
+// piecewise quadratic (no supersampling, no cancellation at axis-aligned angles). This is the box-filtered
+// image of the half-plane: a slanted-edge MTF of it is the pixel box's, sinc(f cos θ) sinc(f sin θ)
+// (core/slanted_edge.hpp).
+struct SlantedEdgeTargetOptions {
+  // Tilt from the column direction [deg], in [−180, 180]. Default 5 (ISO 12233 edges are ~5° off an axis).
+  double angle_deg = 5.0;
+  // A point of the edge [HR px]; NaN (default): the field centre. Finite values may lie off the field.
+  double centre_y = std::numeric_limits<double>::quiet_NaN();
+  double centre_x = std::numeric_limits<double>::quiet_NaN();
+  // The levels of the two sides (flux per HR pixel), finite. Default 0 and 1.
+  double low = 0.0;
+  double high = 1.0;
+
+  bool IsValid(std::string* why) const;
+};
+
+// Renders the slanted edge on an HR grid of the given shape (both sides >= 1).
+Image SlantedEdgeTarget(Shape shape, const SlantedEdgeTargetOptions& options = {});
 
 // The default demo truth on an HR grid of the given shape (both sides >= 64), deterministic:
 //   * the USAF target, groups -2..1, background 0.05, bars 1.0, scaled so its bounding box fills 90% of the

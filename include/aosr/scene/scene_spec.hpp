@@ -52,15 +52,19 @@ struct FluxSpec {
 
 // One object component. Only the fields of its kind are used.
 struct ObjectSpec {
-  enum class Kind { kUsaf, kDemo, kStars, kGalaxies, kDeadLeaves, kImage };
+  enum class Kind { kUsaf, kDemo, kStars, kGalaxies, kDeadLeaves, kImage, kSlantedEdge };
   Kind kind = Kind::kDemo;
-  std::string type;  // the JSON name: "usaf", "demo", "stars", "galaxies", "dead-leaves", "image"
+  std::string type;  // the JSON name: "usaf", "demo", "stars", "galaxies", "dead-leaves", "image", "slanted-edge"
   FluxSpec flux;
   std::uint64_t seed = 0;  // random components: the component's seed (derived from the scene's if not given)
 
   // usaf: the target's bounding box fills this fraction of the smaller frame side, (0, 1].
   double usaf_fill = 0.9;
   UsafOptions usaf;  // pixels_per_mm is derived from usaf_fill at render time
+
+  // slanted-edge: the knife edge (objects.hpp); its centre in camera pixels of the frame (NaN: the frame's
+  // centre), converted to HR pixels at render time.
+  SlantedEdgeTargetOptions slanted_edge;
 
   // stars: either a random field (`stars` with sizes in camera pixels, converted at render time) or an
   // explicit catalogue (`catalogue`, positions in camera pixels of the frame, flux in electrons per frame
@@ -200,6 +204,10 @@ struct SceneSpec {
   // Electrons per frame of a source of `magnitude` (zero point or band/area/throughput; frame time).
   double ElectronsPerFrameForMagnitude(double magnitude) const;
 };
+
+// The USAF target options a usaf or demo object renders with on the HR grid `hr` (its pixels_per_mm from `fill`
+// for usaf; DemoUsafOptions for demo). InvalidArgument for another kind of object.
+UsafOptions ObjectUsafOptions(const ObjectSpec& object, Shape hr);
 
 // Reads and validates a scene file. Relative paths inside (telescope preset files, design files, images,
 // bad-pixel maps) are resolved against the scene's folder; a bare telescope name is a preset of
