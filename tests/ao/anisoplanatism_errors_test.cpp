@@ -17,7 +17,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using aosr::test::ErrorOf;
 using ::testing::HasSubstr;

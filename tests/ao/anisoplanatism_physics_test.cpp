@@ -21,7 +21,7 @@
 #include "loop_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using test::kPaperDiameter;
 

@@ -22,7 +22,7 @@
 #include "loop_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using test::kPaperDiameter;
 

@@ -13,7 +13,7 @@
 #include "loop_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 TEST(AnisoplanatismTest, ZeroDirectionIsTheOnAxisPathToTheByte) {
   Atmosphere a(test::PaperAtmosphere(3), 64, 8.0);

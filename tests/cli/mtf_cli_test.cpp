@@ -14,7 +14,7 @@
 #include "core/slanted_edge_fixture.hpp"
 #include "support/testing.hpp"
 
-namespace {
+namespace AOSR_TEST_NS {
 
 namespace fs = std::filesystem;
 using aosr::Image;

@@ -11,7 +11,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using aosr::test::ErrorOf;
 using namespace aosr::test;

@@ -7,7 +7,7 @@
 #include "core/slanted_edge_fixture.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using namespace aosr::test;
 

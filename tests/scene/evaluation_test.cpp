@@ -9,7 +9,7 @@
 #include <vector>
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Stars as Gaussians of σ = 1.2 HR px on a faint smooth background, on a 128² HR grid.
 Image RenderStars(const std::vector<PointSource>& stars, Shape s) {

@@ -17,7 +17,7 @@
 #include "aosr/scene/telescope.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 constexpr double kArcsec = M_PI / (180.0 * 3600.0);
 

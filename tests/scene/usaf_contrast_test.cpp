@@ -12,7 +12,7 @@
 #include "aosr/core/error.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Separable Gaussian blur (standard deviation sigma px, kernel to 5 sigma, zero outside the image).
 Image GaussianBlur(const Image& img, double sigma) {

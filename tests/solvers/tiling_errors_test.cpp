@@ -9,7 +9,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 using ::testing::AllOf;
 using ::testing::HasSubstr;

@@ -22,7 +22,7 @@
 #include "support/testing.hpp"
 
 namespace aosr {
-namespace {
+namespace AOSR_TEST_NS {
 
 // Blocks, a smooth ramp and a few point sources on a sky: edges, texture and stars for every method.
 Image Object(Shape s) {
