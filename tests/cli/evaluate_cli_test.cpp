@@ -343,6 +343,8 @@ TEST_F(EvaluateCliTest, AlignedScoresOfAGradientImageThroughPaperSimJR2AreNeverB
       EXPECT_GE(ring["aligned"]["ssim"].get<double>(), ring["ssim"].get<double>()) << ring.dump();
       EXPECT_GT(ring["outer_arcsec"].get<double>(), ring["inner_arcsec"].get<double>());
     }
+}
+
 // --usaf: the resolving power on the scene's USAF target (scene/usaf_contrast.hpp). The noise-free truth resolves
 // its representable elements with transfer 1; a flat image resolves none. No --truth is needed.
 TEST_F(EvaluateCliTest, UsafResolvingPowerOfTheTruth) {

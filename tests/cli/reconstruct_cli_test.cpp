@@ -227,7 +227,7 @@ TEST_F(ReconstructCliTest, BadRequestsFailBeforeWritingAnything) {
 }
 
 // --tile (solvers/tiling.hpp): 48-px frames in 2 x 2 tiles of 24 px. With a fixed λ the tiled image is the
-// whole-grid one to a small fraction of its peak (the FITS holds float32), the header and JSON say how it was
+// whole-grid one to a small fraction of its peak, the header and JSON say how it was
 // tiled, 1 and 2 threads give the same bytes, and a bad tiling is refused before anything is written.
 TEST_F(ReconstructCliTest, TileReconstructsByOverlappingTiles) {
   const nlohmann::json whole = Run("tikhonov", "--lambda 0.01");
@@ -245,7 +245,9 @@ TEST_F(ReconstructCliTest, TileReconstructsByOverlappingTiles) {
   const aosr::FitsData t1 = aosr::ReadFits(Out("tiled1")), t2 = aosr::ReadFits(Out("tiled2"));
   EXPECT_EQ(t1.header.GetInt("NTILES"), 4);
   const aosr::Image& t = t1.planes.at(0);
-  EXPECT_LT((t - w).abs().maxCoeff(), 1e-5 * w.abs().maxCoeff());
+  // Measured 2.8e-4 of the peak (0.19 e on 668 e, on the tiles' inner edges): the periodic tiles' truncation at
+  // overlap 10 (bench figures in solvers/tiling.hpp), far above the float32 rounding of the file.
+  EXPECT_LT((t - w).abs().maxCoeff(), 1e-3 * w.abs().maxCoeff());
   EXPECT_TRUE((t == t2.planes.at(0)).all()) << "1 and 2 threads";
   // The automatic overlap (PSF reach + Tikhonov's), and GCV chosen on the whole field.
   const nlohmann::json a = Run("tikhonov", "--tile 24");

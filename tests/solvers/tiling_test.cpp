@@ -19,53 +19,16 @@
 #include "aosr/core/operators.hpp"
 #include "aosr/core/parallel.hpp"
 #include "solvers/tikhonov_fixture.hpp"
+#include "solvers/tiling_fixture.hpp"
 #include "support/testing.hpp"
 
 namespace aosr {
 namespace AOSR_TEST_NS {
 
-// Blocks, a smooth ramp and a few point sources on a sky: edges, texture and stars for every method.
-Image Object(Shape s) {
-  Image x = Image::Constant(s.rows, s.cols, 0.1);
-  x.block(s.rows / 5, s.cols / 6, s.rows / 3, s.cols / 4) += 1.0;
-  x.block(s.rows / 2, s.cols / 2, s.rows / 4, s.cols / 3) += 0.6;
-  for (Index y = 0; y < s.rows; ++y)
-    for (Index x0 = 0; x0 < s.cols; ++x0) x(y, x0) += 0.2 * std::sin(0.07 * double(y)) * std::cos(0.05 * double(x0));
-  x(20, 150) += 4.0;
-  x(131, 33) += 3.0;
-  x(95, 97) += 2.0;
-  return x;
-}
-
-// N = r² = 4 frames through one Gaussian PSF (σ = 1.5 HR px) moved by whole HR pixels (a compact kernel: the
-// tiles cut nothing of it), frames with N(0, σ_n²) noise.
-struct Scene {
-  std::shared_ptr<const MultiFrameModel> model;
-  Image truth;
-  ReconstructionProblem problem;
-};
-
-Scene MakeScene(Shape hr = {192, 192}, int r = 2, double noise = 0.01) {
-  Scene s;
-  s.model = std::make_shared<const MultiFrameModel>(
-      test::RasterModel(hr, r, {{0, 0}, {0, 1}, {1, 0}, {1, 1}}, 1.5));
-  s.truth = Object(hr);
-  s.problem.model = s.model;
-  s.problem.frames = test::AddNoise(s.model->Render(s.truth), noise, 11);
-  s.problem.offsets = {{0, 0}, {0, 1}, {1, 0}, {1, 1}};
-  return s;
-}
-
-double MaxAbs(const Image& a) { return a.abs().maxCoeff(); }
-
-ReconstructOptions Fixed(ReconstructionMethod m) {
-  ReconstructOptions o;
-  o.method = m;
-  o.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
-  o.tikhonov.lambda = 1e-3;
-  o.linear.noise_sigma = 0.01;
-  return o;
-}
+using test::Fixed;
+using test::MakeScene;
+using test::MaxAbs;
+using test::Scene;
 
 TEST(TilingTest, TilesCoverTheFieldAndWeightsSumToOne) {
   const Shape lr{50, 37};
@@ -129,28 +92,6 @@ TEST(TilingTest, LinearMethodsMatchTheWholeGrid) {
     }
     EXPECT_LT(previous, m == ReconstructionMethod::kTikhonov ? 2e-3 : 1e-4) << ToString(m) << " at overlap 16";
   }
-}
-
-// The tile's boundary: each tile solved with the periodic model (the default) or with Tikhonov's zero-padded
-// model (padded_model.hpp: no wrap-around, the object free beyond the window), against the whole-grid
-// periodic solution. Measured (the scene above, λ = 1e-3, CG to 1e-12): periodic 1.18, 0.101, 7.9e-3 and
-// zero-padded 5.9e-3, 7.7e-4, 1.2e-4 of the peak at overlaps 4, 8, 12: the zero-padded tile is 60-200x closer,
-// at the cost of a CG solve per tile (minutes here instead of a second). One overlap here (the test's time).
-TEST(TilingTest, ZeroPaddedTilesAreCloserThanPeriodicOnes) {
-  const Scene s = MakeScene();
-  ReconstructOptions o = Fixed(ReconstructionMethod::kTikhonov);
-  const Reconstruction whole = Reconstruct(s.problem, o);
-  const double peak = MaxAbs(whole.image);
-  TilingOptions t;
-  t.tile = 32;
-  t.overlap = 8;
-  const double periodic = MaxAbs(ReconstructTiled(s.problem, o, t).image - whole.image) / peak;
-  o.tikhonov.boundary = TikhonovBoundary::kZeroPadded;
-  o.tikhonov.cg.tolerance = 1e-9;
-  const double padded = MaxAbs(ReconstructTiled(s.problem, o, t).image - whole.image) / peak;
-  std::printf("tikhonov overlap 8: max error / peak, periodic tiles %.3g, zero-padded tiles %.3g\n", periodic,
-              padded);
-  EXPECT_LT(padded, 0.1 * periodic);
 }
 
 // The regularisation is chosen once, on the whole field by default: the tiles then use the whole field's GCV
