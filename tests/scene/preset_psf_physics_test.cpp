@@ -5,8 +5,8 @@
 // servo-lag x anisoplanatism cross term and the Strehl is the PSF's peak, which the near-core halo of the
 // low-order anisoplanatic phase lifts above exp(-sigma^2) (ao/anisoplanatism_physics_test.cpp): stated tolerance
 // [issue - 0.02, issue + 0.08] on each ratio (measured 0.632, 0.250, 0.293). The core's major axis lies along x
-// within 10 degrees: the preset's winds (0, 60, 135 degrees) elongate the on-axis servo-lag halo too, which
-// turns the off-axis major axis by up to 9 degrees at Nyquist sampling (measured -8.9, 0.0, -6.0).
+// within 10 degrees (measured -8.9, 0.0, -6.0 at Nyquist sampling; the on-axis core is round there, and the few
+// degrees are most likely the servo-lag cross term with the preset's winds at 0, 60, 135 degrees: not pinned down).
 #include <gtest/gtest.h>
 
 #include <cmath>
