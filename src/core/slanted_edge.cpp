@@ -395,22 +395,6 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
       ++count[std::size_t(k + kmax)];
     }
   }
-  const Index plateau_min = std::max<Index>(4, Index(std::ceil(kEdgePlateauFraction * double(n_in))));
-  const bool top = n_top >= plateau_min, bottom = n_bottom >= plateau_min;
-  auto clipped = [&](bool here, bool there, double d_here, double d_there) { return here && (!there || d_here < 0.5 * d_there); };
-  const bool clip_top = clipped(top, bottom, d_top, d_bottom), clip_bottom = clipped(bottom, top, d_bottom, d_top);
-  if (clip_top || clip_bottom) {
-    const bool t = clip_top;
-    const Index n = t ? n_top : n_bottom;
-    const double d_here = t ? d_top : d_bottom, d_there = t ? d_bottom : d_top;
-    RefuseEdge(where, std::string("clipped (saturated) at its ") + (t ? "maximum " : "minimum ") + ToString(t ? vmax : vmin) +
-                      ": " + std::to_string(n) + " pixels sit at that value from " + EdgeFixed(d_here, 2) +
-                      " px of the edge on, while the " + (t ? "minimum" : "maximum") + "'s plateau " +
-                      (std::isfinite(d_there) && (t ? bottom : top) ? "starts " + EdgeFixed(d_there, 2) + " px away"
-                                                                      : "does not exist") +
-                      "; a symmetric blur approaches both levels alike: lower the exposure or pick an unsaturated edge");
-  }
-
   // Empty bins: isolated ones (or one at an end) interpolated, two in a row refused.
   std::vector<double> esf(m);
   for (std::size_t k = 0; k < m; ++k) esf[k] = count[k] > 0 ? sum[k] / count[k] : std::numeric_limits<double>::quiet_NaN();
@@ -443,6 +427,32 @@ SlantedEdgeMtf MeasureSlantedEdgeMtf(const Image& image, const SlantedEdgeOption
   if (contrast < 0.5 * esf_range)
     RefuseEdge(where, "no edge: the ESF spans " + ToString(esf_range) + " but steps by only " + ToString(contrast) +
                       " between its ends: the region holds a bar or a line, not one edge");
+  const Index plateau_min = std::max<Index>(4, Index(std::ceil(kEdgePlateauFraction * double(n_in))));
+  const bool top = n_top >= plateau_min, bottom = n_bottom >= plateau_min;
+  // A plateau counts as clipping only where the edge is still rising: within twice the ESF's 10-90 % rise of
+  // the edge (a frame blurred by a finite PSF window is exactly dark far from the edge, which is no clipping).
+  std::size_t k50 = 0;
+  while (k50 + 1 < m && esf[k50] < out.low + 0.5 * contrast) ++k50;
+  std::size_t k10 = k50, k90 = k50;
+  while (k10 > 0 && esf[k10] > out.low + 0.1 * contrast) --k10;
+  while (k90 + 1 < m && esf[k90] < out.low + 0.9 * contrast) ++k90;
+  const double rise = std::max(1.0, double(k90 - k10) * kEsfBin);
+  auto clipped = [&](bool here, bool there, double d_here, double d_there) {
+    return here && d_here < 2.0 * rise && (!there || d_here < 0.5 * d_there);
+  };
+  const bool clip_top = clipped(top, bottom, d_top, d_bottom), clip_bottom = clipped(bottom, top, d_bottom, d_top);
+  if (clip_top || clip_bottom) {
+    const bool t = clip_top;
+    const Index n = t ? n_top : n_bottom;
+    const double d_here = t ? d_top : d_bottom, d_there = t ? d_bottom : d_top;
+    RefuseEdge(where, std::string("clipped (saturated) at its ") + (t ? "maximum " : "minimum ") + ToString(t ? vmax : vmin) +
+                      ": " + std::to_string(n) + " pixels sit at that value from " + EdgeFixed(d_here, 2) +
+                      " px of the edge on, while the " + (t ? "minimum" : "maximum") + "'s plateau " +
+                      (std::isfinite(d_there) && (t ? bottom : top) ? "starts " + EdgeFixed(d_there, 2) + " px away"
+                                                                      : "does not exist") +
+                      "; a symmetric blur approaches both levels alike: lower the exposure or pick an unsaturated edge");
+  }
+
 
   // Noise: the robust residual of the pixels about the ESF (linear between bin centres).
   std::vector<double> residual;

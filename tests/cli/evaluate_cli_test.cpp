@@ -363,7 +363,9 @@ TEST_F(EvaluateCliTest, UsafResolvingPowerOfTheTruth) {
   ASSERT_FALSE(j["usaf"]["finest"].is_null()) << r.out;
   EXPECT_GT(j["usaf"]["elements"].size(), 10u);
   for (const auto& e : j["usaf"]["elements"])  // bars of 1 px or more: the truth's own contrast is well above 0
-    if (e["bar_width_hr_px"].get<double>() >= 1.0) EXPECT_NEAR(e["transfer"].get<double>(), 1.0, 1e-6);
+    if (e["bar_width_hr_px"].get<double>() >= 1.0) {
+      EXPECT_NEAR(e["transfer"].get<double>(), 1.0, 1e-6);
+    }
   EXPECT_DOUBLE_EQ(j["usaf"]["finest"]["cycles_per_camera_px"].get<double>(),
                    2 * j["usaf"]["finest"]["cycles_per_hr_px"].get<double>());
   aosr::WriteFits(Path("flat.fits"), Image::Constant(128, 128, 1.0));

@@ -80,6 +80,17 @@ TEST(SlantedEdgeErrorsTest, Clipped) {
   EXPECT_THAT(Refusal(noisy), HasSubstr("clipped (saturated) at its minimum 0.15"));
 }
 
+// Not clipping: a blur with a finite support (a PSF window) leaves the dark side exactly 0 far from the edge while
+// the bright side still creeps up (Airy tails): a plateau well outside the edge's rise is accepted.
+TEST(SlantedEdgeErrorsTest, AFarPlateauIsNotClipping) {
+  const double t = 5.0 * M_PI / 180.0;
+  Image img = AiryBoxEdge(EdgeShape(100, 64, 5.0), 5.0, 0.5);
+  for (Index y = 0; y < img.rows(); ++y)
+    for (Index x = 0; x < img.cols(); ++x)
+      if ((x - 0.5 * (img.cols() - 1)) * std::cos(t) - (y - 0.5 * (img.rows() - 1)) * std::sin(t) < -14.0) img(y, x) = 0.0;
+  EXPECT_EQ(Refusal(img), "no exception");
+}
+
 TEST(SlantedEdgeErrorsTest, TooNoisy) {
   const Image img = WithNoise(GaussianEdge(EdgeShape(100, 40, 5.0), 5.0, 1.0), 0.2, 5);  // contrast-to-noise 5
   EXPECT_THAT(Refusal(img), AllOf(HasSubstr("too noisy"), HasSubstr("min_contrast_to_noise = 10")));

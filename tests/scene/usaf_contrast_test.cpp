@@ -41,7 +41,9 @@ TEST(UsafContrastTest, TheTruthResolvesEveryRepresentableElement) {
   for (const UsafElementContrast& e : p.elements) {
     ASSERT_TRUE(e.measured) << e.group << "/" << e.element;
     EXPECT_NEAR(e.transfer, 1.0, 1e-12);
-    if (e.bar_width_px >= 5.0) EXPECT_NEAR(e.contrast, 1.0, 1e-12) << e.group << "/" << e.element;
+    if (e.bar_width_px >= 5.0) {
+      EXPECT_NEAR(e.contrast, 1.0, 1e-12) << e.group << "/" << e.element;
+    }
     EXPECT_NEAR(e.cycles_per_px, 0.5 / e.bar_width_px, 1e-15);
   }
   EXPECT_EQ(p.finest, 23);

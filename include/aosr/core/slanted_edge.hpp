@@ -73,8 +73,9 @@
 //    bins are empty (a critical angle);
 //  * "leaves the region": the edge comes within 5 px of the region's side in some row (or crosses it, so that
 //    rows hold no edge);
-//  * "clipped": a plateau of pixels at the region's maximum (minimum) value that starts less than half as
-//    far from the edge as the plateau at the other extreme (or with none there): a symmetric optical
+//  * "clipped": a plateau of pixels at the region's maximum (minimum) value that starts within twice the ESF's
+//    10-90 % rise of the edge and less than half as far from it as the plateau at the other extreme (or with
+//    none there): a symmetric optical
 //    response approaches both levels alike, a saturated detector stops at one. Pixels count as on a plateau
 //    within 1e-6 of the region's range of its extreme, and a plateau needs max(4, 1 % of the pixels). Two
 //    equally clipped extremes cannot be told from a noise-free edge and pass;
