@@ -21,6 +21,9 @@
 #include "oiio_plugin/oiio_plugin.hpp"
 
 namespace aosr {
+
+// The most channels an image file may have to be read (ReadImage, ReadRgbImage).
+constexpr int kMaxImageChannels = 16;
 namespace {
 
 std::string LowerExtension(const std::string& path) {
@@ -290,6 +293,9 @@ RgbImage ReadRgbImage(const std::string& path) {
   const AosrOiioSpec& spec = in.spec();
   const int channels = spec.channels;
   if (channels < 1 || spec.width < 1 || spec.height < 1 || spec.depth > 1) throw IoError(path, "empty or volume image");
+  if (channels > kMaxImageChannels)
+    throw IoError(path, std::to_string(channels) + " channels; at most " + std::to_string(kMaxImageChannels) +
+                            " are read (grey, RGB, RGBA and a few extra planes)");
   CheckMemory((1.0 * channels + 3.0) * double(spec.width) * double(spec.height),
               path + ": an image of " + std::to_string(spec.height) + "x" + std::to_string(spec.width) + " pixels");
   std::vector<std::uint8_t> buffer(static_cast<size_t>(spec.width) * spec.height * channels);
@@ -320,6 +326,12 @@ Image ReadImage(const std::string& path) {
   const int channels = spec.channels;
   const Index rows = spec.height, cols = spec.width;
   if (channels < 1 || rows < 1 || cols < 1) throw IoError(path, "empty image");
+  // A sky image is grey, RGB or RGBA, perhaps with a few extra planes. A header promising hundreds of channels
+  // (fuzz_image found a 386-byte TIFF declaring 9 x 46554 pixels of 255 float channels) would make OpenImageIO
+  // fill ~430 MB from nothing, for ~20 s, before the colour average below threw nearly all of it away.
+  if (channels > kMaxImageChannels)
+    throw IoError(path, std::to_string(channels) + " channels; at most " + std::to_string(kMaxImageChannels) +
+                            " are read (grey, RGB, RGBA and a few extra planes)");
   CheckMemory((4.0 * channels + 8.0) * double(rows) * double(cols),
               path + ": an image of " + std::to_string(rows) + "x" + std::to_string(cols) + " pixels and " +
                   std::to_string(channels) + " channel(s)");
