@@ -337,7 +337,8 @@ TEST_F(EvaluateCliTest, AlignedScoresOfAGradientImageThroughPaperSimJR2AreNeverB
   r = RunCli("evaluate --manifest " + Path("data") + " --estimate " + Path("tikhonov.fits") + " " + Path("tv.fits") +
              " --rings 3 --json");
   ASSERT_EQ(r.status, 0) << r.out;
-  for (const nlohmann::json& e : nlohmann::json::parse(r.out)["estimates"])
+  const nlohmann::json report = nlohmann::json::parse(r.out);  // named: a range-for over a temporary's member dangles
+  for (const nlohmann::json& e : report["estimates"])
     for (const nlohmann::json& ring : e["rings"]["rings"]) {
       EXPECT_GE(ring["aligned"]["psnr_db"].get<double>(), ring["psnr_db"].get<double>()) << ring.dump();
       EXPECT_GE(ring["aligned"]["ssim"].get<double>(), ring["ssim"].get<double>()) << ring.dump();

@@ -17,9 +17,11 @@ inline Image Object(Shape s) {
   x.block(s.rows / 2, s.cols / 2, s.rows / 4, s.cols / 3) += 0.6;
   for (Index y = 0; y < s.rows; ++y)
     for (Index x0 = 0; x0 < s.cols; ++x0) x(y, x0) += 0.2 * std::sin(0.07 * double(y)) * std::cos(0.05 * double(x0));
-  x(20, 150) += 4.0;
-  x(131, 33) += 3.0;
-  x(95, 97) += 2.0;
+  // The stars at the same fractions of any grid (at (20, 150), (131, 33) and (95, 97) on 192²).
+  auto at = [](Index n, Index k) { return n * k / 192; };
+  x(at(s.rows, 20), at(s.cols, 150)) += 4.0;
+  x(at(s.rows, 131), at(s.cols, 33)) += 3.0;
+  x(at(s.rows, 95), at(s.cols, 97)) += 2.0;
   return x;
 }
 
