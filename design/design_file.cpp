@@ -10,6 +10,7 @@
 #include "aosr/design/design_objective.hpp"
 #include "aosr/io/atomic_file.hpp"
 #include "aosr/optics/deformable_mirror.hpp"
+#include "aosr/optics/zernike.hpp"
 #include "aosr/scene/pipeline.hpp"
 
 namespace aosr {
@@ -41,6 +42,19 @@ std::unique_ptr<ShackHartmann> GeometricSensor(const SceneSpec& scene) {
   return std::make_unique<ShackHartmann>(spec.amplitude, spec.diameter_m, o);
 }
 
+// The offset's Zernike coefficients (Noll 1..kModalContentNoll, least squares over the pupil, weighted by its
+// amplitude) and the pupil RMS of what they leave.
+void ModalContent(const DesignPupil& pupil, const Image& opd, DesignFrameReport* r) {
+  const Image& a = pupil.amplitude;
+  r->zernike_m = ProjectOntoZernike(opd, a, kModalContentNoll);
+  Image fit = Image::Zero(opd.rows(), opd.cols());
+  for (int j = 1; j <= kModalContentNoll; ++j) fit += r->zernike_m[j - 1] * ZernikeUnmasked(j, opd.rows());
+  const double w = a.sum();
+  const Image rest = opd - fit;
+  const double mean = (a * rest).sum() / w;
+  r->beyond_m = std::sqrt(std::max(0.0, (a * (rest - mean).square()).sum() / w));
+}
+
 }  // namespace
 
 std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const DesignParameterisation& p,
@@ -67,6 +81,7 @@ std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const Desi
                   "the pupil grid " + std::to_string(p.pupil_n()));
     DesignFrameReport r;
     r.rms_m = p.OpdRms(w);
+    ModalContent(p.pupil(), w, &r);
     r.strehl = p.StrehlOf(w);
     r.strehl_cost = 1.0 - r.strehl;
     if (sh) {
@@ -83,6 +98,36 @@ std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const Desi
     out.push_back(std::move(r));
   }
   return out;
+}
+
+nlohmann::json ModalContentJson(const std::vector<DesignFrameReport>& frames) {
+  nlohmann::json noll = nlohmann::json::array(), per_frame = nlohmann::json::array(), beyond = nlohmann::json::array();
+  std::vector<double> sum_abs(kModalContentNoll - 1, 0.0), power(kModalContentNoll - 1, 0.0);
+  for (int j = 2; j <= kModalContentNoll; ++j) noll.push_back(j);
+  for (const DesignFrameReport& f : frames) {
+    CheckArgument(f.zernike_m.size() == kModalContentNoll, "ModalContentJson", "zernike_m size", f.zernike_m.size(),
+                  std::to_string(kModalContentNoll) + " (Noll 1.." + std::to_string(kModalContentNoll) + ")");
+    nlohmann::json c = nlohmann::json::array();
+    for (int j = 2; j <= kModalContentNoll; ++j) {
+      const double v = f.zernike_m[j - 1] / kNm;
+      c.push_back(v);
+      sum_abs[j - 2] += std::abs(v);
+      power[j - 2] += v * v;
+    }
+    per_frame.push_back(c);
+    beyond.push_back(f.beyond_m / kNm);
+  }
+  std::vector<double> rms(power.size());
+  for (std::size_t k = 0; k < power.size(); ++k) rms[k] = frames.empty() ? 0.0 : std::sqrt(power[k] / frames.size());
+  return {{"basis", "Noll Zernike modes, unit RMS over the unobstructed disc; least squares over the pupil; piston "
+                    "dropped"},
+          {"units", "nm of wavefront OPD RMS"},
+          {"noll", noll},
+          {"frames", per_frame},
+          {"beyond_nm", beyond},
+          {"sum_abs_nm", sum_abs},
+          {"power_nm2", power},
+          {"rms_over_frames_nm", rms}};
 }
 
 nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, const DesignResult& result,
@@ -151,6 +196,7 @@ nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, c
     fr.push_back(e);
   }
   d["frames"] = fr;
+  d["modal_content"] = ModalContentJson(frames);
   if (slopes && scene.telescope.ao)
     d["wfs"] = {{"model", "shack-hartmann-geometric"},
                 {"lenslets_across", scene.telescope.ao->wfs.lenslets_across},

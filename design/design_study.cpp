@@ -263,6 +263,14 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   const std::vector<DesignFrameReport> reports = DescribeDesign(scene, parameterisation, result.opds, result.offsets);
   const std::string name = scene.name + "-" + o.param;
   nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
+  // The exact classic raster's modal content beside the design's (tip and tilt only: what a design adds shows).
+  {
+    const std::vector<DesignFrameReport> raster =
+        DescribeDesign(scene, parameterisation, parameterisation.RasterOpds(), parameterisation.Offsets(raster_theta));
+    const nlohmann::json mc = ModalContentJson(raster);
+    file["design"]["modal_content"]["raster"] = {{"sum_abs_nm", mc["sum_abs_nm"]},
+                                                 {"rms_over_frames_nm", mc["rms_over_frames_nm"]}};
+  }
   if (!validation.is_null()) file["design"]["validation"] = validation;
   if (!spectrum_record.is_null()) file["design"]["object_spectrum"] = spectrum_record;
   file["design"]["gain"] = gain.ToJson();

@@ -19,6 +19,12 @@ def test_design_matches_cli(cli, tmp_path):
     for k in ("objective_raster", "objective_start", "objective_final", "parameters", "termination", "message"):
         assert got[k] == expected[k], k
     assert aosr.design(aosr.load_scene(scene), **ARGS)["design"]["frames"] == got["design"]["frames"]
+    # The modal content (Noll 2..36, nm RMS): a tip/tilt design lives in Z2 and Z3 only, like its raster.
+    mc = got["design"]["design"]["modal_content"]
+    assert mc["noll"] == list(range(2, 37)) and len(mc["frames"]) == len(got["design"]["frames"])
+    rms = mc["rms_over_frames_nm"]
+    assert max(rms[:2]) > 1.0 and max(rms[2:]) < 1e-6 * max(rms[:2])
+    assert max(mc["raster"]["rms_over_frames_nm"][2:]) < 1e-6 * max(rms[:2])
 
 
 @pytest.mark.parametrize("kwargs,needle", [({"param": "fancy"}, "param"), ({"objective": "C"}, "objective"),

@@ -2,16 +2,20 @@
 // design/design_objective.hpp) or the mean MAP reconstruction loss over training scenes (objective B,
 // design/design_empirical.hpp) for the scene's telescope, AO system, camera, r and N, written as a design file
 // (design/design_file.hpp) that a scene loads with "offsets": {"type": "design", "file": ...}.
+#include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "aosr/calib/calibration_file.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/design/design_file.hpp"
 #include "aosr/design/design_study.hpp"
+#include "aosr/io/plot.hpp"
 #include "aosr/scene/scene_spec.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
@@ -36,6 +40,7 @@ struct DesignArgs {
   std::uint64_t seed = 1;
   bool json = false;
   std::string calibration;
+  std::string modes_plot;  // PNG of the modal content (design and raster); empty: none
   // Objective B (--objective B only).
   std::string objective = "A";
   std::string loss = "l1";
@@ -53,6 +58,27 @@ struct DesignArgs {
   std::vector<std::pair<CLI::Option*, char>> objective_only;
   ExecutionArgs exec;
 };
+
+// The modal content as the seed paper draws it: per Noll mode, the RMS over the N offsets of the design and of
+// the classic raster (markers joined by lines; the raster is tip and tilt only).
+void WriteModesPlot(const std::string& path, const nlohmann::json& mc, const std::string& scene) {
+  LinePlot p;
+  p.title = "modal content of the offsets (" + scene + ")";
+  p.x.label = "Noll index j";
+  p.y.label = "RMS over the offsets [nm]";
+  const std::vector<int> noll = mc["noll"].get<std::vector<int>>();
+  for (const auto& [label, rms] : {std::pair<std::string, nlohmann::json>{"design", mc["rms_over_frames_nm"]},
+                                   {"raster", mc["raster"]["rms_over_frames_nm"]}}) {
+    PlotSeries s;
+    s.label = label;
+    s.x.assign(noll.begin(), noll.end());
+    s.y = rms.get<std::vector<double>>();
+    p.series.push_back(s);
+  }
+  FigureOptions f;
+  f.columns = 1;
+  WriteFigure(path, {p}, f);
+}
 
 void RunDesign(const DesignArgs& a) {
   ExecutionArgs exec = a.exec;
@@ -72,6 +98,10 @@ void RunDesign(const DesignArgs& a) {
   const Progress progress(!a.json);
   Stopwatch clock;
   if (!a.output.empty()) CheckWritableFile(a.output);
+  if (!a.modes_plot.empty()) CheckWritableFile(a.modes_plot);
+  std::error_code ec;
+  if (!a.modes_plot.empty() && (a.modes_plot == a.output || std::filesystem::equivalent(a.modes_plot, a.scene, ec)))
+    throw InvalidArgument("aosr design", "--modes-plot", a.modes_plot, "a file other than the scene and -o's design file");
   const SceneSpec scene = LoadScene(a.scene);
 
   DesignStudyOptions so;
@@ -111,6 +141,7 @@ void RunDesign(const DesignArgs& a) {
     for (const std::string& n : notes) progress.Step("calibration: " + n);
   }
   if (!a.output.empty()) WriteDesignFile(a.output, file);
+  if (!a.modes_plot.empty()) WriteModesPlot(a.modes_plot, file["design"]["modal_content"], scene.name);
   const DesignSummary& s = result.summary;
 
   if (a.json) {
@@ -135,6 +166,21 @@ void RunDesign(const DesignArgs& a) {
     std::printf("%-6zu %10.4f %10.4f %9.1f %9.4f %10zu\n", i, o.shift_y_px, o.shift_x_px, reports[i].rms_m * 1e9,
                 reports[i].strehl, terms);
   }
+  // Modal content: the modes carrying at least 1 % of the largest RMS over the offsets (file: every mode).
+  const nlohmann::json& mc = file["design"]["modal_content"];
+  const std::vector<double> rms = mc["rms_over_frames_nm"].get<std::vector<double>>();
+  const double top = rms.empty() ? 0.0 : *std::max_element(rms.begin(), rms.end());
+  const std::vector<double> beyond = mc["beyond_nm"].get<std::vector<double>>();
+  std::string modes;
+  char buf[32];
+  for (std::size_t k = 0; k < rms.size(); ++k) {
+    if (!(top > 0 && rms[k] >= 0.01 * top)) continue;
+    std::snprintf(buf, sizeof buf, "Z%zu %.3g", k + 2, rms[k]);
+    modes += (modes.empty() ? "" : ", ") + std::string(buf);
+  }
+  std::printf("modal content, RMS over the offsets per Noll mode [nm]: %s (beyond Z%d: at most %.3g nm)\n",
+              modes.empty() ? "none" : modes.c_str(), kModalContentNoll,
+              beyond.empty() ? 0.0 : *std::max_element(beyond.begin(), beyond.end()));
   const DesignGain& g = study.gain;
   std::printf("expected gain over the raster: %s\nbasis: %s\nadvice: %s: %s\n",
               g.BriefReport().substr(0, g.BriefReport().find(" (")).c_str(), g.basis.c_str(),
@@ -155,6 +201,9 @@ void RegisterDesign(CLI::App& app) {
       "\"offsets\": {\"type\": \"design\", \"file\": ...}.");
   cmd->add_option("scene", a->scene, "scene file (.json)")->required();
   cmd->add_option("-o,--output", a->output, "write the design file (JSON) here");
+  cmd->add_option("--modes-plot", a->modes_plot,
+                  "write a PNG of the offsets' modal content: per Noll mode, the RMS over the N offsets of the design "
+                  "and of the raster (the design file holds the numbers)");
   cmd->add_option("--calibration", a->calibration,
                   "calibration.json (aosr calibrate): write the commands that make the calibrated DM apply the design")
       ->check(CLI::ExistingFile);

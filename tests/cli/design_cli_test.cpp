@@ -9,6 +9,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "aosr/design/power_spectrum_fit.hpp"
 #include "aosr/io/fits.hpp"
@@ -51,9 +52,12 @@ class DesignCliTest : public ::testing::Test {
 TEST_F(DesignCliTest, ZernikeDesignRoundTripsIntoSimulate) {
   const std::string design = Path("design.json");
   CliRun r = RunCli("design " + Path("scene.json") +
-                    " --param zernike --modes 4 --realisations 0 --starts 1 --iterations 4 --threads 1 -o " + design);
+                    " --param zernike --modes 4 --realisations 0 --starts 1 --iterations 4 --threads 1 -o " + design +
+                    " --modes-plot " + Path("modes.png"));
   ASSERT_EQ(r.status, 0) << r.out;
   EXPECT_THAT(r.out, HasSubstr("zernike (12 parameters)"));
+  EXPECT_THAT(r.out, HasSubstr("modal content, RMS over the offsets per Noll mode [nm]: Z2 "));
+  EXPECT_GT(fs::file_size(Path("modes.png")), 1000u);
   std::ifstream in(design);
   const nlohmann::json j = nlohmann::json::parse(in);
   ASSERT_EQ(j["frames"].size(), 3u);
@@ -65,6 +69,15 @@ TEST_F(DesignCliTest, ZernikeDesignRoundTripsIntoSimulate) {
     EXPECT_EQ(f["reference_slopes_rad"].size(), 2 * j["design"]["wfs"]["valid_subapertures"].get<std::size_t>());
   }
   EXPECT_LE(j["design"]["objective"]["final"].get<double>(), j["design"]["objective"]["raster"].get<double>());
+  // Modal content: 4 modes per offset (Noll 2..5) and nothing from Z6 on, nor beyond Z36.
+  const nlohmann::json& mc = j["design"]["modal_content"];
+  ASSERT_EQ(mc["frames"].size(), 3u);
+  const std::vector<double> rms = mc["rms_over_frames_nm"].get<std::vector<double>>();
+  ASSERT_EQ(rms.size(), 35u);
+  EXPECT_GT(rms[0], 1.0);  // Z2: the raster's tilt
+  for (std::size_t k = 4; k < rms.size(); ++k) EXPECT_LT(rms[k], 1e-6 * rms[0]) << "Z" << k + 2;
+  for (const auto& b : mc["beyond_nm"]) EXPECT_LT(b.get<double>(), 1e-6 * rms[0]);
+  EXPECT_EQ(mc["raster"]["rms_over_frames_nm"].size(), 35u);
   // The design loads in a scene and simulates.
   std::ofstream(Path("designed.json")) << Scene({{"type", "design"}, {"file", "design.json"}}).dump(2);
   r = RunCli("simulate " + Path("designed.json") + " --json");
@@ -94,6 +107,12 @@ TEST_F(DesignCliTest, BadArgumentsAreClearErrors) {
   EXPECT_THAT(r.out, HasSubstr("rms_max_m"));
   r = RunCli("design " + Path("missing.json"));
   EXPECT_EQ(r.status, 1) << r.out;
+  // The picture never replaces the scene it was made from.
+  const std::uintmax_t size = fs::file_size(Path("scene.json"));
+  r = RunCli("design " + Path("scene.json") + " --param raster --modes-plot " + Path("scene.json"));
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("--modes-plot"));
+  EXPECT_EQ(fs::file_size(Path("scene.json")), size);
 }
 
 // Objective B evaluates the raster on dead-leaves training scenes and writes its provenance; options of one

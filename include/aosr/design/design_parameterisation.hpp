@@ -88,6 +88,7 @@ class DesignParameterisation {
   DesignParameterisation(const DesignPupil& pupil, int frames, int r, const DesignParameterisationOptions& options);
 
   const DesignParameterisationOptions& options() const { return options_; }
+  const DesignPupil& pupil() const { return pupil_; }
   int frames() const { return frames_; }
   Index pupil_n() const { return n_; }
   // Coefficients per exposure (P) and free parameters in total (N·P; 0 for kRaster).
