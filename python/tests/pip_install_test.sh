@@ -7,7 +7,7 @@
 # the CMake build folder BUILD (AOSR_CMAKE_BUILD_DIR: an up-to-date build is not recompiled, but the wheel is
 # really built and installed by pip). Then, from a temporary folder outside the checkout, with the installed
 # package only (no PYTHONPATH, no user site for the venv): the README's Python example and the `aosr` command
-# (--version and a real command) for both, and the python tests (python/tests) against that command in the venv.
+# (--version and a real command) for both, and the I/O and scene python tests against that command in the venv.
 # Usage: python/tests/pip_install_test.sh SOURCE_DIR BUILD_DIR [pytest args...]   (ctest: python_pip_install)
 set -euo pipefail
 # Skipped (77) without Debian's python3-pip, python3-venv, python3-setuptools or python3-wheel (scripts/setup.sh
@@ -43,9 +43,12 @@ assert aosr.data_path().startswith('$tmp'), aosr.data_path()"
   grep -q "file=$tmp/[^ ]*/libaosr_oiio.so" ld.log || { echo "pip_install_test: plugin not loaded from $tmp" >&2; exit 1; }
   "$py" "$example" | tee example.out
   grep -q "^tv: converged after .* PSNR .* dB, SSIM" example.out
-  [ "$where" = venv ] || return 0   # the whole python suite once (the venv); the user site: the above
+  # The venv also runs the I/O and scene tests (data files, presets, the command, FITS and WCS through the
+  # installed package); the solver tests are the same compiled code python_bindings already runs.
+  [ "$where" = venv ] || return 0
   AOSR_CLI="$cmd" AOSR_REFERENCE="$build/python/aosr_py_reference" AOSR_SOURCE_DIR="$src" \
-    AOSR_EXPECT_INSTALLED_UNDER="$tmp" "$py" -m pytest -q -p no:cacheprovider "$@" "$src/python/tests"
+    AOSR_EXPECT_INSTALLED_UNDER="$tmp" "$py" -m pytest -q -p no:cacheprovider "$@" \
+    "$src/python/tests/test_io_core.py" "$src/python/tests/test_scene.py"
 }
 
 echo "== pip install into a fresh virtualenv (--system-site-packages)"
