@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -60,12 +61,13 @@ struct DesignArgs {
 };
 
 // The modal content as the seed paper draws it: per Noll mode, the RMS over the N offsets of the design and of
-// the classic raster (markers joined by lines; the raster is tip and tilt only).
+// the classic raster (markers joined by lines, log scale; the raster is tip and tilt only).
 void WriteModesPlot(const std::string& path, const nlohmann::json& mc, const std::string& scene) {
   LinePlot p;
   p.title = "modal content of the offsets (" + scene + ")";
   p.x.label = "Noll index j";
   p.y.label = "RMS over the offsets [nm]";
+  p.y.log = true;  // tip/tilt carry ~100x the rest: a log axis shows both (modes below 1e-3 nm are not drawn)
   const std::vector<int> noll = mc["noll"].get<std::vector<int>>();
   for (const auto& [label, rms] : {std::pair<std::string, nlohmann::json>{"design", mc["rms_over_frames_nm"]},
                                    {"raster", mc["raster"]["rms_over_frames_nm"]}}) {
@@ -73,6 +75,8 @@ void WriteModesPlot(const std::string& path, const nlohmann::json& mc, const std
     s.label = label;
     s.x.assign(noll.begin(), noll.end());
     s.y = rms.get<std::vector<double>>();
+    for (double& v : s.y)
+      if (!(v >= 1e-3)) v = std::numeric_limits<double>::quiet_NaN();
     p.series.push_back(s);
   }
   FigureOptions f;
