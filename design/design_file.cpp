@@ -100,6 +100,17 @@ std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const Desi
   return out;
 }
 
+nlohmann::json ModalContentJson(const DesignPupil& pupil, const std::vector<Image>& opds) {
+  std::vector<DesignFrameReport> fits(opds.size());
+  for (std::size_t i = 0; i < opds.size(); ++i) {
+    CheckArgument(ShapeOf(opds[i]) == ShapeOf(pupil.amplitude), "ModalContentJson",
+                  "opds[" + std::to_string(i) + "] shape", ToString(ShapeOf(opds[i])),
+                  "the pupil grid " + ToString(ShapeOf(pupil.amplitude)));
+    ModalContent(pupil, opds[i], &fits[i]);
+  }
+  return ModalContentJson(fits);
+}
+
 nlohmann::json ModalContentJson(const std::vector<DesignFrameReport>& frames) {
   nlohmann::json noll = nlohmann::json::array(), per_frame = nlohmann::json::array(), beyond = nlohmann::json::array();
   std::vector<double> sum_abs(kModalContentNoll - 1, 0.0), power(kModalContentNoll - 1, 0.0);

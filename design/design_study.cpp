@@ -265,9 +265,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   nlohmann::json file = DesignFileJson(name, scene, result, objective, reports);
   // The exact classic raster's modal content beside the design's (tip and tilt only: what a design adds shows).
   {
-    const std::vector<DesignFrameReport> raster =
-        DescribeDesign(scene, parameterisation, parameterisation.RasterOpds(), parameterisation.Offsets(raster_theta));
-    const nlohmann::json mc = ModalContentJson(raster);
+    const nlohmann::json mc = ModalContentJson(parameterisation.pupil(), parameterisation.RasterOpds());
     file["design"]["modal_content"]["raster"] = {{"sum_abs_nm", mc["sum_abs_nm"]},
                                                  {"rms_over_frames_nm", mc["rms_over_frames_nm"]}};
   }

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "aosr/core/memory.hpp"
+#include "aosr/design/design_file.hpp"
 #include "aosr/design/design_objective.hpp"
 #include "aosr/design/design_optimizer.hpp"
 #include "aosr/design/design_parameterisation.hpp"
@@ -12,6 +13,7 @@
 namespace aosr {
 namespace AOSR_TEST_NS {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using test::ErrorOf;
 
@@ -67,6 +69,23 @@ TEST(DesignErrorsTest, ObjectiveRejectsBadOpticsOptionsAndOpds) {
   Image nan = Image::Zero(32, 32);
   nan(16, 16) = std::nan("");
   EXPECT_THAT(ErrorOf([&] { f.Evaluate({Image::Zero(32, 32), nan}); }), HasSubstr("finite"));
+}
+
+// The modal content's fit: an OPD off the pupil's grid, a non-finite OPD and a report without the 36
+// coefficients are refused, naming what is wrong.
+TEST(DesignErrorsTest, ModalContentRejectsMismatchedOpdsAndReports) {
+  DesignPupil pupil;
+  pupil.amplitude = Image::Constant(32, 32, 1.0);
+  EXPECT_THAT(ErrorOf([&] { ModalContentJson(pupil, {Image::Zero(32, 32), Image::Zero(16, 16)}); }),
+              AllOf(HasSubstr("opds[1] shape"), HasSubstr("16x16"), HasSubstr("the pupil grid 32x32")));
+  Image nan = Image::Zero(32, 32);
+  nan(3, 4) = std::nan("");
+  EXPECT_THAT(ErrorOf([&] { ModalContentJson(pupil, {nan}); }), HasSubstr("finite"));
+  DesignFrameReport r;
+  r.zernike_m = Vector::Zero(3);
+  EXPECT_THAT(ErrorOf([&] { ModalContentJson(std::vector<DesignFrameReport>{r}); }),
+              AllOf(HasSubstr("zernike_m size"), HasSubstr("36")));
+  EXPECT_EQ(ModalContentJson(pupil, {Image::Zero(32, 32)})["frames"].size(), 1u);
 }
 
 TEST(DesignErrorsTest, OptimizerRejectsBadOptionsAndMismatchedParts) {

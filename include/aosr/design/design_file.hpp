@@ -62,8 +62,11 @@ struct DesignFrameReport {
 std::vector<DesignFrameReport> DescribeDesign(const SceneSpec& scene, const DesignParameterisation& parameterisation,
                                               const std::vector<Image>& opds, const std::vector<DmOffset>& offsets);
 
-// The "modal_content" record of the design file (format above) from the reports' Zernike fits.
+// The "modal_content" record of the design file (format above) from the reports' Zernike fits (InvalidArgument
+// when a report's zernike_m is not Noll 1..kModalContentNoll), or from OPDs on the pupil's grid (InvalidArgument
+// naming the OPD of another shape): the fit alone, without DescribeDesign's Strehl and slopes.
 nlohmann::json ModalContentJson(const std::vector<DesignFrameReport>& frames);
+nlohmann::json ModalContentJson(const DesignPupil& pupil, const std::vector<Image>& opds);
 
 // The whole design file as JSON (format above). `scene` names the scene file; `frames` the per-exposure reports.
 nlohmann::json DesignFileJson(const std::string& name, const SceneSpec& scene, const DesignResult& result,
