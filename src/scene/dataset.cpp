@@ -30,6 +30,9 @@ constexpr const char* kWeightsFile = "weights.fits";
 constexpr const char* kTruthFile = "truth.fits";
 constexpr const char* kPsfsFile = "psfs.fits";
 constexpr const char* kNominalPsfsFile = "nominal_psfs.fits";
+constexpr const char* kFieldPsfsFile = "field_psfs.fits";
+constexpr const char* kFieldNominalPsfsFile = "field_nominal_psfs.fits";
+constexpr double kDatasetArcsecPerRad = 180.0 * 3600.0 / M_PI;
 constexpr const char* kExpectedFile = "expected.fits";
 
 std::string Join(const std::string& dir, const std::string& name) { return (fs::path(dir) / name).string(); }
@@ -151,6 +154,16 @@ OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline,
   m["weights"] = kWeightsFile;
   m["psfs"] = kPsfsFile;
   if (!sim.nominal_psfs.empty()) m["nominal_psfs"] = kNominalPsfsFile;
+  if (!sim.field_psfs.empty()) {
+    // The PSF across the field (dataset.hpp): what a field-varying model reads.
+    OrderedJson f;
+    f["psfs"] = kFieldPsfsFile;
+    if (!sim.field_nominal_psfs.empty()) f["nominal_psfs"] = kFieldNominalPsfsFile;
+    f["grid"] = {sim.field_grid.ny(), sim.field_grid.nx()};
+    f["interpolation"] = "bilinear";
+    f["guide_star_arcsec"] = {scene.psf_field.guide_star_x_arcsec, scene.psf_field.guide_star_y_arcsec};
+    m["psf_field"] = f;
+  }
   m["truth"] = kTruthFile;
   m["expected"] = kExpectedFile;
   m["gain_e_per_adu"] = d.gain_e_per_adu;
@@ -199,6 +212,21 @@ OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline,
     exposures.push_back(e);
   }
   s["exposures"] = exposures;
+  if (!sim.field_psfs.empty()) {
+    // Provenance of the field grid: each node's position, direction from the guide star and Strehl ratios.
+    OrderedJson nodes = OrderedJson::array();
+    for (int k = 0; k < sim.field_grid.nodes(); ++k) {
+      const auto node = sim.field_grid.Node(k);
+      OrderedJson e;
+      e["y_hr_px"] = node[0];
+      e["x_hr_px"] = node[1];
+      e["direction_arcsec"] = {sim.field_directions[k].x_rad * kDatasetArcsecPerRad,
+                               sim.field_directions[k].y_rad * kDatasetArcsecPerRad};
+      e["strehl"] = k < int(sim.field_strehl.size()) ? sim.field_strehl[k] : std::vector<double>();
+      nodes.push_back(e);
+    }
+    s["psf_field"] = {{"nodes", nodes}};
+  }
   OrderedJson plan = OrderedJson::array();
   for (const PipelineStage& st : pipeline.stages())
     plan.push_back({{"stage", st.name}, {"count", st.count}, {"estimated_s", st.estimated_s}, {"detail", st.detail}});
@@ -344,7 +372,8 @@ std::vector<std::string> SceneInputFiles(const SceneSpec& scene) {
 void PrepareSimulationOutput(const std::string& dir, const SceneSpec& scene) {
   CheckArgument(!dir.empty(), "PrepareSimulationOutput", "dir", "\"\"", "a folder name");
   const std::vector<std::string> outputs = {kFramesFile, kValidFile,    kWeightsFile,     kTruthFile,
-                                            kPsfsFile,   kExpectedFile, kManifestFileName, kNominalPsfsFile};
+                                            kPsfsFile,   kExpectedFile, kManifestFileName, kNominalPsfsFile,
+                                            kFieldPsfsFile, kFieldNominalPsfsFile};
   // Before touching the disk: no output may be an input of the scene.
   const std::vector<std::string> inputs = SceneInputFiles(scene);
   for (const std::string& o : outputs) CheckNotSameFile(Join(dir, o), inputs);
@@ -394,6 +423,39 @@ void WriteSimulation(const std::string& dir, const SceneSpec& scene, const Scene
   if (!sim.nominal_psfs.empty())
     WriteFitsCube(Join(dir, kNominalPsfsFile), sim.nominal_psfs,
                   SimulationHeader(scene, g, "nominal psfs (analytic AO): unit sum, HR sampling", "", true), FitsType::kFloat64);
+  if (!sim.field_psfs.empty()) {
+    // Node-major planes (plane k·N + i: node k, exposure i), each node's position on the HR frame and its
+    // direction from the guide star in the header.
+    auto field_header = [&](const std::string& what) {
+      FitsHeader h = SimulationHeader(scene, g, what, "", true);
+      h.Set("FLDNY", static_cast<long long>(sim.field_grid.ny()), "field grid: nodes along y (rows)");
+      h.Set("FLDNX", static_cast<long long>(sim.field_grid.nx()), "field grid: nodes along x (columns)");
+      h.Set("FLDINTRP", "bilinear", "PSF between nodes (core/psf_field.hpp)");
+      h.Set("GSX", scene.psf_field.guide_star_x_arcsec, "[arcsec] guide star x from the frame centre");
+      h.Set("GSY", scene.psf_field.guide_star_y_arcsec, "[arcsec] guide star y from the frame centre");
+      for (int k = 0; k < sim.field_grid.nodes(); ++k) {
+        // Keys of at most 8 characters: a 4-digit node number (at most 33 x 33 = 1089 nodes).
+        char digits[8];
+        std::snprintf(digits, sizeof digits, "%04d", k % 10000);
+        const auto node = sim.field_grid.Node(k);
+        h.Set(std::string("FY") + digits, node[0], "[HR px] node y (planes " + std::to_string(k * scene.frames) + "..)");
+        h.Set(std::string("FX") + digits, node[1], "[HR px] node x");
+        h.Set(std::string("FTX") + digits, sim.field_directions[k].x_rad * kDatasetArcsecPerRad, "[arcsec] x from the guide star");
+        h.Set(std::string("FTY") + digits, sim.field_directions[k].y_rad * kDatasetArcsecPerRad, "[arcsec] y from the guide star");
+      }
+      return h;
+    };
+    auto flat = [](const std::vector<ImageStack>& nodes) {
+      ImageStack planes;
+      for (const ImageStack& node : nodes) planes.insert(planes.end(), node.begin(), node.end());
+      return planes;
+    };
+    WriteFitsCube(Join(dir, kFieldPsfsFile), flat(sim.field_psfs),
+                  field_header("field psfs: node-major, unit sum, HR sampling"), FitsType::kFloat64);
+    if (!sim.field_nominal_psfs.empty())
+      WriteFitsCube(Join(dir, kFieldNominalPsfsFile), flat(sim.field_nominal_psfs),
+                    field_header("field nominal psfs (analytic AO): node-major, unit sum"), FitsType::kFloat64);
+  }
   WriteFitsCube(Join(dir, kExpectedFile), sim.expected_e,
                 SimulationHeader(scene, g, "noiseless frames", "electron", false, lr_wcs), FitsType::kFloat64);
   WriteJsonAtomically(manifest, BuildManifest(scene, pipeline, sim, scene_json));
@@ -523,6 +585,27 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
       }
     }
   }
+  // The PSF across the field (dataset.hpp): parsed now, its cubes read with the PSFs.
+  std::string field_psfs_path, field_nominal_path;
+  Shape field_grid{0, 0};
+  std::optional<ConfigNode> field_node;
+  if (root.Has("psf_field")) {
+    field_node.emplace(root.Child("psf_field"));
+    const ConfigNode& f = *field_node;
+    field_psfs_path = FileField(f, "psfs");
+    if (f.Has("nominal_psfs")) field_nominal_path = FileField(f, "nominal_psfs");
+    field_grid = ShapeField(f, "grid");
+    if (field_grid.rows > 64 || field_grid.cols > 64)
+      f.Fail("grid", ToString(field_grid), "[ny, nx] with 1..64 nodes per axis");
+    f.ChoiceOr("interpolation", "bilinear", {"bilinear"});
+    ds.psf_field.emplace();
+    if (f.Has("guide_star_arcsec")) {
+      const std::vector<double> g = f.Numbers("guide_star_arcsec", -1e6, 1e6, 2, 2);
+      ds.psf_field->guide_star_x_arcsec = g[0];
+      ds.psf_field->guide_star_y_arcsec = g[1];
+    }
+    f.CheckNoOtherFields();
+  }
   root.CheckNoOtherFields();
 
   // ---- The frames and the PSFs. --------------------------------------------------------------------------
@@ -558,6 +641,15 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
                                                           : pipeline.ComputePsfs(nullptr, nullptr, nullptr);
     ds.offsets = scene->offsets.frames;
     ds.trustworthy_border_px = pipeline.geometry().trustworthy_border_px;
+    if (scene->psf_field.enabled && !field_node) {
+      // The instrument's field-varying model: the scene's PSFs at its field points (nominal for a closed loop).
+      ds.psf_field.emplace();
+      ds.psf_field->grid = pipeline.field_grid();
+      ds.psf_field->psfs = scene->ao.mode == AoSpec::Mode::kClosedLoop ? NominalFieldPsfs(*scene)
+                                                                        : pipeline.ComputeFieldPsfs(nullptr);
+      ds.psf_field->guide_star_x_arcsec = scene->psf_field.guide_star_x_arcsec;
+      ds.psf_field->guide_star_y_arcsec = scene->psf_field.guide_star_y_arcsec;
+    }
   } else {
     ImageStack psfs = ReadFits(psfs_path).planes;
     const Shape k = ShapeOf(psfs.front());
@@ -592,6 +684,29 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
       nominal[i] /= sum;
     }
     ds.nominal_psfs = std::move(nominal);
+  }
+  if (field_node) {
+    // Node-major planes, k·N + i, each of the PSFs' shape, unit sum (as the PSFs).
+    const ConfigNode& f = *field_node;
+    ds.psf_field->grid = PsfFieldGrid(ds.hr_frame, int(field_grid.rows), int(field_grid.cols), "LoadDataset");
+    const std::size_t nodes = std::size_t(ds.psf_field->grid.nodes());
+    auto read = [&](const char* key, const std::string& path) {
+      const ImageStack planes = ReadFits(path).planes;
+      if (planes.size() != nodes * n || ShapeOf(planes.front()) != ShapeOf(ds.psfs.front()))
+        f.Fail(key, std::to_string(planes.size()) + " x " + ToString(ShapeOf(planes.front())) + " (" + path + ")",
+               std::to_string(nodes * n) + " planes (" + std::to_string(nodes) + " nodes x " + std::to_string(n) +
+                   " frames, node-major) of the PSFs' shape " + ToString(ShapeOf(ds.psfs.front())));
+      std::vector<ImageStack> out(nodes);
+      for (std::size_t p = 0; p < planes.size(); ++p) {
+        const double sum = planes[p].sum();
+        if (!AllFinite(planes[p]) || !(sum > 0))
+          f.Fail(key, "plane " + std::to_string(p) + " with sum " + ToString(sum), "PSFs with finite values and a sum > 0");
+        out[p / n].push_back(planes[p] / sum);
+      }
+      return out;
+    };
+    ds.psf_field->psfs = read("psfs", field_psfs_path);
+    if (!field_nominal_path.empty()) ds.psf_field->nominal_psfs = read("nominal_psfs", field_nominal_path);
   }
   if (psf_size && psf_size != ds.psf_size())
     root.Fail("psf_size_px", std::to_string(psf_size), "the PSFs' side " + std::to_string(ds.psf_size()));

@@ -22,6 +22,7 @@
 #include "aosr/scene/galaxy.hpp"
 #include "aosr/scene/image_object.hpp"
 #include "aosr/scene/point_sources.hpp"
+#include "aosr/scene/preset_psf.hpp"
 #include "aosr/scene/star_field.hpp"
 
 namespace aosr {
@@ -260,7 +261,11 @@ double EstimatePeakBytes(const SceneSpec& s, const SceneGeometry& g) {
   const double distinct = s.frames;
   const double layers = s.telescope.atmosphere ? double(s.telescope.atmosphere->layers.size()) : 0.0;
   const double pupil_work = 4 * 16 * (4 * n2) + (loop ? (layers + 4) * 8 * (4 * n2) : 0.0) + 2 * 16 * k2 * std::sqrt(n2);
-  return 8 * 3 * hr + 8 * k2 * s.frames * (loop ? 2 : 1) + 16 * 3 * half + 8 * 2 * padded + 8 * distinct * hr +
+  const double nodes = s.psf_field.enabled ? double(s.psf_field.grid_y) * s.psf_field.grid_x : 0.0;
+  // psf_field: every node's PSFs (and the nominal ones), one weighted object image and the spectra summed
+  // per distinct PSF.
+  const double field = nodes * 8 * k2 * s.frames * (loop ? 2 : 1) + (nodes > 0 ? 8 * padded + 16 * half * distinct : 0.0);
+  return field + 8 * 3 * hr + 8 * k2 * s.frames * (loop ? 2 : 1) + 16 * 3 * half + 8 * 2 * padded + 8 * distinct * hr +
          8 * lr * (distinct + 6.0 * s.frames) + 2 * sizeof(PointSource) * stars + pupil_work;
 }
 }  // namespace
@@ -282,6 +287,15 @@ void ScenePipeline::Compile() {
   g.pad_top = g.psf_size / 2;
   g.pad_left = g.psf_size / 2;
   g.trustworthy_border_px = (g.psf_size / 2 + s.r - 1) / s.r;
+  if (s.psf_field.enabled) {
+    field_grid_ = s.FieldGrid();
+    field_directions_.clear();
+    field_max_angle_rad_ = 0.0;
+    for (int k = 0; k < field_grid_.nodes(); ++k) {
+      field_directions_.push_back(s.FieldNodeDirection(k));
+      field_max_angle_rad_ = std::max(field_max_angle_rad_, field_directions_.back().Norm());
+    }
+  }
   // Before anything is built (the DM below, later the PSFs): can this run fit in memory at all?
   estimated_peak_bytes_ = EstimatePeakBytes(s, g);
   if (s.sky_oversampling > 1) {
@@ -293,6 +307,11 @@ void ScenePipeline::Compile() {
     fine.sky_oversampling = 1;
     auto p = std::make_shared<ScenePipeline>(std::move(fine));
     p->flux_binning_ = s.sky_oversampling;
+    // The field points stay where the HR grid puts them (the fine frame's own grid would move them by a
+    // fraction of an HR pixel).
+    p->field_grid_ = field_grid_;
+    p->field_directions_ = field_directions_;
+    p->field_scale_ = s.sky_oversampling;
     estimated_peak_bytes_ = std::max(estimated_peak_bytes_, p->estimated_peak_bytes_);
     fine_ = std::move(p);
   }
@@ -402,11 +421,27 @@ void ScenePipeline::Compile() {
                            " distinct",
         groups, groups * (2 * FftSeconds({2 * n, 2 * n}) + MftSeconds(2 * n, k)));
   }
+  const int nodes = field_grid_.nodes();
+  if (nodes > 0) {
+    const PsfFieldSpec& f = s.psf_field;
+    double est = nodes * distinct_count_ * psf_each;
+    for (const PipelineStage& st : stages_)
+      if (st.name == "ao-loop" || st.name == "nominal-psf") est += nodes * st.estimated_s;
+    add("psf-field", std::to_string(f.grid_y) + " x " + std::to_string(f.grid_x) + " field points, guide star at (" +
+                         Fmt("%g", f.guide_star_x_arcsec) + ", " + Fmt("%g", f.guide_star_y_arcsec) +
+                         ") arcsec from the centre, up to " + Fmt("%.3g", field_max_angle_rad_ * 180 * 3600 / M_PI) +
+                         " arcsec from it; " + std::to_string(distinct_count_) + " PSFs per point" +
+                         (s.ao.mode == AoSpec::Mode::kClosedLoop ? " (one loop per point, and the nominal model)" : ""),
+        nodes * distinct_count_, est);
+  }
   const double fft = FftSeconds(g.padded);
+  const int weighted = nodes > 0 ? nodes : 1;  // object spectra: one per field point (core/psf_field.hpp)
   if (has_extended_)
-    add("convolution", "FFT on the padded " + ToString(g.padded) + " grid: 1 object r2c + " + std::to_string(distinct_count_) +
-                           " x (PSF r2c + c2r)",
-        distinct_count_, fft * (1 + 2 * distinct_count_));
+    add("convolution", "FFT on the padded " + ToString(g.padded) + " grid: " + std::to_string(weighted) + " object r2c" +
+                           (nodes > 0 ? " (one per field point) + " + std::to_string(weighted * distinct_count_) + " PSF r2c + " +
+                                            std::to_string(distinct_count_) + " c2r"
+                                      : " + " + std::to_string(distinct_count_) + " x (PSF r2c + c2r)"),
+        distinct_count_, fft * (weighted + (weighted + 1) * distinct_count_));
   if (has_stars_) {
     int stars = 0;
     for (const ObjectSpec& o : s.objects)
@@ -511,7 +546,8 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
 ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
                                       std::vector<double>* strehl, SimulationCounters* counters,
                                       const std::function<bool(int)>& step,
-                                      std::vector<std::array<double, 2>>* tilt_gain) const {
+                                      std::vector<std::array<double, 2>>* tilt_gain,
+                                      FieldDirection direction) const {
   const SceneSpec& s = scene_;
   const Index n = s.telescope.pupil_px;
   const Image amplitude = s.telescope.PupilAmplitude();
@@ -535,8 +571,12 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
     // Static aberrations are non-common-path (science camera only); the DM offsets go through the WFS
     // reference, as a real-time computer applies them.
     AoSystemSpec spec = s.telescope.ToAoSystemSpec(s.ao.sensor, s.ao.seed);
+    // psf_field: every direction's loop on the screens of the widest one, so that all see one atmosphere and
+    // one correction (the loop does not depend on the science direction: closed_loop.hpp, "Off axis").
+    if (spec.atmosphere && field_max_angle_rad_ > 0.0) spec.atmosphere->max_field_angle_rad = field_max_angle_rad_;
     ClosedLoopOptions lo;
     lo.science = sampling;
+    lo.science_direction = direction;
     lo.psf_every_steps = s.ao.psf_every_steps;
     lo.science_static_opd_m = static_opd;
     lo.dm_gain = s.ao.dm_gain;
@@ -571,7 +611,9 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
   } else {
     std::unique_ptr<PsfCalculator> diffraction;
     std::unique_ptr<AnalyticAoPsfCalculator> analytic;
-    if (s.ao.mode == AoSpec::Mode::kAnalytic) analytic = std::make_unique<AnalyticAoPsfCalculator>(s.telescope.ToAnalyticAo(), n, sampling);
+    if (s.ao.mode == AoSpec::Mode::kAnalytic)
+      analytic = std::make_unique<AnalyticAoPsfCalculator>(
+          AnalyticAoAt(s.telescope, direction, "ScenePipeline", "psf_field"), n, sampling);
     else diffraction = std::make_unique<PsfCalculator>(n, s.telescope.aperture.pupil.diameter_m, sampling);
     const double residual_strehl = analytic ? analytic->Compute(amplitude, Image::Zero(n, n)).strehl : 1.0;
     for (int d = 0; d < distinct_count_; ++d) {
@@ -608,6 +650,26 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
   return psfs;
 }
 
+std::vector<ImageStack> ScenePipeline::ComputeFieldPsfs(std::vector<std::vector<double>>* strehl,
+                                                       SimulationCounters* counters) const {
+  return ComputeFieldPsfs(strehl, counters, {});
+}
+
+std::vector<ImageStack> ScenePipeline::ComputeFieldPsfs(std::vector<std::vector<double>>* strehl,
+                                                       SimulationCounters* counters,
+                                                       const std::function<bool(int)>& step) const {
+  std::vector<ImageStack> out;
+  if (strehl) strehl->clear();
+  for (const FieldDirection& d : field_directions_) {
+    std::vector<double> st;
+    ImageStack p = ComputePsfs(nullptr, nullptr, &st, counters, step, nullptr, d);
+    if (p.empty()) return {};  // stopped
+    out.push_back(std::move(p));
+    if (strehl) strehl->push_back(std::move(st));
+  }
+  return out;
+}
+
 Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   if (fine_) {
     // The fine grid renders everything; its outputs go back to the HR grid (pipeline.hpp).
@@ -618,6 +680,10 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
     for (PointSource& p : sim.stars) p = StarToHr(p, so);
     for (Image& p : sim.psfs) p = SubsamplePsf(p, so);
     for (Image& p : sim.nominal_psfs) p = SubsamplePsf(p, so);
+    for (ImageStack& node : sim.field_psfs)
+      for (Image& p : node) p = SubsamplePsf(p, so);
+    for (ImageStack& node : sim.field_nominal_psfs)
+      for (Image& p : node) p = SubsamplePsf(p, so);
     return sim;
   }
   using Clock = std::chrono::steady_clock;
@@ -625,7 +691,8 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   // Steps: the object, each distinct PSF, the nominal PSFs (closed loop), convolution, pixels, detector.
   const bool closed_loop = scene_.ao.mode == AoSpec::Mode::kClosedLoop;
   const int loop_runs = closed_loop && scene_.ao.antithetic && scene_.telescope.atmosphere ? 2 : 1;
-  const int total = 4 + distinct_count_ * loop_runs + (closed_loop ? 1 : 0);
+  const int nodes = field_grid_.nodes();
+  const int total = 4 + (1 + nodes) * distinct_count_ * loop_runs + (closed_loop ? 1 + nodes : 0);
   ProgressReporter reporter(progress, "simulate", total, "");
   int done = 0;
   // Counts `n` steps done; false when the caller asked to stop (or its callback threw: `stop` rethrows that).
@@ -679,30 +746,89 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
       return sim;
     }
   }
+  if (nodes > 0) {
+    t = Clock::now();
+    sim.field_grid = field_grid_;
+    sim.field_directions = field_directions_;
+    sim.field_psfs = ComputeFieldPsfs(&sim.field_strehl, &c,
+                                      progress ? std::function<bool(int)>([&](int n) { return go = advance(n); })
+                                               : std::function<bool(int)>());
+    if (!go) {
+      stop(&sim);
+      return sim;
+    }
+    if (closed_loop) {
+      sim.field_nominal_psfs = NominalFieldPsfs(scene_);
+      if (!advance(nodes)) {
+        stop(&sim);
+        return sim;
+      }
+    }
+    timed("psf-field", t);
+  }
 
   // Convolution on the padded grid: the object's spectrum (extended part by FFT, stars exactly), times each
-  // distinct transfer function, back to the image domain.
+  // distinct transfer function, back to the image domain. With a psf_field, the object weighted by each
+  // node's interpolation weight through that node's PSF, summed (core/psf_field.hpp): y = Σ_k h_k ⊛ (w_k x).
   t = Clock::now();
   const Shape P = g.padded;
+  // The object's spectrum on the padded grid, weighted by `weight` (extended part) and `star_weight` (stars,
+  // at their positions) when given.
+  auto object_spectrum = [&](const Image* weight, const std::function<double(const PointSource&)>& star_weight) {
+    ComplexImage spectrum;
+    if (has_extended_) {
+      Image padded = Image::Zero(P.rows, P.cols);
+      padded.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols) =
+          weight ? Image(extended.cwiseProduct(*weight)) : extended;
+      spectrum = FftR2C(padded);
+      ++c.object_transforms;
+    }
+    if (!sim.stars.empty()) {
+      std::vector<PointSource> shifted;
+      for (PointSource p : sim.stars) {
+        if (star_weight) p.flux *= star_weight(p);
+        if (p.flux == 0.0 && star_weight) continue;
+        p.y += double(g.pad_top), p.x += double(g.pad_left);
+        shifted.push_back(p);
+      }
+      const ComplexImage stars = PointSourceSpectrum(P, shifted);
+      spectrum = spectrum.size() ? ComplexImage(spectrum + stars) : stars;
+    }
+    if (spectrum.size() == 0) spectrum = ComplexImage::Zero(P.rows, P.cols / 2 + 1);
+    return spectrum;
+  };
+  auto transfer = [&](const Image& psf) { return HermitianProjection(TransferFunction(P, psf), P.cols); };
+  std::vector<int> first(distinct_count_);  // an exposure of each distinct PSF
+  for (int d = 0; d < distinct_count_; ++d)
+    first[d] = int(std::find(sim.distinct_psf.begin(), sim.distinct_psf.end(), d) - sim.distinct_psf.begin());
+  // Each distinct PSF's product of spectra; without a field made one at a time below (one spectrum held).
+  std::vector<ComplexImage> products(distinct_count_);
   ComplexImage spectrum;
-  if (has_extended_) {
-    Image padded = Image::Zero(P.rows, P.cols);
-    padded.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols) = extended;
-    spectrum = FftR2C(padded);
-    ++c.object_transforms;
+  if (nodes == 0) {
+    spectrum = object_spectrum(nullptr, {});
+  } else {
+    // Node by node, so that only one weighted spectrum is held; the sum over nodes in node order.
+    const int so = field_scale_;
+    for (int k = 0; k < nodes; ++k) {
+      const Image weight = has_extended_ ? field_grid_.WeightMap(k, so) : Image();
+      const ComplexImage spectrum = object_spectrum(has_extended_ ? &weight : nullptr, [&](const PointSource& p) {
+        // The star's HR-grid position (a fine grid's pixel centres: pipeline.hpp) and its weight at node k.
+        const double half = 0.5 * double(so - 1);
+        for (const PsfFieldGrid::Weight& w : field_grid_.Weights((p.y - half) / so, (p.x - half) / so))
+          if (w.node == k) return w.weight;
+        return 0.0;
+      });
+      for (int d = 0; d < distinct_count_; ++d) {
+        const ComplexImage term = spectrum * transfer(sim.field_psfs[k][first[d]]);
+        products[d] = k == 0 ? term : ComplexImage(products[d] + term);
+      }
+    }
   }
-  if (!sim.stars.empty()) {
-    std::vector<PointSource> shifted = sim.stars;
-    for (PointSource& p : shifted) p.y += double(g.pad_top), p.x += double(g.pad_left);
-    const ComplexImage stars = PointSourceSpectrum(P, shifted);
-    spectrum = spectrum.size() ? ComplexImage(spectrum + stars) : stars;
-  }
-  if (spectrum.size() == 0) spectrum = ComplexImage::Zero(P.rows, P.cols / 2 + 1);
   std::vector<Image> convolved(distinct_count_);
   for (int d = 0; d < distinct_count_; ++d) {
-    const int i = int(std::find(sim.distinct_psf.begin(), sim.distinct_psf.end(), d) - sim.distinct_psf.begin());
-    const ComplexImage H = HermitianProjection(TransferFunction(P, sim.psfs[i]), P.cols);
-    const Image full = FftC2R(ComplexImage(spectrum * H), P.cols);
+    if (nodes == 0) products[d] = spectrum * transfer(sim.psfs[first[d]]);
+    const Image full = FftC2R(products[d], P.cols);
+    products[d] = ComplexImage();
     ++c.frame_transforms;
     // Clipped at 0: FFT rounding (~1e-16 of the peak) and, for stars, the ringing of a window-truncated PSF
     // shifted by a fraction of a pixel (~1e-6 of the star's flux per pixel) dip below 0; an intensity
@@ -740,8 +866,9 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   return sim;
 }
 
-ImageStack NominalPsfs(const SceneSpec& scene) {
-  if (scene.ao.mode != AoSpec::Mode::kClosedLoop) return {};
+namespace {
+// The analytic-AO twin of a closed-loop scene: the reconstructor's nominal model (NominalPsfs).
+SceneSpec NominalScene(const SceneSpec& scene) {
   SceneSpec analytic = scene;
   analytic.ao.mode = AoSpec::Mode::kAnalytic;
   analytic.ao.dm_gain = 1.0;  // the stroke error is the hardware's, unknown to the model (and analytic has none)
@@ -751,7 +878,18 @@ ImageStack NominalPsfs(const SceneSpec& scene) {
     analytic.telescope.ao->wfs.photon_noise = false;
     analytic.telescope.ao->wfs.read_noise_e = 0.0;
   }
-  return ScenePipeline(std::move(analytic)).ComputePsfs(nullptr, nullptr, nullptr);
+  return analytic;
+}
+}  // namespace
+
+ImageStack NominalPsfs(const SceneSpec& scene) {
+  if (scene.ao.mode != AoSpec::Mode::kClosedLoop) return {};
+  return ScenePipeline(NominalScene(scene)).ComputePsfs(nullptr, nullptr, nullptr);
+}
+
+std::vector<ImageStack> NominalFieldPsfs(const SceneSpec& scene) {
+  if (scene.ao.mode != AoSpec::Mode::kClosedLoop || !scene.psf_field.enabled) return {};
+  return ScenePipeline(NominalScene(scene)).ComputeFieldPsfs(nullptr);
 }
 
 }  // namespace aosr

@@ -57,6 +57,55 @@ int MaxPresetPsfSize(const TelescopePreset& preset, const PresetPsfOptions& opti
   return int(double(preset.pupil_px) / pitch_lod);
 }
 
+std::string FieldDirectionLimit(const TelescopePreset& preset, const std::string& mode, FieldDirection direction) {
+  const double theta = direction.Norm();
+  if (!std::isfinite(theta)) return "a finite direction";
+  if (theta > 0.01) return "at most 0.01 rad = 2062.6 arcsec from the guide star";
+  if (theta == 0.0 || !preset.atmosphere) return "";
+  double reach = 0.0;  // the largest displacement h |θ| of a turbulent layer [m]
+  for (const Layer& l : preset.atmosphere->layers)
+    if (l.cn2_fraction > 0) reach = std::max(reach, l.altitude_m * theta);
+  if (reach == 0.0) return "";
+  const double diameter = preset.aperture.pupil.diameter_m;
+  const double per_unit = reach / theta;  // displacement per radian
+  if (mode == "analytic") {
+    // The PSD grid (frequency_padding K, at most 4096 / n) must resolve the anisoplanatism filter:
+    // h |θ| <= K D / 4 (analytic_ao.hpp).
+    const int largest = int(4096 / preset.pupil_px);
+    if (reach > largest * diameter / 4.0 + 1e-12)
+      return "at most " + ToString(largest * diameter / 4.0 / per_unit * kPresetPsfArcsecPerRad) +
+             " arcsec from the guide star in analytic mode (the PSD grid of a " + std::to_string(preset.pupil_px) +
+             "-pixel pupil cannot resolve the anisoplanatism of the highest layer beyond it)";
+  } else if (mode == "closed-loop") {
+    // The phase screens carry a margin of h |θ| / (D / n) + 1 pixels, at most 1024 (atmosphere.cpp).
+    const double pitch = diameter / double(preset.pupil_px);
+    if (reach / pitch + 1.0 > 1024.0)
+      return "at most " + ToString(1023.0 * pitch / per_unit * kPresetPsfArcsecPerRad) +
+             " arcsec from the guide star in closed-loop mode (the phase screens' margin for the highest layer)";
+  }
+  return "";
+}
+
+AnalyticAoOptions AnalyticAoAt(const TelescopePreset& preset, FieldDirection direction, const char* function,
+                               const std::string& field) {
+  AnalyticAoOptions analytic = preset.ToAnalyticAo();
+  if (direction.IsZero()) return analytic;
+  const std::string limit = FieldDirectionLimit(preset, "analytic", direction);
+  if (!limit.empty())
+    throw InvalidArgument(function, field,
+                          "(" + ToString(direction.x_rad * kPresetPsfArcsecPerRad) + ", " +
+                              ToString(direction.y_rad * kPresetPsfArcsecPerRad) + ") arcsec",
+                          limit);
+  analytic.field_direction = direction;
+  // The PSD grid must resolve the anisoplanatism filter: h |theta| <= K D / 4 (analytic_ao.hpp).
+  double reach = 0.0;
+  for (const Layer& l : analytic.layers)
+    if (l.cn2_fraction > 0) reach = std::max(reach, l.altitude_m * direction.Norm());
+  const int needed = int(std::ceil(4.0 * reach / analytic.diameter_m - 1e-9));
+  analytic.frequency_padding = std::max(analytic.frequency_padding, needed);
+  return analytic;
+}
+
 SensorKind ParseSensorKind(const std::string& name) {
   if (name == "ideal") return SensorKind::kIdeal;
   if (name == "geometric") return SensorKind::kGeometric;
@@ -123,24 +172,7 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
     }
     out.residual_rms_nm = std::sqrt(residual_variance) * 1e9;
   } else if (out.mode == "analytic") {
-    AnalyticAoOptions analytic = preset.ToAnalyticAo();
-    if (!o.field_direction.IsZero()) {
-      analytic.field_direction = o.field_direction;
-      // The PSD grid must resolve the anisoplanatism filter: h |theta| <= K D / 4 (analytic_ao.hpp).
-      double reach = 0.0;
-      for (const Layer& l : analytic.layers)
-        if (l.cn2_fraction > 0) reach = std::max(reach, l.altitude_m * o.field_direction.Norm());
-      const int needed = int(std::ceil(4.0 * reach / analytic.diameter_m - 1e-9));
-      const int largest = int(4096 / n);
-      if (needed > largest)
-        throw InvalidArgument("ComputePresetPsf", "field_direction",
-                              "(" + ToString(o.field_direction.x_rad * kPresetPsfArcsecPerRad) + ", " +
-                                  ToString(o.field_direction.y_rad * kPresetPsfArcsecPerRad) + ") arcsec",
-                              "at most " + ToString(largest * analytic.diameter_m / 4.0 / (reach / o.field_direction.Norm()) * kPresetPsfArcsecPerRad) +
-                                  " arcsec from the guide star in analytic mode (the PSD grid of a " + std::to_string(n) +
-                                  "-pixel pupil cannot resolve the anisoplanatism of the highest layer beyond it)");
-      analytic.frequency_padding = std::max(analytic.frequency_padding, needed);
-    }
+    const AnalyticAoOptions analytic = AnalyticAoAt(preset, o.field_direction, "ComputePresetPsf", "field_direction");
     const AnalyticAoPsfCalculator ao(analytic, n, sampling);
     const AnalyticAoPsf p = ao.Compute(amplitude, opd);
     out.psf = p.psf;

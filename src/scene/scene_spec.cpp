@@ -3,10 +3,12 @@
 #include <cmath>
 #include <filesystem>
 
+#include "aosr/ao/anisoplanatism.hpp"
 #include "aosr/ao/random.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/io/image_io.hpp"
+#include "aosr/scene/preset_psf.hpp"
 #include "aosr/scene/raster.hpp"
 
 namespace aosr {
@@ -23,6 +25,7 @@ bool IsRegularFile(const std::string& path) {
 
 constexpr long long kMaxSeed = (1LL << 62);
 constexpr double kNm = 1e-9;
+constexpr double kSceneArcsecPerRad = 180.0 * 3600.0 / M_PI;
 // Default PSF window: 32 λ/D across (16 λ/D radius) holds the diffraction core, the AO-corrected region
 // (control radius D/(2d) = 8 λ/D for the paper's 17×17 DM) and the start of the fitting halo.
 constexpr double kDefaultPsfWindowLod = 32.0;
@@ -428,6 +431,64 @@ double SceneSpec::ElectronsPerFrameForMagnitude(double magnitude) const {
   return ElectronsPerFrame(SourceFlux::Magnitude(magnitude, photometry.band), Collector(), plan);
 }
 
+namespace {
+
+// psf_field (scene_spec.hpp, PsfFieldSpec): the guide star, the grid, and the checks that need the telescope,
+// the AO mode and the frame: a mode that varies over the field, every node's direction within what the mode
+// can compute (FieldDirectionLimit), and a spacing of at most θ0.
+void ParsePsfField(const ConfigNode& n, SceneSpec* s) {
+  PsfFieldSpec& f = s->psf_field;
+  f.enabled = true;
+  if (n.Has("guide_star_arcsec")) {
+    const std::vector<double> g = n.Numbers("guide_star_arcsec", -2062.6, 2062.6, 2, 2);
+    f.guide_star_x_arcsec = g[0];
+    f.guide_star_y_arcsec = g[1];
+  }
+  if (n.Has("grid")) {
+    if (n.json().at("grid").is_number()) {
+      f.grid_y = f.grid_x = int(n.Integer("grid", 1, 33));
+    } else {
+      const std::vector<double> g = n.Numbers("grid", 1, 33, 2, 2);
+      if (g[0] != std::floor(g[0]) || g[1] != std::floor(g[1]))
+        n.Fail("grid", ToString(g[0]) + ", " + ToString(g[1]), "whole numbers of nodes [ny, nx]");
+      f.grid_y = int(g[0]);
+      f.grid_x = int(g[1]);
+    }
+  }
+  n.CheckNoOtherFields();
+  const PsfFieldGrid grid = s->FieldGrid();
+  const std::string grid_text = std::to_string(f.grid_y) + " x " + std::to_string(f.grid_x);
+  const std::string mode = s->ao.mode == AoSpec::Mode::kAnalytic ? "analytic" : "closed-loop";
+  for (int k = 0; k < grid.nodes(); ++k) {
+    const FieldDirection d = s->FieldNodeDirection(k);
+    const std::string limit = FieldDirectionLimit(s->telescope, mode, d);
+    if (!limit.empty())
+      n.Fail("guide_star_arcsec", ToString(f.guide_star_x_arcsec) + ", " + ToString(f.guide_star_y_arcsec),
+             "field points " + limit + "; node " + std::to_string(k) + " of the " + grid_text + " grid is at (" +
+                 ToString(d.x_rad * kSceneArcsecPerRad) + ", " + ToString(d.y_rad * kSceneArcsecPerRad) +
+                 ") arcsec from it");
+  }
+  if (s->telescope.atmosphere) {
+    const auto& a = *s->telescope.atmosphere;
+    const double theta0 =
+        IsoplanaticAngleRad(a.r0_m, a.r0_wavelength_m, s->telescope.science_wavelength_m, a.layers);
+    const std::array<double, 2> spacing = grid.Spacing();
+    const double hr = s->HrPixelRad();
+    auto needed = [&](Index side) { return 1 + int(std::ceil(double(side - 1) * hr / theta0 - 1e-9)); };
+    if (std::isfinite(theta0) && (spacing[0] * hr > theta0 * (1 + 1e-9) || spacing[1] * hr > theta0 * (1 + 1e-9) ||
+                                  (f.grid_y == 1 && double(s->HrFrame().rows - 1) * hr > theta0) ||
+                                  (f.grid_x == 1 && double(s->HrFrame().cols - 1) * hr > theta0)))
+      n.Fail("grid", grid_text,
+             "at least " + std::to_string(needed(s->HrFrame().rows)) + " x " + std::to_string(needed(s->HrFrame().cols)) +
+                 " nodes: the spacing must be at most the isoplanatic angle theta0 = " +
+                 ToString(theta0 * kSceneArcsecPerRad) + " arcsec at the science wavelength (the frame spans " +
+                 ToString(double(s->HrFrame().cols) * hr * kSceneArcsecPerRad) + " x " +
+                 ToString(double(s->HrFrame().rows) * hr * kSceneArcsecPerRad) + " arcsec)");
+  }
+}
+
+}  // namespace
+
 SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
   const ConfigNode root(json, source);
   SceneSpec s;
@@ -521,6 +582,14 @@ SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
     k.CheckNoOtherFields();
   }
 
+  if (root.Has("psf_field")) {
+    if (s.ao.mode != AoSpec::Mode::kAnalytic && s.ao.mode != AoSpec::Mode::kClosedLoop)
+      root.Fail("psf_field", "(with ao.mode none)",
+                "a psf_field only with ao.mode analytic or closed-loop: without AO correction the PSF does not "
+                "depend on the guide star's direction (and a diffraction-limited PSF is the same everywhere)");
+    ParsePsfField(root.Child("psf_field"), &s);
+  }
+
   bool needs_magnitudes = false;
   const std::vector<ConfigNode> objects = root.Array("objects");
   if (objects.empty()) root.Fail("objects", "[]", "at least one object");
@@ -552,6 +621,21 @@ std::vector<DmOffset> LoadDesignFile(const std::string& path) {
   std::vector<DmOffset> frames = ParseDesignFrames(root);
   root.CheckNoOtherFields();
   return frames;
+}
+
+PsfFieldGrid SceneSpec::FieldGrid() const {
+  if (!psf_field.enabled) return PsfFieldGrid();
+  return PsfFieldGrid(HrFrame(), psf_field.grid_y, psf_field.grid_x, "SceneSpec::FieldGrid");
+}
+
+FieldDirection SceneSpec::FieldNodeDirection(int k) const {
+  const std::array<double, 2> p = FieldGrid().Node(k);
+  const Shape hr = HrFrame();
+  const double pitch = HrPixelRad();
+  FieldDirection d;
+  d.x_rad = (p[1] - 0.5 * double(hr.cols - 1)) * pitch - psf_field.guide_star_x_arcsec / kSceneArcsecPerRad;
+  d.y_rad = (p[0] - 0.5 * double(hr.rows - 1)) * pitch - psf_field.guide_star_y_arcsec / kSceneArcsecPerRad;
+  return d;
 }
 
 nlohmann::json DmOffsetToJson(const DmOffset& offset) {

@@ -157,6 +157,36 @@ TEST_F(DatasetErrorsTest, WrongCubeShapes) {
   EXPECT_THAT(LoadError(m), HasSubstr("offsets = (given with scene)"));
 }
 
+// psf_field: its cube must hold grid nodes x frames planes of the PSFs' shape, each with light; its grid and
+// interpolation are checked.
+TEST_F(DatasetErrorsTest, BadPsfFieldSections) {
+  const int k = int((*manifest_)["psf_size_px"].get<long long>());
+  WriteFitsCube(dir_->File("sim/field3.fits"), ImageStack(3, Image::Ones(k, k)));
+  WriteFitsCube(dir_->File("sim/field8.fits"), ImageStack(8, Image::Ones(k, k)));
+  nlohmann::json m = *manifest_;
+  m["psf_field"] = {{"psfs", "field3.fits"}, {"grid", {2, 2}}};
+  EXPECT_THAT(LoadError(m), AllOf(HasSubstr("psf_field.psfs = 3 x"), HasSubstr("8 planes (4 nodes x 2 frames")));
+  m["psf_field"] = {{"psfs", "field8.fits"}, {"grid", {2, 65}}};
+  EXPECT_THAT(LoadError(m), AllOf(HasSubstr("psf_field.grid"), HasSubstr("1..64 nodes")));
+  m["psf_field"] = {{"psfs", "field8.fits"}, {"grid", {2, 2}}, {"interpolation", "cubic"}};
+  EXPECT_THAT(LoadError(m), AllOf(HasSubstr("psf_field.interpolation"), HasSubstr("bilinear")));
+  m["psf_field"] = {{"psfs", "field8.fits"}, {"grid", {2, 2}}, {"spacing", 3}};
+  EXPECT_THAT(LoadError(m), HasSubstr("psf_field.spacing"));
+  m["psf_field"] = {{"grid", {2, 2}}};
+  EXPECT_THAT(LoadError(m), HasSubstr("psf_field.psfs"));
+  ImageStack dark(8, Image::Ones(k, k));
+  dark[5].setZero();
+  WriteFitsCube(dir_->File("sim/field_dark.fits"), dark);
+  m["psf_field"] = {{"psfs", "field_dark.fits"}, {"grid", {2, 2}}};
+  EXPECT_THAT(LoadError(m), AllOf(HasSubstr("psf_field.psfs = plane 5 with sum 0"), HasSubstr("sum > 0")));
+  m["psf_field"] = {{"psfs", "field8.fits"}, {"grid", {2, 2}}};
+  EXPECT_EQ(ErrorOf([&] {
+              test::WriteJson(dir_->File("sim/ok.json"), m);
+              LoadDataset(dir_->File("sim/ok.json"));
+            }),
+            "no exception");
+}
+
 TEST_F(DatasetErrorsTest, NeverWritesOverAnInput) {
   TempDir t;
   // The scene file is the folder's manifest.json: writing the dataset there would overwrite it.

@@ -250,3 +250,48 @@ TEST(DatasetClosedLoopTest, WritesAndLoadsTheNominalPsfs) {
 
 }  // namespace
 }  // namespace aosr
+
+namespace aosr {
+namespace AOSR_TEST_NS {
+
+// A scene with a psf_field writes the PSFs of every field point (field_psfs.fits, node-major, with the nodes'
+// positions and directions in the header) and the manifest's psf_field section, which loads back as
+// Dataset::psf_field with the same numbers; with "scene" instead of PSFs, the scene's field gives it.
+TEST(DatasetPsfFieldTest, WritesAndLoadsTheFieldGrid) {
+  TempDir dir;
+  nlohmann::json j = test::SmallDatasetScene();
+  j["ao"] = {{"mode", "analytic"}};
+  j["psf_field"] = {{"guide_star_arcsec", {-20.0, 5.0}}, {"grid", {2, 3}}};
+  const test::WrittenSimulation w = test::SimulateInto(dir.File("scene.json"), j, dir.File("sim"));
+  ASSERT_EQ(w.sim.field_psfs.size(), 6u);
+  const Dataset d = LoadDataset(dir.File("sim"));
+  ASSERT_TRUE(d.psf_field.has_value());
+  EXPECT_EQ(d.psf_field->grid.ny(), 2);
+  EXPECT_EQ(d.psf_field->grid.nx(), 3);
+  EXPECT_EQ(d.psf_field->guide_star_x_arcsec, -20.0);
+  EXPECT_EQ(d.psf_field->guide_star_y_arcsec, 5.0);
+  ASSERT_EQ(d.psf_field->psfs.size(), 6u);
+  for (int k = 0; k < 6; ++k)
+    for (int i = 0; i < 2; ++i)
+      EXPECT_LT((d.psf_field->psfs[k][i] - w.sim.field_psfs[k][i]).abs().maxCoeff(), 1e-15) << k << ", " << i;
+  EXPECT_TRUE(d.psf_field->nominal_psfs.empty());
+  const FitsData f = ReadFits(dir.File("sim/field_psfs.fits"));
+  EXPECT_EQ(f.planes.size(), 12u);
+  EXPECT_EQ(f.header.GetInt("FLDNX"), 3);
+  EXPECT_DOUBLE_EQ(f.header.GetDouble("FX0002"), 63.0);
+  EXPECT_NEAR(f.header.GetDouble("FTX0000"), w.sim.field_directions[0].x_rad * 180 * 3600 / M_PI, 1e-9);
+  EXPECT_EQ(d.manifest.at("simulation").at("psf_field").at("nodes").size(), 6u);
+  // The instrument-scene form: the same field PSFs, computed from the scene.
+  nlohmann::json m = d.manifest;
+  m.erase("psfs");
+  m.erase("psf_field");
+  m.erase("offsets");
+  m["scene"] = "../scene.json";
+  test::WriteJson(dir.File("sim/from_scene.json"), m);
+  const Dataset s = LoadDataset(dir.File("sim/from_scene.json"));
+  ASSERT_TRUE(s.psf_field.has_value());
+  for (int k = 0; k < 6; ++k) EXPECT_LT((s.psf_field->psfs[k][1] - w.sim.field_psfs[k][1]).abs().maxCoeff(), 1e-15);
+}
+
+}  // namespace AOSR_TEST_NS
+}  // namespace aosr

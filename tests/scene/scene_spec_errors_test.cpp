@@ -517,5 +517,33 @@ TEST(SceneSpecErrorsTest, OverpackedHardCoreStarFieldFailsAtParse) {
   EXPECT_EQ(ParseError(j), "no exception");
 }
 
+// psf_field: only with AO correction; every node within what the mode can compute (the analytic PSD grid's
+// reach); a grid spacing of at most θ0; the grid's own shape.
+TEST(SceneSpecErrorsTest, BadPsfField) {
+  Json j = BaseScene();
+  j["psf_field"] = {{"grid", 2}};
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("mem.json: psf_field"), HasSubstr("ao.mode analytic or closed-loop")));
+  j["ao"] = {{"mode", "analytic"}};
+  EXPECT_EQ(ParseError(j), "no exception");
+  j["psf_field"] = {{"grid", 2}, {"guide_star_arcsec", {2000.0, 0.0}}};
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("psf_field.guide_star_arcsec = 2000, 0"), HasSubstr("in analytic mode")));
+  j["psf_field"] = {{"grid", 2}, {"guide_star_arcsec", {1.0}}};
+  EXPECT_THAT(ParseError(j), HasSubstr("psf_field.guide_star_arcsec"));
+  j["psf_field"] = {{"grid", {2, 0}}};
+  EXPECT_THAT(ParseError(j), HasSubstr("psf_field.grid"));
+  j["psf_field"] = {{"grid", {2.5, 2}}};
+  EXPECT_THAT(ParseError(j), HasSubstr("whole numbers"));
+  j["psf_field"] = {{"grid", 2}, {"guide", 1}};
+  EXPECT_THAT(ParseError(j), HasSubstr("psf_field.guide"));
+  // 512 camera px of lambda/D at K span 29 arcsec, more than theta0 (about 20 arcsec at K for paper-8m): one
+  // node is too coarse, and the error says how many are needed.
+  j["detector"]["frame_px"] = 512;
+  j["psf_field"] = {{"grid", 1}};
+  EXPECT_THAT(ParseError(j), AllOf(HasSubstr("psf_field.grid = 1 x 1"), HasSubstr("at least 3 x 3 nodes"),
+                                   HasSubstr("isoplanatic angle theta0")));
+  j["psf_field"] = {{"grid", 3}};
+  EXPECT_EQ(ParseError(j), "no exception");
+}
+
 }  // namespace
 }  // namespace aosr

@@ -31,6 +31,16 @@
 //                                               ({"shift_px": [dy, dx], "zernike": [{"noll", "rms_nm"}],
 //                                               "actuators_nm": [...]}); default none. Informational for
 //                                               solvers that take the PSFs as given.
+//   psf_field              no                   the PSF across the field (core/psf_field.hpp): {"psfs": a cube of
+//                                               ny·nx·N planes of the psfs' shape, node-major (plane k·N + i: node
+//                                               k, frame i; unit-sum normalised), "grid": [ny, nx] (1..64 each;
+//                                               nodes on the HR frame as psf_field.hpp places them),
+//                                               "nominal_psfs" (optional, same layout: the model for a closed
+//                                               loop), "interpolation": "bilinear" (the only one),
+//                                               "guide_star_arcsec": [x, y] (informational)}. Simulations of a
+//                                               scene with a psf_field write it; with "scene", a scene psf_field
+//                                               gives it (its nominal PSFs for a closed loop). psfs are then the
+//                                               guide star's direction
 //   nominal_psfs           no                   N PSFs of the psfs' shape: the model a reconstructor would use when
 //                                               the psfs are realisations it cannot know (closed-loop simulations
 //                                               write the analytic-AO PSFs of the same offsets); unit-sum normalised
@@ -143,6 +153,16 @@ struct Dataset {
 
   ImageStack psfs;                // N PSFs at HR sampling, K × K (K even), each of unit sum
   ImageStack nominal_psfs;        // N nominal model PSFs (closed-loop simulations: analytic AO), or empty
+  // The PSF across the field (core/psf_field.hpp), when the manifest has a psf_field section or its scene a
+  // psf_field: the grid on the HR frame, per node k the frames' PSFs psfs[k][i] (unit sum, the psfs' shape) and,
+  // when given, the nominal model's. psfs above are then the guide star's direction (a single-PSF model).
+  struct PsfField {
+    PsfFieldGrid grid;
+    std::vector<ImageStack> psfs;
+    std::vector<ImageStack> nominal_psfs;
+    double guide_star_x_arcsec = 0.0, guide_star_y_arcsec = 0.0;
+  };
+  std::optional<PsfField> psf_field;
   std::vector<DmOffset> offsets;  // N DM offsets (all zero when unknown)
   std::optional<Image> truth;     // the HR object, e⁻ per frame per HR pixel, when given
   std::string expected_file;      // resolved path of the noiseless frames, empty when absent

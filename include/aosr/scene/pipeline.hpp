@@ -135,6 +135,16 @@ struct Simulation {
   // Closed loop with ao.offset_calibration "on-sky" only (else empty): per exposure, the (y, x) tip/tilt gain
   // of the wavefront sensor its offset was calibrated with (ClosedLoopResult::tilt_gain); provenance.
   std::vector<std::array<double, 2>> tilt_gain;
+  // psf_field only (scene_spec.hpp, PsfFieldSpec; empty otherwise): the grid of field points on the HR frame,
+  // each node's direction from the guide star, and per node k the exposures' PSFs field_psfs[k][i] (unit sum,
+  // psfs' window), their Strehl ratios, and (closed loop) the nominal model's field_nominal_psfs[k][i]. The
+  // frames are rendered through these (core/psf_field.hpp); psfs (and nominal_psfs) are then the guide
+  // star's direction: the single-PSF model of a reconstructor that ignores the field.
+  PsfFieldGrid field_grid;
+  std::vector<FieldDirection> field_directions;
+  std::vector<ImageStack> field_psfs;
+  std::vector<ImageStack> field_nominal_psfs;
+  std::vector<std::vector<double>> field_strehl;
   ImageStack expected_e;           // noiseless frames, electrons
   std::vector<DetectorFrame> frames;
   std::vector<StageTiming> timings;
@@ -171,9 +181,17 @@ class ScenePipeline {
   // PSFs; tests need the noiseless frames).
   // The object on the HR frame (stars deposited bilinearly) and the star catalogue.
   Image RenderTruth(std::vector<PointSource>* stars) const;
-  // h_i of every exposure (unit sum), with the distinct-PSF map, window fractions and Strehl ratios.
+  // h_i of every exposure (unit sum), with the distinct-PSF map, window fractions and Strehl ratios. With a
+  // psf_field these are the guide star's direction (on axis).
   ImageStack ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
                          std::vector<double>* strehl, SimulationCounters* counters = nullptr) const;
+  // psf_field only: the exposures' PSFs at every node of the grid (result[k][i]), with their Strehl ratios.
+  std::vector<ImageStack> ComputeFieldPsfs(std::vector<std::vector<double>>* strehl,
+                                           SimulationCounters* counters = nullptr) const;
+  // psf_field only: the grid and its nodes' directions from the guide star (those of the HR grid also when
+  // the scene renders on a finer sky).
+  const PsfFieldGrid& field_grid() const { return field_grid_; }
+  const std::vector<FieldDirection>& field_directions() const { return field_directions_; }
 
  private:
   // ComputePsfs, calling `step` after each distinct PSF (each sub-exposure of the closed loop); a `step`
@@ -181,7 +199,10 @@ class ScenePipeline {
   ImageStack ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
                          std::vector<double>* strehl, SimulationCounters* counters,
                          const std::function<bool(int)>& step,
-                         std::vector<std::array<double, 2>>* tilt_gain = nullptr) const;
+                         std::vector<std::array<double, 2>>* tilt_gain = nullptr,
+                         FieldDirection direction = {}) const;
+  std::vector<ImageStack> ComputeFieldPsfs(std::vector<std::vector<double>>* strehl, SimulationCounters* counters,
+                                           const std::function<bool(int)>& step) const;
   void Compile();
   // The extended components summed on the HR frame, and the stars (HR-frame coordinates), flux-scaled.
   Image RenderObject(std::vector<PointSource>* stars) const;
@@ -200,7 +221,18 @@ class ScenePipeline {
   double estimated_peak_bytes_ = 0.0;
   bool has_extended_ = false;
   bool has_stars_ = false;
+  // psf_field: the HR grid (a fine_ pipeline gets its parent's, field_scale_ = sky_oversampling: its frame is
+  // field_scale_ times finer than the grid's), the nodes' directions, and the largest |direction| (the closed
+  // loop's screens are built for it in every run, so that all directions see one atmosphere).
+  PsfFieldGrid field_grid_;
+  std::vector<FieldDirection> field_directions_;
+  int field_scale_ = 1;
+  double field_max_angle_rad_ = 0.0;
 };
+
+// The psf_field's nominal model PSFs of a closed-loop scene, per node (NominalPsfs at each node's direction);
+// empty for other modes or without psf_field.
+std::vector<ImageStack> NominalFieldPsfs(const SceneSpec& scene);
 
 // The nominal model PSFs of a closed-loop scene's exposures: those of the same scene with the Monte-Carlo loop
 // replaced by the analytic long-exposure AO residual (same telescope, AO system, atmosphere, static

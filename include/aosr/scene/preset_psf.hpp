@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/ao/analytic_ao.hpp"
 #include "aosr/ao/ao_system.hpp"
 #include "aosr/core/image.hpp"
 #include "aosr/optics/psf.hpp"
@@ -94,6 +95,19 @@ PresetPsf ComputePresetPsf(const TelescopePreset& preset, const PresetPsfOptions
 // The largest PSF side whose field fits in the pupil grid's period (n λ/D for an n-pixel pupil) at the
 // options' pixel pitch: larger `size` would show aliased copies of the PSF.
 int MaxPresetPsfSize(const TelescopePreset& preset, const PresetPsfOptions& options);
+
+// Whether a PSF at `direction` from the guide star can be computed in `mode` ("analytic" | "closed-loop" |
+// "diffraction"): "" when it can, else the allowed range ("at most ... arcsec from the guide star in analytic
+// mode (...)"), for an error message naming the caller's field. Analytic: the PSD grid's largest padding must
+// resolve the anisoplanatism filter of the highest layer; closed loop: the phase screens' margin.
+std::string FieldDirectionLimit(const TelescopePreset& preset, const std::string& mode, FieldDirection direction);
+
+// The preset's analytic AO options (TelescopePreset::ToAnalyticAo) for a science target at `direction` from
+// the guide star: field_direction set and the PSD grid's padding raised so that it resolves the
+// anisoplanatism filter (h |θ| <= K D / 4, analytic_ao.hpp). InvalidArgument naming `function` and `field`
+// when FieldDirectionLimit refuses the direction. On axis: ToAnalyticAo() unchanged.
+AnalyticAoOptions AnalyticAoAt(const TelescopePreset& preset, FieldDirection direction, const char* function,
+                               const std::string& field);
 
 // "ideal" | "geometric" | "diffractive"; InvalidArgument otherwise.
 SensorKind ParseSensorKind(const std::string& name);

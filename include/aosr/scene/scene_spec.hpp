@@ -28,6 +28,7 @@
 
 #include "aosr/ao/ao_system.hpp"
 #include "aosr/core/image.hpp"
+#include "aosr/core/psf_field.hpp"
 #include "aosr/scene/dead_leaves.hpp"
 #include "aosr/scene/detector.hpp"
 #include "aosr/scene/galaxy.hpp"
@@ -158,6 +159,27 @@ struct SkySpec {
   bool given = false;
 };
 
+// A PSF that changes across the field (anisoplanatism; issue 31). JSON "psf_field": {"guide_star_arcsec":
+// [x, y], "grid": [ny, nx] or n}. A single-conjugate AO system corrects its guide star's direction; a science
+// direction θ from it sees each turbulent layer displaced by altitude × θ, so the residual and the PSF change
+// across the field (ao/analytic_ao.hpp section 2; closed loop: ao/closed_loop.hpp, "Off axis").
+//  * guide_star_arcsec: the guide star's position from the frame's centre (the truth's centre, as SkySpec's),
+//    x along columns, y along rows, in arcsec; inside or outside the frame. Default [0, 0].
+//  * grid: PSFs are computed at ny x nx field points on the frame (core/psf_field.hpp: the outer nodes on the
+//    frame's edges) and interpolated bilinearly between them; each axis 2..33 (1 for an axis along which the
+//    PSF is taken as constant). The spacing must be at most Fried's isoplanatic angle θ0 at the science
+//    wavelength (the anisoplanatic phase variance over one spacing is then at most 1 rad², and the
+//    interpolation's error small: bench/results/wide_field.md measures it against a denser grid).
+// Needs ao.mode analytic or closed-loop (a diffraction-limited PSF is the same everywhere). A scene without
+// psf_field is isoplanatic: the PSF of the guide star's direction everywhere, with the same bytes as before
+// psf_field existed. With it, the frames are rendered through the field-varying PSF, and Simulation::psfs is
+// the guide star's (on-axis) PSF: the single-PSF model a reconstructor without field knowledge would use.
+struct PsfFieldSpec {
+  bool enabled = false;
+  double guide_star_x_arcsec = 0.0, guide_star_y_arcsec = 0.0;
+  int grid_y = 3, grid_x = 3;
+};
+
 struct SceneSpec {
   std::string name;
   std::string source;  // the scene file ("<string>" when parsed from memory)
@@ -174,6 +196,7 @@ struct SceneSpec {
   OffsetsSpec offsets;
   SkySpec sky;
   PhotometrySpec photometry;
+  PsfFieldSpec psf_field;
 
   DetectorOptions detector;        // exposure_time_s = total exposure / N (the frame time)
   double total_exposure_s = 1.0;   // the whole sequence; each frame gets total / N
@@ -195,6 +218,9 @@ struct SceneSpec {
 
   // Derived geometry.
   Shape HrFrame() const { return {frame.rows * r, frame.cols * r}; }
+  // psf_field's grid over the HR frame (empty without psf_field), and node k's direction from the guide star.
+  PsfFieldGrid FieldGrid() const;
+  FieldDirection FieldNodeDirection(int k) const;
   double CameraPixelRad() const { return telescope.camera_pixel_rad; }
   double HrPixelRad() const { return telescope.camera_pixel_rad / r; }
   // HR pixel in lambda/D at the science wavelength.
