@@ -149,6 +149,24 @@ DatasetWeights ParseDatasetWeights(const std::string& name) {
   throw InvalidArgument("ParseDatasetWeights", "weights", name, "auto | background | dataset | poisson | mask");
 }
 
+DatasetPsfField ParseDatasetPsfField(const std::string& name) {
+  if (name == "auto") return DatasetPsfField::kAuto;
+  if (name == "none") return DatasetPsfField::kNone;
+  if (name == "tiles") return DatasetPsfField::kTiles;
+  if (name == "operator") return DatasetPsfField::kOperator;
+  throw InvalidArgument("ParseDatasetPsfField", "psf_field", name, "auto | none | tiles | operator");
+}
+
+const char* ToString(DatasetPsfField f) {
+  switch (f) {
+    case DatasetPsfField::kAuto: return "auto";
+    case DatasetPsfField::kNone: return "none";
+    case DatasetPsfField::kTiles: return "tiles";
+    case DatasetPsfField::kOperator: return "operator";
+  }
+  return "?";
+}
+
 DatasetOffsets ParseDatasetOffsets(const std::string& name) {
   if (name == "auto") return DatasetOffsets::kAuto;
   if (name == "dm") return DatasetOffsets::kDmShifts;
@@ -205,6 +223,48 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     }
     out.model_psfs_replaced = true;
   }
+  // ---- The field-varying model. ---------------------------------------------------------------------------
+  const bool model_based = !options.method || (*options.method != ReconstructionMethod::kShiftAddMean &&
+                                               *options.method != ReconstructionMethod::kShiftAddMedian &&
+                                               *options.method != ReconstructionMethod::kDrizzle);
+  const bool own_psfs = !options.stars_psfs && options.model_psfs.empty();
+  if (options.psf_field == DatasetPsfField::kTiles || options.psf_field == DatasetPsfField::kOperator) {
+    const std::string asked = ToString(options.psf_field);
+    CheckArgument(bool(d.psf_field), kDatasetProblemFn, "psf_field", asked,
+                  "a dataset with a psf_field (simulations of a scene with psf_field write it)");
+    CheckArgument(own_psfs, kDatasetProblemFn, "psf_field", asked + " with model_psfs or stars_psfs",
+                  "the dataset's own (or nominal) PSFs: the field model's PSFs are the dataset's psf_field");
+    CheckArgument(model_based, kDatasetProblemFn, "psf_field", asked,
+                  std::string("a method that models the PSF (tikhonov, linear, tv, map), not ") +
+                      ToString(*options.method));
+    CheckArgument(!(options.psf_field == DatasetPsfField::kOperator && options.method &&
+                    *options.method == ReconstructionMethod::kLinear),
+                  kDatasetProblemFn, "psf_field", asked + " with the linear method",
+                  "tiles: the target-PSF output is a per-frequency design, made tile by tile with local PSFs");
+  }
+  if (d.psf_field && own_psfs && model_based && options.psf_field != DatasetPsfField::kNone) {
+    DatasetProblem::Field f;
+    f.approach = options.psf_field == DatasetPsfField::kOperator ? DatasetPsfField::kOperator : DatasetPsfField::kTiles;
+    f.grid = d.psf_field->grid;
+    if (options.nominal_psfs) {
+      CheckArgument(!d.psf_field->nominal_psfs.empty(), kDatasetProblemFn, "nominal_psfs", "true with a psf_field",
+                    "a dataset whose psf_field gives nominal_psfs (closed-loop simulations write them), or psf_field none");
+      f.psfs = d.psf_field->nominal_psfs;
+    } else {
+      f.psfs = d.psf_field->psfs;
+    }
+    CheckArgument(f.psfs.size() == std::size_t(f.grid.nodes()) && !f.psfs.empty() && f.psfs.front().size() == n,
+                  kDatasetProblemFn, "psf_field psfs", f.psfs.size(), "one stack of N PSFs per node");
+    // The whole field's model: the PSFs at its centre (the regularisation is chosen with it).
+    psfs.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      ImageStack node;
+      for (const ImageStack& p : f.psfs) node.push_back(p[i]);
+      psfs.push_back(f.grid.Interpolate(node, 0.5 * double(d.hr_frame.rows - 1), 0.5 * double(d.hr_frame.cols - 1)));
+    }
+    out.psf_field = std::move(f);
+    out.model_psfs_replaced = true;
+  }
   std::vector<FrameOffset> centroids;  // of the kernels as given: folding moves their first moments
   for (const Image& k : psfs) centroids.push_back(KernelCentroid(k));
   for (Image& k : psfs)
@@ -219,6 +279,19 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
               std::string(kDatasetProblemFn) + ": the model of " + std::to_string(n) + " frames on the HR grid " + ToString(d.hr_frame) +
                   " (r = " + std::to_string(d.r) + ")");
   out.problem.model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(d.hr_frame, d.r, psfs));
+  if (out.psf_field && out.psf_field->approach == DatasetPsfField::kOperator) {
+    // The space-variant operator around the centre's model (forward_model.hpp), the nodes' kernels folded onto
+    // the grid as the model's are.
+    std::vector<ImageStack> nodes = out.psf_field->psfs;
+    for (ImageStack& node : nodes)
+      for (Image& k : node)
+        if (k.rows() > d.hr_frame.rows || k.cols() > d.hr_frame.cols) k = FoldOnto(k, d.hr_frame);
+    CheckMemory(double(nodes.size()) * double(n) * 16.0 * hr_pixels / 2,
+                std::string(kDatasetProblemFn) + ": the space-variant model of " + std::to_string(nodes.size()) +
+                    " field points x " + std::to_string(n) + " frames on the HR grid " + ToString(d.hr_frame));
+    out.problem.model =
+        std::make_shared<const MultiFrameModel>(out.problem.model->WithPsfField(out.psf_field->grid, nodes));
+  }
 
   // ---- Frames (e⁻) and weights. ---------------------------------------------------------------------------
   out.problem.frames = d.FramesElectrons();

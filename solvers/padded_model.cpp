@@ -58,6 +58,10 @@ PaddedModel PaddedModel::FromPeriodicModel(const MultiFrameModel& model, int pad
   const int r = model.r();
   const Shape m_hr = model.hr_shape();
   CheckCommon("PaddedModel::FromPeriodicModel", m_hr, r, padding);
+  if (model.space_variant())
+    throw InvalidArgument("PaddedModel::FromPeriodicModel", "model", "space-variant",
+                          "an isoplanatic model (the zero-padded grid is built from one PSF per frame; use the periodic "
+                          "boundary with a space-variant model)");
   const Shape lr = PaddedLr(model.lr_shape(), padding);
   const Shape hr{lr.rows * r, lr.cols * r};
   std::vector<ComplexImage> otfs;

@@ -27,7 +27,8 @@ double Quantile(const Image& x, double q) {
 TikhonovOptions WithGcvLambda(const ReconstructionProblem& problem, TikhonovOptions t) {
   const bool searched = t.lambda_rule == TikhonovLambdaRule::kGcv || t.lambda_rule == TikhonovLambdaRule::kLcurve ||
                         t.lambda_rule == TikhonovLambdaRule::kUpre;
-  if (!searched || problem.HasUniformWeights()) return t;
+  const bool space_variant = problem.model->space_variant();
+  if (!searched || (problem.HasUniformWeights() && !space_variant)) return t;
   double sum = 0, inv_sum = 0;
   Index count = 0;
   for (int i = 0; i < problem.frame_count(); ++i) {
@@ -39,6 +40,8 @@ TikhonovOptions WithGcvLambda(const ReconstructionProblem& problem, TikhonovOpti
   ReconstructionProblem uniform = problem;
   uniform.frames = problem.CleanFrames();
   uniform.weights.clear();
+  // A space-variant model: the rule runs on its isoplanatic part (the PSFs it was built around).
+  if (space_variant) uniform.model = std::make_shared<const MultiFrameModel>(problem.model->Isoplanatic());
   TikhonovOptions g = t;
   g.compute_std = false;
   if (count > 0) g.noise_sigma = t.noise_sigma * std::sqrt(inv_sum / double(count));

@@ -124,7 +124,7 @@ RegistrationResult RegisterFrames(const ReconstructionProblem& problem, const Re
       // Refined: Gauss-Newton on ‖√w (y − D S_δ z)‖².
       const Image gy = (FourierShiftImage(z, kEps, 0) - FourierShiftImage(z, -kEps, 0)) / (2 * kEps);
       const Image gx = (FourierShiftImage(z, 0, kEps) - FourierShiftImage(z, 0, -kEps)) / (2 * kEps);
-      Eigen::Matrix2d jtj;
+      Eigen::Matrix2d jtj = Eigen::Matrix2d::Zero();  // newton_iterations >= 1 sets it
       double rss = 0;
       for (int it = 0; it < options.newton_iterations; ++it) {
         const Image res = (w * (frames[i] - down(FourierShiftImage(z, dy, dx)))).eval();

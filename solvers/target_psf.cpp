@@ -276,6 +276,12 @@ Image GaussianTargetKernel(double fwhm_px, Index size) {
 TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const TargetPsfOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   problem.Validate(kTargetPsfFn);
+  // The target-PSF output is a per-frequency design: it needs one PSF per frame over its field. A PSF that
+  // varies over the field is served by tiles (solvers/psf_field_model.hpp), each with its local PSFs.
+  if (problem.model->space_variant())
+    throw InvalidArgument(kTargetPsfFn, "problem.model", "space-variant",
+                          "an isoplanatic model: reconstruct a varying PSF by tiles (psf_field tiles), each with "
+                          "its local PSFs and the same target");
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument(std::string(kTargetPsfFn) + ": options." + why);
   const MultiFrameModel& model = *problem.model;

@@ -178,7 +178,10 @@ TikhonovResult Reconstruct(const char* function, const ReconstructionProblem& pr
     for (const Image& w : problem.weights) any = any || (w.array() > 0).any();
     if (!any) throw InvalidArgument(function, "problem.weights", "all zero", "at least one weighted pixel");
   }
-  const bool fourier_exact = problem.HasUniformWeights() && options.boundary == TikhonovBoundary::kPeriodic;
+  // A space-variant model (forward_model.hpp, WithPsfField) has no exact Fourier solution: its operator path
+  // (PCG, preconditioned by the Fourier inverse of its isoplanatic part) solves it.
+  const bool fourier_exact = problem.HasUniformWeights() && options.boundary == TikhonovBoundary::kPeriodic &&
+                             !problem.model->space_variant();
   if (options.prior == TikhonovPrior::kFitted) return FittedPrior(function, problem, options, start);
   if (options.method == TikhonovMethod::kFourier && !fourier_exact)
     throw InvalidArgument(

@@ -156,8 +156,8 @@ int RegulariserReach(const ReconstructionProblem& problem, ReconstructionMethod 
   }
 }
 
-// Fixes the method's automatic choices, made once on `rep`, in *o (tiling.hpp, "One regularisation"). Returns
-// whether anything was chosen (false: the caller's values are used as given).
+}  // namespace
+
 bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* o) {
   switch (o->method) {
     case ReconstructionMethod::kTikhonov: {
@@ -203,8 +203,6 @@ bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* o) 
       return false;
   }
 }
-
-}  // namespace
 
 bool TilingOptions::IsValid(std::string* why) const {
   auto fail = [why](const std::string& m) {
@@ -332,6 +330,7 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
     overlap = int(cap);
   }
   ts.overlap = overlap;
+  ts.tile = tiling.tile;
   ts.tiles = MakeTiles(lr, tiling.tile, overlap, kTilingFn);
   ts.tiles_y = ts.tiles.back().ty + 1;
   ts.tiles_x = ts.tiles.back().tx + 1;

@@ -610,13 +610,21 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
     CheckArgument(AllFinite(*initial), kFunction, "initial", "(non-finite values)", "finite values");
   }
   const bool uniform = problem.HasUniformWeights();
+  // A space-variant model (forward_model.hpp, WithPsfField): only the operator (CG) x-update is exact.
+  const bool space_variant = model.space_variant();
+  if (space_variant && options.x_update != TotalVariationXUpdate::kAuto &&
+      options.x_update != TotalVariationXUpdate::kConjugateGradient)
+    throw InvalidArgument(kFunction, "options.x_update", ToString(options.x_update),
+                          "auto or conjugate-gradient for a space-variant model (the Fourier x-updates need one "
+                          "PSF per frame over the whole field)");
   if (options.x_update == TotalVariationXUpdate::kFourier && !uniform)
     throw InvalidArgument(
         kFunction, "options.x_update", "fourier",
         "auto, fourier-split or conjugate-gradient when the weights are not uniform (masked or varying pixels)");
   TotalVariationXUpdate path = options.x_update;
   if (path == TotalVariationXUpdate::kAuto)
-    path = uniform ? TotalVariationXUpdate::kFourier : TotalVariationXUpdate::kFourierSplit;
+    path = space_variant ? TotalVariationXUpdate::kConjugateGradient
+                         : uniform ? TotalVariationXUpdate::kFourier : TotalVariationXUpdate::kFourierSplit;
   const auto start = std::chrono::steady_clock::now();
 
   TotalVariationSummary s;

@@ -5,6 +5,7 @@
 // astropy expects for them, and what cfitsio wrote); write_fits accepts either form.
 #include "aosr/core/error.hpp"
 #include "aosr/io/fits.hpp"
+#include "aosr/io/plot.hpp"
 #include "common.hpp"
 
 namespace aosr::python {
@@ -95,6 +96,61 @@ void BindIo(py::module_& m) {
       "Writes a 2-D image or an (N, rows, cols) cube as FITS, atomically (write to a temporary name, then\n"
       "rename). header: a dict {KEYWORD: value} or an astropy Header (structural keywords are skipped);\n"
       "comments: {KEYWORD: comment}. dtype 'float32' (default) or 'float64' (exact).");
+  m.def(
+      "write_figure",
+      [](py::object path_object, py::list panels, int panel_width, int panel_height, int columns) {
+        const std::string path = PathString(path_object);
+        // Strict keys, as the config files: a misspelt key is an error, not a silent default.
+        auto keys = [](py::dict d, std::initializer_list<const char*> allowed, const std::string& where) {
+          for (auto item : d) {
+            const std::string k = py::str(item.first);
+            bool ok = false;
+            for (const char* a : allowed) ok = ok || k == a;
+            if (!ok) throw InvalidArgument("aosr.write_figure", where + "." + k, "(unknown key)", "a documented key");
+          }
+        };
+        auto axis = [&](py::dict d, const std::string& where) {
+          PlotAxis a;
+          keys(d, {"label", "log", "min", "max"}, where);
+          if (d.contains("label")) a.label = d["label"].cast<std::string>();
+          if (d.contains("log")) a.log = d["log"].cast<bool>();
+          if (d.contains("min")) a.min = d["min"].cast<double>();
+          if (d.contains("max")) a.max = d["max"].cast<double>();
+          return a;
+        };
+        std::vector<LinePlot> plots;
+        for (std::size_t p = 0; p < panels.size(); ++p) {
+          const std::string where = "panels[" + std::to_string(p) + "]";
+          const py::dict d = panels[p].cast<py::dict>();
+          keys(d, {"title", "x", "y", "series"}, where);
+          LinePlot lp;
+          if (d.contains("title")) lp.title = d["title"].cast<std::string>();
+          if (d.contains("x")) lp.x = axis(d["x"].cast<py::dict>(), where + ".x");
+          if (d.contains("y")) lp.y = axis(d["y"].cast<py::dict>(), where + ".y");
+          if (d.contains("series"))
+            for (py::handle s : d["series"].cast<py::list>()) {
+              const py::dict sd = s.cast<py::dict>();
+              keys(sd, {"label", "x", "y"}, where + ".series");
+              PlotSeries ps;
+              if (sd.contains("label")) ps.label = sd["label"].cast<std::string>();
+              ps.x = sd["x"].cast<std::vector<double>>();
+              ps.y = sd["y"].cast<std::vector<double>>();
+              lp.series.push_back(std::move(ps));
+            }
+          plots.push_back(std::move(lp));
+        }
+        FigureOptions o;
+        o.panel_width = panel_width;
+        o.panel_height = panel_height;
+        o.columns = columns;
+        WithoutGil([&] { WriteFigure(path, plots, o); });
+      },
+      py::arg("path"), py::arg("panels"), py::kw_only(), py::arg("panel_width") = 720, py::arg("panel_height") = 460,
+      py::arg("columns") = 2,
+      "Writes line plots as a PNG, atomically (include/aosr/io/plot.hpp: the pictures of aosr tradeoff and\n"
+      "evaluate). panels: a list of {'title': str, 'x': {'label', 'log', 'min', 'max'}, 'y': {...},\n"
+      "'series': [{'label': str, 'x': [...], 'y': [...]}]}; non-finite points break a line. For benches and\n"
+      "reports without matplotlib. Raises ValueError naming the bad panel, series or key.");
 }
 
 }  // namespace aosr::python

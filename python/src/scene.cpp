@@ -293,6 +293,30 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         if (p.empty()) return py::none();
         return Cached(self, "nominal_psfs", [&] { return StackToArray(p); });
       }, "(N, K, K) nominal model PSFs (closed-loop simulations), or None")
+      .def_property_readonly("psf_field", [](py::object self) -> py::object {
+        const auto& f = self.cast<PyDataset&>().dataset->psf_field;
+        if (!f) return py::none();
+        auto flat = [](const std::vector<ImageStack>& nodes) {
+          ImageStack planes;
+          for (const ImageStack& n : nodes) planes.insert(planes.end(), n.begin(), n.end());
+          py::array a = StackToArray(planes);
+          const std::size_t k = nodes.size(), n = nodes.front().size();
+          return a.reshape({py::ssize_t(k), py::ssize_t(n), a.shape(1), a.shape(2)});
+        };
+        py::list nodes;
+        for (int k = 0; k < f->grid.nodes(); ++k) {
+          const auto p = f->grid.Node(k);
+          nodes.append(py::make_tuple(p[0], p[1]));
+        }
+        py::dict d;
+        d["grid"] = py::make_tuple(f->grid.ny(), f->grid.nx());
+        d["nodes_hr_px"] = nodes;
+        d["psfs"] = flat(f->psfs);
+        d["nominal_psfs"] = f->nominal_psfs.empty() ? py::object(py::none()) : py::object(flat(f->nominal_psfs));
+        d["guide_star_arcsec"] = py::make_tuple(f->guide_star_x_arcsec, f->guide_star_y_arcsec);
+        return d;
+      }, "the PSF across the field (a scene's psf_field), or None: {'grid': (ny, nx), 'nodes_hr_px': [(y, x)] "
+         "row-major, 'psfs': (ny*nx, N, K, K) unit sum, 'nominal_psfs': the same or None, 'guide_star_arcsec': (x, y)}")
       .def_property_readonly("truth", [](py::object self) -> py::object {
         const auto& t = self.cast<PyDataset&>().dataset->truth;
         if (!t) return py::none();

@@ -6,6 +6,7 @@
 #include "aosr/solvers/frame_power_spectrum.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "aosr/solvers/target_psf.hpp"
+#include "aosr/solvers/psf_field_model.hpp"
 #include "aosr/solvers/tiling.hpp"
 #include "bindings.hpp"
 #include "common.hpp"
@@ -300,6 +301,7 @@ struct PyReconstruction {
   Index masked_pixels = 0;
   std::optional<RegistrationResult> registration;
   std::optional<StarsPsfResult> stars_psf;
+  std::string psf_field = "none";  // the field model used: "none" | "tiles"
   int r = 1;
 };
 
@@ -435,6 +437,8 @@ void BindSolvers(py::module_& m) {
       .def_property_readonly("weights_source", [](const PyReconstruction& r) { return r.weights_source; })
       .def_property_readonly("offsets_source", [](const PyReconstruction& r) { return r.offsets_source; })
       .def_property_readonly("model_psfs_replaced", [](const PyReconstruction& r) { return r.model_psfs_replaced; })
+      .def_property_readonly("psf_field", [](const PyReconstruction& r) { return r.psf_field; },
+                             "the field-varying model used: 'none' | 'tiles' | 'operator' (reconstruct's psf_field)")
       .def_property_readonly("masked_pixels", [](const PyReconstruction& r) { return r.masked_pixels; })
       .def_property_readonly(
           "registration",
@@ -477,7 +481,8 @@ void BindSolvers(py::module_& m) {
       "reconstruct",
       [](py::object dataset, const std::string& method, const std::string& weights, const std::string& offsets,
          py::object model_psfs, py::object progress, double registration_range, const std::string& registration_anchor,
-         py::object stars, int tile, int tile_overlap, const std::string& resume, py::kwargs kwargs) {
+         py::object stars, int tile, int tile_overlap, const std::string& resume, const std::string& psf_field,
+         py::kwargs kwargs) {
         // Everything is parsed and checked before any work (as the CLI does).
         TilingOptions tiling;
         tiling.tile = tile;
@@ -505,6 +510,7 @@ void BindSolvers(py::module_& m) {
         if (!dpo.registration.IsValid(&why))
           throw InvalidArgument("aosr.reconstruct", "registration_range", why, "(0, 4] camera px");
         dpo.stars = StarsOptionsFrom(stars, "aosr.reconstruct");
+        dpo.psf_field = ParseDatasetPsfField(psf_field);
         if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "nominal")
           dpo.nominal_psfs = true;
         else if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "stars")
@@ -528,7 +534,8 @@ void BindSolvers(py::module_& m) {
           }
           const DatasetProblem dp = ProblemFromDataset(*d, dpo);
           warning = dp.warning;
-          out->rec = tile > 0 ? ReconstructTiled(dp.problem, o, tiling) : Reconstruct(dp.problem, o);
+          out->rec = ReconstructDataset(dp, o, tiling);
+          if (dp.psf_field) out->psf_field = ToString(dp.psf_field->approach);
           out->weights_source = dp.weights_source;
           out->offsets_source = dp.offsets_source;
           out->model_psfs_replaced = dp.model_psfs_replaced;
@@ -545,7 +552,7 @@ void BindSolvers(py::module_& m) {
       py::arg("dataset"), py::arg("method") = "tikhonov", py::kw_only(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("model_psfs") = py::none(), py::arg("progress") = py::none(),
       py::arg("registration_range") = 0.5, py::arg("registration_anchor") = "mean", py::arg("stars") = py::none(),
-      py::arg("tile") = 0, py::arg("tile_overlap") = -1, py::arg("resume") = "",
+      py::arg("tile") = 0, py::arg("tile_overlap") = -1, py::arg("resume") = "", py::arg("psf_field") = "auto",
       R"doc(Super-resolves a dataset with one method: the library's Reconstruct (include/aosr/solvers/reconstruct.hpp),
 the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and the same bits.
 
@@ -571,6 +578,11 @@ tile        > 0: reconstruct in overlapping tiles of at most tile x tile camera 
             0: the whole grid at once. progress is not called for a tiled run
 tile_overlap  tile > 0: camera px added on each side of a tile; -1: from the PSF's extent and the method's reach
 resume      tile > 0: an existing folder where finished tiles are kept; a rerun reuses them (same bytes)
+psf_field   'auto' (a dataset with a psf_field, with a method that models the PSF: 'tiles') | 'none' (the guide
+            star's PSF everywhere) | 'tiles' (overlapping tiles, each with the PSFs interpolated at its centre;
+            tile sets their size, default half the grid spacing) | 'operator' (one space-variant operator over
+            the whole field: exact for the interpolated PSF, slower; not for 'linear';
+            include/aosr/solvers/psf_field_model.hpp). Reconstruction.psf_field says which was used
 progress    optional callable(dict) called during tikhonov, tv and map (stage, iteration, total, value,
             value_name, elapsed_seconds); returning False cancels (termination 'cancelled')
 **options   the CLI's options under their names (lambda_, lambda_rule, prior, boundary, std, noise_sigma, mu,

@@ -20,6 +20,7 @@
 #include "aosr/scene/evaluation.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/psf_field_model.hpp"
 #include "aosr/solvers/tiling.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
@@ -74,6 +75,7 @@ struct ReconstructArgs {
   std::string kernel = "square";
   double pixfrac = 1.0;
   // Tiling (solvers/tiling.hpp): 0 = the whole grid at once
+  std::string psf_field = "auto";  // --psf-field auto|none|tiles|operator (solvers/dataset_problem.hpp)
   int tile = 0;           // --tile [camera px]
   int tile_overlap = -1;  // --tile-overlap [camera px], -1 = the rule
   std::string resume;     // --resume DIR: finished tiles kept there, reused by a rerun
@@ -254,6 +256,7 @@ void RunReconstruct(const ReconstructArgs& a) {
     else o.linear.kind = TargetPsfKind::kAuto;  // only the linear method reads it
   }
   dpo.method = o.method;
+  dpo.psf_field = ParseDatasetPsfField(a.psf_field);
   if (dpo.stars_psfs) progress.Step("estimating the model PSF from the stars in the frames");
   if (dpo.offsets == DatasetOffsets::kEstimate) progress.Step("estimating the frames' offsets (registration)");
   const DatasetProblem dp = ProblemFromDataset(d, dpo);
@@ -273,7 +276,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                 " frames of " + ToString(d.frame) + ", r = " + std::to_string(d.r) + ")");
   o.progress = bar.Callback();
   TilingSummary ts;
-  const Reconstruction rec = a.tile > 0 ? ReconstructTiled(dp.problem, o, tiling, &ts) : Reconstruct(dp.problem, o);
+  const Reconstruction rec = ReconstructDataset(dp, o, tiling, &ts);
+  const bool tiled = !ts.tiles.empty();
   bar.Clear();
 
   FitsHeader h;
@@ -285,8 +289,13 @@ void RunReconstruct(const ReconstructArgs& a) {
   h.Set("REGUL", rec.regularisation, "lambda (tikhonov, map) or mu (tv); 0 for baselines");
   h.Set("TERMINAT", std::string(ToString(rec.summary.termination)), "solver termination");
   h.Set("NITER", static_cast<long long>(rec.summary.iterations), "iterations");
-  if (a.tile > 0) {
-    h.Set("TILE", static_cast<long long>(a.tile), "[camera px] largest tile core (solvers/tiling.hpp)");
+  if (dp.psf_field)
+    h.Set("PSFFIELD",
+          std::string(ToString(dp.psf_field->approach)) + " " + std::to_string(dp.psf_field->grid.ny()) + "x" +
+              std::to_string(dp.psf_field->grid.nx()),
+          "field-varying model of the dataset's PSF grid (solvers/psf_field_model.hpp)");
+  if (tiled) {
+    h.Set("TILE", static_cast<long long>(ts.tile), "[camera px] largest tile core (solvers/tiling.hpp)");
     h.Set("TILEOVER", static_cast<long long>(ts.overlap), "[camera px] tile overlap on each side");
     h.Set("NTILES", static_cast<long long>(ts.tiles.size()), "tiles reconstructed and blended");
   }
@@ -375,8 +384,12 @@ void RunReconstruct(const ReconstructArgs& a) {
                          {"seconds", reg.seconds}};
   }
   if (!aux_path.empty()) j["aux"] = {{"name", rec.aux_name}, {"path", aux_path}};
-  if (a.tile > 0)
-    j["tiling"] = {{"tile", a.tile},
+  if (dp.psf_field)
+    j["psf_field"] = {{"model", ToString(dp.psf_field->approach)},
+                      {"grid", {dp.psf_field->grid.ny(), dp.psf_field->grid.nx()}},
+                      {"psfs", dpo.nominal_psfs ? "nominal" : "dataset"}};
+  if (tiled)
+    j["tiling"] = {{"tile", ts.tile},
                    {"overlap", ts.overlap},
                    {"overlap_rule", ts.overlap_rule},
                    {"tiles", {ts.tiles_y, ts.tiles_x}},
@@ -558,6 +571,14 @@ void RegisterReconstruct(CLI::App& app) {
                   "--offsets estimate: mean (the estimated set keeps the commanded mean) | frame0 (frame 0 keeps its "
                   "commanded offset)")
       ->capture_default_str();
+  cmd->add_option("--psf-field", a->psf_field,
+                  "the PSF across the field, for a dataset with a psf_field (simulations of a scene with one): auto "
+                  "(tiles when the dataset has one and the method models the PSF) | none (the guide star's PSF "
+                  "everywhere) | tiles (overlapping tiles, each with the PSFs interpolated at its centre; --tile "
+                  "sets their size, default half the grid spacing) | operator (one space-variant operator over the "
+                  "whole field, the interpolated PSF at every pixel: exact, slower; not for linear)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"auto", "none", "tiles", "operator"}));
   cmd->add_option("--model-psfs", a->model_psfs,
                   "PSFs the reconstructor uses instead of the dataset's: a FITS cube (HR sampling, centred), `nominal` for "
                   "the dataset's nominal_psfs (closed-loop simulations: the analytic-AO model), or `stars` for a PSF "

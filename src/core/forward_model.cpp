@@ -160,6 +160,34 @@ MultiFrameModel MultiFrameModel::FromKernels(Shape hr, int r, const ImageStack& 
   return MultiFrameModel(hr, r, std::move(otfs));
 }
 
+MultiFrameModel MultiFrameModel::WithPsfField(const PsfFieldGrid& grid, const std::vector<ImageStack>& node_psfs) const {
+  const char* fn = "MultiFrameModel::WithPsfField";
+  if (grid.empty() || grid.hr_shape() != hr_)
+    throw InvalidArgument(fn, "grid", grid.empty() ? std::string("(empty)") : ToString(grid.hr_shape()),
+                          "a grid over the model's HR grid " + ToString(hr_));
+  if (int(node_psfs.size()) != grid.nodes())
+    throw InvalidArgument(fn, "node_psfs", std::to_string(node_psfs.size()) + " nodes",
+                          std::to_string(grid.nodes()) + " (one per node of the grid)");
+  MultiFrameModel out = *this;
+  out.field_grid_ = grid;
+  std::vector<OperatorPtr> stack_terms;
+  std::vector<std::vector<OperatorPtr>> frame_terms(frames());
+  for (int k = 0; k < grid.nodes(); ++k) {
+    if (int(node_psfs[k].size()) != frames())
+      throw InvalidArgument(fn, "node_psfs[" + std::to_string(k) + "]", std::to_string(node_psfs[k].size()) + " PSFs",
+                            std::to_string(frames()) + " (one per frame)");
+    const MultiFrameModel node = FromKernels(hr_, r_, node_psfs[k]);
+    const OperatorPtr weight = Mask(grid.WeightMap(k));
+    // Σ_k A_k ∘ diag(w_k): the aliased stack of node k's frames after the object's weighting.
+    stack_terms.push_back(Compose(node.Operator(), weight));
+    for (int i = 0; i < frames(); ++i) frame_terms[i].push_back(Compose(node.FrameOperator(i), weight));
+  }
+  out.op_ = stack_terms.size() == 1 ? stack_terms.front() : Sum(std::move(stack_terms));
+  for (int i = 0; i < frames(); ++i)
+    out.frame_ops_[i] = frame_terms[i].size() == 1 ? frame_terms[i].front() : Sum(std::move(frame_terms[i]));
+  return out;
+}
+
 ImageStack MultiFrameModel::Render(const Image& x) const {
   if (ShapeOf(x) != hr_)
     throw InvalidArgument("MultiFrameModel::Render", "object shape", ToString(ShapeOf(x)), ToString(hr_));

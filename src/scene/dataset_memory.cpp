@@ -72,6 +72,17 @@ Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim) {
   NormalisePsfs(&ds.psfs, "DatasetFromSimulation", "psfs");
   ds.nominal_psfs = sim.nominal_psfs;
   NormalisePsfs(&ds.nominal_psfs, "DatasetFromSimulation", "nominal_psfs");
+  if (!sim.field_psfs.empty()) {
+    // The field-varying PSF, as LoadDataset reads it from the manifest's psf_field section.
+    ds.psf_field.emplace();
+    ds.psf_field->grid = sim.field_grid;
+    ds.psf_field->psfs = sim.field_psfs;
+    ds.psf_field->nominal_psfs = sim.field_nominal_psfs;
+    for (ImageStack& node : ds.psf_field->psfs) NormalisePsfs(&node, "DatasetFromSimulation", "field_psfs");
+    for (ImageStack& node : ds.psf_field->nominal_psfs) NormalisePsfs(&node, "DatasetFromSimulation", "field_nominal_psfs");
+    ds.psf_field->guide_star_x_arcsec = scene.psf_field.guide_star_x_arcsec;
+    ds.psf_field->guide_star_y_arcsec = scene.psf_field.guide_star_y_arcsec;
+  }
   ds.offsets = scene.offsets.frames;
   if (ds.offsets.empty()) ds.offsets.assign(n, DmOffset{});
   ds.truth = sim.truth;

@@ -429,7 +429,8 @@ TEST_F(ReconstructCliTest, RingsReportTheScoresAcrossTheField) {
       RunCli("reconstruct " + Data() + " -m tikhonov -o " + Out("rings-text") + " --rings 2 --ring-centre 40,44");
   ASSERT_EQ(text.status, 0) << text.out;
   EXPECT_THAT(text.out, HasSubstr("2 rings about (x, y) = (40.00, 44.00) HR px"));
-  for (const std::string& bad : {"--rings 40", "--rings 2 --ring-centre 200,3", "--ring-centre 3,3", "--rings 2 --ring-centre x"}) {
+  for (const char* bad_text : {"--rings 40", "--rings 2 --ring-centre 200,3", "--ring-centre 3,3", "--rings 2 --ring-centre x"}) {
+    const std::string bad = bad_text;
     const CliRun r = RunCli("reconstruct " + Data() + " -m tikhonov -o " + Out("rings-bad") + " " + bad);
     EXPECT_EQ(r.status, 1) << bad << "\n" << r.out;
     EXPECT_THAT(r.out, HasSubstr(bad.find("centre") != std::string::npos ? "--ring-centre" : "--rings")) << bad;
@@ -438,3 +439,50 @@ TEST_F(ReconstructCliTest, RingsReportTheScoresAcrossTheField) {
 }
 
 }  // namespace
+
+namespace AOSR_TEST_NS {
+
+// A scene with a psf_field: simulate writes the field's PSFs; reconstruct uses them by tiles (auto), says so in
+// its JSON and FITS header, and does better than with the guide star's PSF (--psf-field none) 45 arcsec away;
+// drizzle has no PSF to vary and refuses --psf-field tiles.
+TEST(ReconstructCliPsfField, TilesWithLocalPsfsFromTheDatasetsField) {
+  const fs::path dir = fs::temp_directory_path() / ("aosr_reconstruct_field_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const nlohmann::json scene = {
+      {"name", "field-cli"},
+      {"telescope", "paper-8m"},
+      {"frames", 4},
+      {"r", 2},
+      {"ao", {{"mode", "analytic"}}},
+      {"offsets", {{"type", "raster"}}},
+      {"psf_field", {{"guide_star_arcsec", {-45.0, 0.0}}, {"grid", 2}}},
+      {"detector", {{"frame_px", 48}, {"noise", "peak-fraction"}, {"peak_noise_fraction", 0.0005}, {"saturation", false}}},
+      {"objects", {{{"type", "stars"}, {"count", 30}, {"flux_range_e", {2e4, 2e5}}, {"margin_px", 5.0}}}}};
+  std::ofstream(dir / "scene.json") << scene.dump(2);
+  const CliRun sim = RunCli("simulate " + (dir / "scene.json").string() + " -o " + (dir / "data").string());
+  ASSERT_EQ(sim.status, 0) << sim.out;
+  EXPECT_TRUE(fs::exists(dir / "data" / "field_psfs.fits"));
+  const std::string data = (dir / "data").string();
+  const CliRun f = RunCli("reconstruct " + data + " -m tikhonov -o " + (dir / "f.fits").string() + " --json");
+  ASSERT_EQ(f.status, 0) << f.out;
+  const nlohmann::json jf = nlohmann::json::parse(f.out);
+  ASSERT_TRUE(jf.contains("psf_field"));
+  EXPECT_EQ(jf["psf_field"]["model"], "tiles");
+  EXPECT_EQ(jf["psf_field"]["grid"], nlohmann::json({2, 2}));
+  EXPECT_EQ(jf["tiling"]["tile"], 24);  // half of 95 HR px = 23.75 camera px
+  EXPECT_EQ(aosr::ReadFits((dir / "f.fits").string()).header.GetString("PSFFIELD"), "tiles 2x2");
+  const CliRun n = RunCli("reconstruct " + data + " -m tikhonov --psf-field none -o " + (dir / "n.fits").string() + " --json");
+  ASSERT_EQ(n.status, 0) << n.out;
+  const nlohmann::json jn = nlohmann::json::parse(n.out);
+  EXPECT_FALSE(jn.contains("psf_field"));
+  EXPECT_GT(jf["against_truth"]["aligned"]["psnr_db"].get<double>(),
+            jn["against_truth"]["aligned"]["psnr_db"].get<double>() + 1.0);
+  const CliRun d = RunCli("reconstruct " + data + " -m drizzle --psf-field tiles -o " + (dir / "d.fits").string());
+  EXPECT_NE(d.status, 0);
+  EXPECT_THAT(d.out, HasSubstr("a method that models the PSF"));
+  EXPECT_FALSE(fs::exists(dir / "d.fits"));
+  fs::remove_all(dir);
+}
+
+}  // namespace AOSR_TEST_NS

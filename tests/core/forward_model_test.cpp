@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "aosr/core/adjoint_test.hpp"
+#include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
 #include "support/testing.hpp"
@@ -100,6 +101,47 @@ TEST(ForwardModelTest, RenderConservesFlux) {
   const MultiFrameModel m = TestModel({32, 32}, 4);
   Image x = Random({32, 32}, 9).abs();
   for (const Image& f : m.Render(x)) EXPECT_NEAR(f.sum(), x.sum(), 1e-12 * x.sum());
+}
+
+// The space-variant extension (WithPsfField): an exact adjoint; the stacked and per-frame operators agree; with
+// the same PSFs at every node it is the isoplanatic model (the weights sum to 1); a point at a node is imaged
+// through that node's PSFs alone; the Fourier structure stays the model's own.
+TEST(ForwardModelTest, SpaceVariantModelExtendsTheIsoplanaticOne) {
+  const Shape hr{24, 18};
+  const MultiFrameModel m = TestModel(hr, 3);
+  const PsfFieldGrid grid(hr, 2, 3);
+  std::vector<ImageStack> nodes;
+  for (int k = 0; k < grid.nodes(); ++k)
+    nodes.push_back({Gaussian(9, 0.6 + 0.2 * k, 1.0, 0, 0), Gaussian(9, 1.0, 0.5 + 0.15 * k, 0.2, 0),
+                     Gaussian(9, 1.0, 1.0, 0, -0.3 * k)});
+  const MultiFrameModel v = m.WithPsfField(grid, nodes);
+  EXPECT_TRUE(v.space_variant());
+  EXPECT_FALSE(m.space_variant());
+  EXPECT_LT(AdjointTest(*v.Operator()).worst(), 1e-10);
+  EXPECT_LT(AdjointTest(*v.FrameOperator(1)).worst(), 1e-10);
+  const Image x = Random(hr, 5);
+  const Vector stacked = v.Operator()->Apply(AsVector(x));
+  const Index lr = v.lr_shape().size();
+  for (int i = 0; i < 3; ++i)
+    EXPECT_LT((stacked.segment(i * lr, lr) - v.FrameOperator(i)->Apply(AsVector(x))).cwiseAbs().maxCoeff(),
+              1e-12 * stacked.cwiseAbs().maxCoeff());
+  // The same PSFs everywhere: the isoplanatic model.
+  std::vector<ImageStack> same(grid.nodes(), {Gaussian(9, 1.0, 1.3, 0, 0), Gaussian(9, 1.2, 0.9, 0.3, -0.4),
+                                              Gaussian(9, 0.8, 1.0, -1, 0.5)});
+  const Vector a = m.WithPsfField(grid, same).Operator()->Apply(AsVector(x)), b = m.Operator()->Apply(AsVector(x));
+  EXPECT_LT((a - b).cwiseAbs().maxCoeff(), 1e-12 * b.cwiseAbs().maxCoeff());
+  // A point at node 5 (HR (23, 17), the last pixel) is seen through node 5's PSFs only.
+  Image point = Image::Zero(hr.rows, hr.cols);
+  point(23, 17) = 1.0;
+  const ImageStack seen = v.Render(point);
+  const ImageStack expected = MultiFrameModel::FromKernels(hr, 3, nodes[5]).Render(point);
+  for (int i = 0; i < 3; ++i) EXPECT_LT((seen[i] - expected[i]).abs().maxCoeff(), 1e-14) << i;
+  // The Fourier structure is the isoplanatic model's, and Isoplanatic() drops the field.
+  EXPECT_EQ(v.Otf(1, 2, 3), m.Otf(1, 2, 3));
+  EXPECT_FALSE(v.Isoplanatic().space_variant());
+  EXPECT_THROW(m.WithPsfField(PsfFieldGrid({12, 18}, 2, 2), nodes), InvalidArgument);
+  EXPECT_THROW(m.WithPsfField(grid, {nodes[0]}), InvalidArgument);
+  EXPECT_THROW(m.WithPsfField(grid, std::vector<ImageStack>(6, ImageStack{Gaussian(9, 1, 1, 0, 0)})), InvalidArgument);
 }
 
 }  // namespace

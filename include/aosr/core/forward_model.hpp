@@ -16,12 +16,25 @@
 //
 // AliasedSystem(u) returns that N x r² matrix; Fourier-domain solvers build on it. B vanishes on the
 // alias lattice (f_a a non-zero multiple of m_a), so those HR frequencies are invisible to any design.
+//
+// A PSF that changes across the field (WithPsfField; core/psf_field.hpp, DESIGN.md §1 "Wide fields"). The
+// same model extended: with node k's PSFs h_{i,k} and interpolation weights w_k,
+//
+//     y_i = D_r Σ_k H_{i,k} (w_k ⊙ x),
+//
+// built from the same primitives (Σ_k (node k's model) ∘ Mask(w_k)), so its adjoint is exact by construction.
+// Operator(), FrameOperator(i) and Render are then the space-variant ones. The Fourier structure (otf,
+// Otf, AliasedSystem) stays that of the model WithPsfField was called on, an isoplanatic approximation (the
+// PSFs at the field's centre, typically): what a Fourier preconditioner or a λ rule may use, never a solve
+// that claims exactness. space_variant() tells the solvers which they have; those that need the Fourier
+// structure to be exact refuse a space-variant model or take their operator path.
 #pragma once
 
 #include <Eigen/Dense>
 #include <vector>
 
 #include "aosr/core/linear_operator.hpp"
+#include "aosr/core/psf_field.hpp"
 
 namespace aosr {
 
@@ -64,6 +77,15 @@ class MultiFrameModel {
   // Full-spectrum H_i at HR bin (fy, fx), from the stored half spectrum by Hermitian symmetry.
   Complex Otf(int i, Index fy, Index fx) const;
 
+  // This model with the space-variant operator of `grid` and node_psfs[k][i] (node k, frame i; centred kernels
+  // at HR sampling, each fitting the HR grid), see the top of the file. The grid must cover this model's HR
+  // grid and give this model's frame count at every node. InvalidArgument otherwise.
+  MultiFrameModel WithPsfField(const PsfFieldGrid& grid, const std::vector<ImageStack>& node_psfs) const;
+  bool space_variant() const { return !field_grid_.empty(); }
+  // The isoplanatic model of the same transfer functions (this model without WithPsfField's operator).
+  MultiFrameModel Isoplanatic() const { return MultiFrameModel(hr_, r_, otfs_); }
+  const PsfFieldGrid& field_grid() const { return field_grid_; }
+
  private:
   Shape hr_;
   int r_;
@@ -71,6 +93,7 @@ class MultiFrameModel {
   std::vector<OperatorPtr> frame_ops_;
   OperatorPtr op_;
   std::vector<Complex> box_y_, box_x_;  // 1-D pixel transfer per axis
+  PsfFieldGrid field_grid_;             // space-variant models only (WithPsfField)
 };
 
 }  // namespace aosr

@@ -66,6 +66,20 @@
 namespace aosr {
 
 enum class DatasetWeights { kAuto, kDataset, kMask, kBackground };
+// Whether the model varies over the field (Dataset::psf_field; solvers/psf_field_model.hpp):
+//   kAuto   kTiles when the dataset has a psf_field, the model PSFs are the dataset's (or nominal_psfs) and the
+//           method models PSFs (tikhonov, linear, tv, map); else kNone
+//   kNone   the single PSF per frame (the dataset's psfs: the guide star's direction), as without a field
+//   kTiles     the field model by tiles with local PSFs; InvalidArgument for a dataset without a psf_field,
+//              with model_psfs or stars_psfs (the field's PSFs are the dataset's), or for a method that uses no
+//              PSF
+//   kOperator  the field model as one space-variant operator over the whole field (MultiFrameModel::
+//              WithPsfField): exact for the interpolated PSF, solved by the operator paths (Tikhonov's PCG, TV's
+//              CG x-update, MAP); the same refusals as kTiles, and the linear method (a per-frequency design)
+//              refuses it
+enum class DatasetPsfField { kAuto, kNone, kTiles, kOperator };
+DatasetPsfField ParseDatasetPsfField(const std::string& name);  // "auto" | "none" | "tiles" | "operator"
+const char* ToString(DatasetPsfField f);
 enum class DatasetOffsets { kAuto, kDmShifts, kPsfCentroids, kEstimate };
 // "auto" | "dataset" | "poisson" (= dataset) | "mask" | "background"
 DatasetWeights ParseDatasetWeights(const std::string& name);
@@ -96,6 +110,8 @@ struct DatasetProblemOptions {
   StarsPsfOptions stars;  // with stars_psfs: detection, size and fit settings
   // kEstimate: how (search range, rounds, anchor, the reconstruction registered against).
   RegistrationOptions registration;
+  // The field-varying model (DatasetPsfField above); with nominal_psfs the field's nominal PSFs.
+  DatasetPsfField psf_field = DatasetPsfField::kAuto;
 };
 
 struct DatasetProblem {
@@ -111,6 +127,16 @@ struct DatasetProblem {
   std::optional<StarsPsfResult> stars_psf;  // stars_psfs: the estimate (stars used, chi2/dof, the PSF itself)
   Index masked_pixels = 0;     // pixels of weight 0 over all frames
   Index psf_folded = 0;        // number of PSFs folded onto the HR grid (larger than it)
+  // The field-varying model when used (DatasetProblemOptions::psf_field): the approach (kTiles or kOperator),
+  // the grid and the nodes' PSFs psfs[k][i]. problem.model holds the PSFs interpolated at the field's centre
+  // (what the regularisation is chosen with), made space-variant by kOperator; ReconstructDataset
+  // (solvers/psf_field_model.hpp) reconstructs by tiles or with the operator.
+  struct Field {
+    DatasetPsfField approach = DatasetPsfField::kTiles;
+    PsfFieldGrid grid;
+    std::vector<ImageStack> psfs;
+  };
+  std::optional<Field> psf_field;
 };
 
 // Throws InvalidArgument naming the option for an inconsistent request (kDataset without weights, a PSF

@@ -108,6 +108,7 @@ struct TilingOptions {
 
 struct TilingSummary {
   int tiles_y = 0, tiles_x = 0;
+  int tile = 0;                      // T used (camera px)
   int overlap = 0;                   // P used (camera px)
   std::string overlap_rule;          // "given" or how the rule made it, e.g. "psf 3 + regulariser 3, x2"
   double regularisation = 0;         // the λ / κ / μ every tile used (Reconstruction::regularisation)
@@ -135,6 +136,12 @@ ReconstructionProblem TileProblem(const ReconstructionProblem& problem, const Ti
 // TilingOptions::local_psfs is set: give the overlap explicitly if the local PSFs are wider); *rule says how.
 int SuggestTileOverlap(const ReconstructionProblem& problem, const ReconstructOptions& options,
                        const TilingOptions& tiling, std::string* rule = nullptr);
+
+// The method's automatic choices (λ, κ and the target's width, TV's and MAP's pilot), made once on `rep` and
+// fixed in *options (the top of the file, "One regularisation for the whole field"): what every tile uses, and
+// what a whole-field solve of another model of the same frames can use to match it. Returns whether anything
+// was chosen (false: the options' values are used as given).
+bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* options);
 
 // Reconstruct `problem` by tiles (see the top of the file). The result is a Reconstruction of the whole field
 // as Reconstruct returns it: image (and aux) on the whole HR grid; summary with the worst tile's termination,

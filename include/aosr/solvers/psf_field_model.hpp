@@ -1,0 +1,52 @@
+// Reconstructing through a PSF that changes across the field (issue 31): the field-varying model of a dataset
+// (scene/dataset.hpp, Dataset::psf_field; core/psf_field.hpp) given to the model-based reconstructors.
+//
+// Approach: overlapping tiles with local PSFs (piecewise-constant PSFs blended smoothly, Nagy & O'Leary 1998).
+// The field is cut into tiles (solvers/tiling.hpp); each tile is reconstructed by the method's own solver, with
+// the frames' PSFs interpolated bilinearly at the centre of the tile's core, and the tiles are blended with
+// the tile engine's raised-cosine partition of unity. Every method keeps its Fourier-domain speed inside a tile
+// (one FFT solve per tile instead of one for the field), and the regularisation is chosen once, on the whole
+// field with the PSFs of the field's centre (tiling.hpp: one λ for the field, so resolution and noise do not
+// jump from tile to tile). The linear output's target PSF is the same in every tile: the uniformity that makes
+// it useful for photometry (IMCOM's).
+//
+// The approximation: inside a tile the PSF is taken as constant, the one at the core's centre. Its error grows
+// with the PSF's change across a tile, so tiles should be a fraction of the field grid's spacing
+// (SuggestFieldTile); the blending ramps make the model continuous across tile boundaries.
+//
+// The reference: one space-variant operator over the whole field (DatasetPsfField::kOperator; MultiFrameModel::
+// WithPsfField: y_i = D_r Σ_k H_{i,k}(w_k ⊙ x), exact for the interpolated PSF, exact adjoint), solved by the
+// methods' operator paths: Tikhonov by PCG preconditioned with the Fourier inverse of the centre's model, TV
+// with its CG x-update, MAP as it is. It costs K times the operator applications of one PSF (K field points)
+// and gives up the per-frequency solve; the linear method, a per-frequency design, has no operator form and
+// refuses it. bench/results/wide_field.md compares the two.
+#pragma once
+
+#include <functional>
+
+#include "aosr/core/psf_field.hpp"
+#include "aosr/solvers/dataset_problem.hpp"
+#include "aosr/solvers/tiling.hpp"
+
+namespace aosr {
+
+// The tile engine's local_psfs hook (TilingOptions::local_psfs) for a field model: tile → each frame's PSF
+// interpolated at the centre of the tile's core, ((core_y0 + core_rows / 2) r − ½, likewise x) in HR pixels of
+// the field. `psfs[k][i]`: node k's PSF of frame i (all of one shape, centred). Safe to call concurrently.
+// The kernels are not cut: the tile engine fits them to the window.
+std::function<ImageStack(const TileWindow&)> FieldTilePsfs(PsfFieldGrid grid, std::vector<ImageStack> psfs, int r);
+
+// The default tile (camera px) for a field model: half the grid's node spacing (so that a tile's PSF is never
+// more than a quarter spacing from where it applies), at least 16 camera px, and the whole axis when the grid
+// has one node along it. `lr`: the camera frame.
+int SuggestFieldTile(const PsfFieldGrid& grid, int r, Shape lr);
+
+// The one entry point of a dataset reconstruction, for the CLI and Python alike: with a field model
+// (DatasetProblem::psf_field) by tiles with local PSFs (tiling.tile 0: SuggestFieldTile), or with the
+// space-variant operator (the regularisation fixed on the centre's model, as FixRegularisation does for tiles;
+// tiling.tile must be 0); without one, tiled when tiling.tile > 0, else the whole grid (Reconstruct).
+// `summary` (may be null) is filled when tiled.
+Reconstruction ReconstructDataset(const DatasetProblem& problem, const ReconstructOptions& options,
+                                  TilingOptions tiling = {}, TilingSummary* summary = nullptr);
+
+}  // namespace aosr
