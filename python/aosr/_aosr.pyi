@@ -38,7 +38,7 @@ def fourier_shift(image: ArrayLike, dy: float, dx: float) -> np.ndarray: ...
 def mtf(image: ArrayLike, *, roi: Optional[Sequence[int]] = None, r: int = 0, pixel_lambda_over_d: float = 0.0,
         frequencies: Sequence[float] = (), window: str = "tukey", esf_half_width: float = 0.0,
         min_contrast_to_noise: float = 10.0, max_angle_deg: float = 40.0, curve_max: float = 1.0,
-        curve_step: float = 0.01) -> Dict[str, Any]: ...
+        curve_step: float = 0.01, smooth_tails: bool = True) -> Dict[str, Any]: ...
 
 # io
 def read_fits(path: PathLike, *, with_comments: bool = False) -> Tuple[np.ndarray, ...]: ...
@@ -187,6 +187,12 @@ def reconstruct(dataset: Union[Dataset, PathLike], method: str = "tikhonov", *, 
                 progress: Optional[Callable[[ProgressDict], Optional[bool]]] = None, registration_range: float = 0.5,
                 registration_anchor: str = "mean", stars: Optional[Dict[str, Any]] = None,
                 tile: int = 0, tile_overlap: int = -1, resume: str = "", **options: Any) -> Reconstruction: ...
+# The slanted-edge MTF of several outputs with the exact transfer of the linear ones (solvers/mtf_comparison.hpp).
+def compare_mtf(images: Sequence[Union[Reconstruction, PathLike, Tuple[str, ArrayLike]]],
+                dataset: Union[Dataset, PathLike, None] = None, *, roi: Optional[Sequence[int]] = None, r: int = 0,
+                weights: str = "auto", model_psfs: Union[ArrayLike, str, None] = None, prior: str = "gradient",
+                exact: bool = True, smooth_tails: bool = True, curve_max: float = 0.5, curve_step: float = 0.01,
+                min_contrast_to_noise: float = 10.0, plot: str = "", table: str = "") -> List[Dict[str, Any]]: ...
 # model_psfs='stars' and aosr.stars_psf: PSFs from the point sources in the frames (solvers/stars_psf.hpp).
 def stars_psf(dataset: Union[Dataset, PathLike], *, psf_size_hr_px: int = 0, detection_sigma: float = 5.0,
               min_stars: int = 4, rounds: int = 4, regularisation: float = 1e-4, fit_radius_px: int = 3,
