@@ -187,6 +187,7 @@ def reconstruct(dataset: Union[Dataset, PathLike], method: str = "tikhonov", *, 
                 progress: Optional[Callable[[ProgressDict], Optional[bool]]] = None, registration_range: float = 0.5,
                 registration_anchor: str = "mean", stars: Optional[Dict[str, Any]] = None,
                 tile: int = 0, tile_overlap: int = -1, resume: str = "", **options: Any) -> Reconstruction: ...
+def bicubic(frame: ArrayLike, r: int) -> np.ndarray: ...
 # The slanted-edge MTF of several outputs with the exact transfer of the linear ones (solvers/mtf_comparison.hpp).
 def compare_mtf(images: Sequence[Union[Reconstruction, PathLike, Tuple[str, ArrayLike]]],
                 dataset: Union[Dataset, PathLike, None] = None, *, roi: Optional[Sequence[int]] = None, r: int = 0,

@@ -754,6 +754,17 @@ Returns one dict per image: label, method, measured, refusal (why its edge was r
 mtf50, nyquist, edge_angle_deg, contrast_to_noise (when measured), exact_status ('exact' | 'approximate: ...' |
 'signal-dependent' (tv, map) | 'measured only' | 'unavailable: ...' | 'off') and exact ({frequency, mtf, alias,
 direction} or None). Raises aosr.InvalidArgument when no image has a usable edge.)doc");
+
+  m.def(
+      "bicubic",
+      [](py::handle frame, int r) {
+        const Image f = ImageFromArray(frame, "frame");
+        if (r < 1 || r > 64) throw InvalidArgument("aosr.bicubic", "r", std::to_string(r), "1 .. 64");
+        return MoveImage(WithoutGil([&] { return BicubicUpsample(f, r); }));
+      },
+      py::arg("frame"), py::arg("r"),
+      "One camera frame upsampled r times by bicubic interpolation, in flux per HR pixel: the single-frame baseline of\n"
+      "`aosr demo` (include/aosr/solvers/shift_and_add.hpp BicubicUpsample).");
 }
 
 }  // namespace aosr::python
