@@ -111,7 +111,8 @@ void AddPatch(const Patch& p, double alpha, Image* frame) {
   }
 }
 
-double StarsUpperMedian(std::vector<double> v) {
+// (Named apart from shift_and_add.cpp's Median(std::vector<double>&): unity batches can put both files in one unit.)
+double StarsMedian(std::vector<double> v) {
   if (v.empty()) return 0.0;
   const std::size_t h = v.size() / 2;
   std::nth_element(v.begin(), v.begin() + h, v.end());
@@ -456,7 +457,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
       if (valid[i](p) > 0) v.push_back(yi(p));
     CheckArgument(v.size() >= 16, kStarsPsfFn, "valid[" + std::to_string(i) + "]", std::to_string(v.size()) + " valid pixels",
                   "at least 16 valid pixels per frame");
-    bg[i] = StarsUpperMedian(v);
+    bg[i] = StarsMedian(v);
     sigma[i] = EstimateBackgroundSigma(yi, valid[i]);
     double peak = 0;
     for (double a : v) peak = std::max(peak, a - bg[i]);

@@ -37,6 +37,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     calibrate,
     compare_images,
     compare_images_aligned,
+    compare_mtf,
     compare_images_rings,
     design,
     evaluate,
@@ -53,6 +54,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     set_fft_planner,
     fft_wisdom_loaded,
     allocator_tuned,
+    bicubic,
     tune_allocator,
     set_memory_limit,
     set_threads,
@@ -66,8 +68,8 @@ from ._aosr import (  # noqa: F401  (re-exported API)
 )
 
 __all__ = [
-    "CalibrationSet", "Dataset", "Error", "InvalidArgument", "IoError", "NumericalError", "Reconstruction",
-    "ResourceError", "Scene", "calibrate", "compare_images", "compare_images_aligned", "compare_images_rings", "data_path", "design",
+    "CalibrationSet", "Dataset", "bicubic", "Error", "InvalidArgument", "IoError", "NumericalError", "Reconstruction",
+    "ResourceError", "Scene", "calibrate", "compare_images", "compare_images_aligned", "compare_images_rings", "compare_mtf", "data_path", "design",
     "evaluate", "fourier_shift", "load_scene",
     "methods", "mtf", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
     "scene_from_dict", "set_fft_planner", "fft_wisdom_loaded", "allocator_tuned", "tune_allocator", "set_memory_limit", "set_threads", "simulate", "stars_psf",

@@ -232,9 +232,10 @@ void BindCore(py::module_& m) {
       "mtf",
       [](py::handle image, py::object roi, int r, double pixel_lambda_over_d, std::vector<double> frequencies,
          const std::string& window, double esf_half_width, double min_contrast_to_noise, double max_angle_deg,
-         double curve_max, double curve_step) {
+         double curve_max, double curve_step, bool smooth_tails) {
         const Image x = ImageFromArray(image, "image");
         SlantedEdgeOptions o;
+        o.smooth_tails = smooth_tails;
         if (!roi.is_none()) {
           const std::vector<long long> v = roi.cast<std::vector<long long>>();
           if (v.size() != 4 || v[2] <= 0 || v[3] <= 0)
@@ -284,14 +285,15 @@ void BindCore(py::module_& m) {
       py::arg("image"), py::kw_only(), py::arg("roi") = py::none(), py::arg("r") = 0, py::arg("pixel_lambda_over_d") = 0.0,
       py::arg("frequencies") = std::vector<double>{}, py::arg("window") = "tukey", py::arg("esf_half_width") = 0.0,
       py::arg("min_contrast_to_noise") = 10.0, py::arg("max_angle_deg") = 40.0, py::arg("curve_max") = 1.0,
-      py::arg("curve_step") = 0.01,
+      py::arg("curve_step") = 0.01, py::arg("smooth_tails") = true,
       "Slanted-edge MTF (ISO 12233 e-SFR) of a 2-D image, or of roi = (x0, y0, width, height) in it\n"
       "(include/aosr/core/slanted_edge.hpp). Returns {'frequency', 'mtf' (arrays, cycles/px), 'mtf50', 'mtf10'\n"
       "(cycles/px, None when not reached), 'at' [(f, mtf)] at `frequencies`, 'nyquist' {frequency, mtf} at 1/(2r)\n"
       "when r > 0, 'cutoff' at D/lambda = pixel_lambda_over_d cycles/px when given, 'edge' {orientation,\n"
       "angle_deg, centre_px, length_px, fit_rms_px, low, high, noise_rms, contrast_to_noise, empty_bins},\n"
       "'esf_distance', 'esf', 'lsf', 'report'}. An edge too short, too tilted, too close to an axis, clipped\n"
-      "or too noisy raises aosr.InvalidArgument saying which.");
+      "or too noisy raises aosr.InvalidArgument saying which. smooth_tails=False: the plain ISO 12233 LSF (for\n"
+      "noise-free or ringing edges such as reconstructions, whose ringing the tail smoothing removes).");
   m.def(
       "psnr",
       [](py::handle truth, py::handle estimate, int crop, double peak) {

@@ -1,9 +1,13 @@
 // Bindings of the solvers layer: aosr.reconstruct(dataset, method, **options) for every method of
 // include/aosr/solvers/reconstruct.hpp, and the one table that maps keyword arguments onto
 // ReconstructOptions (ReconstructTable below). A new method's options are a few lines there.
+#include <fstream>
+
 #include "aosr/core/error.hpp"
+#include "aosr/io/atomic_file.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/frame_power_spectrum.hpp"
+#include "aosr/solvers/mtf_comparison.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "aosr/solvers/target_psf.hpp"
 #include "aosr/solvers/psf_field_model.hpp"
@@ -357,6 +361,31 @@ py::dict StarsPsfDict(const StarsPsfResult& s) {
   return d;
 }
 
+
+// One MtfSubject from what compare_mtf accepts: an aosr.Reconstruction, a FITS path, or (label, array).
+MtfSubject MtfSubjectFrom(py::handle item, std::size_t i) {
+  if (py::isinstance<PyReconstruction>(item)) {
+    const PyReconstruction& r = item.cast<const PyReconstruction&>();
+    MtfSubject s;
+    s.image = r.rec.image;
+    s.method = r.method;
+    s.label = r.method;
+    if (r.method == "tikhonov") s.regularisation = r.rec.regularisation;
+    s.effective_psf = r.rec.effective_psf;
+    return s;
+  }
+  if (py::isinstance<py::str>(item) || py::hasattr(item, "__fspath__")) return MtfSubjectFromFits(PathString(item));
+  if (py::isinstance<py::tuple>(item) && py::len(item) == 2) {
+    MtfSubject s;
+    s.label = item.cast<py::tuple>()[0].cast<std::string>();
+    s.image = ImageFromArray(item.cast<py::tuple>()[1], "images[" + std::to_string(i) + "]");
+    return s;
+  }
+  throw InvalidArgument("aosr.compare_mtf", "images[" + std::to_string(i) + "]", py::str(py::type::of(item)).cast<std::string>(),
+                        "an aosr.Reconstruction, a FITS path, or a (label, 2-D array) tuple");
+}
+
+py::array_t<double> MtfArray(const std::vector<double>& v) { return py::array_t<double>(py::ssize_t(v.size()), v.data()); }
 }  // namespace
 
 py::dict ReconstructOptionsHelp() { return ReconstructTable().Describe(CliDefaults()); }
@@ -632,6 +661,122 @@ detection, too few or only saturated stars, offsets that change the PSF's shape)
       },
       "The reconstruction methods aosr.reconstruct accepts: the library's list (solvers/reconstruct.hpp,\n"
       "ReconstructionMethods), the one ParseReconstructionMethod checks names against.");
+
+  m.def(
+      "compare_mtf",
+      [](py::sequence images, py::object dataset, py::object roi, int r, const std::string& weights, py::object model_psfs,
+         const std::string& prior, bool exact, bool smooth_tails, double curve_max, double curve_step,
+         double min_contrast_to_noise, const std::string& plot, const std::string& table) {
+        MtfComparisonOptions co;
+        if (!roi.is_none()) {
+          const std::vector<long long> v = roi.cast<std::vector<long long>>();
+          if (v.size() != 4 || v[2] <= 0 || v[3] <= 0)
+            throw InvalidArgument("aosr.compare_mtf", "roi", py::str(roi).cast<std::string>(),
+                                  "(x0, y0, width, height) with width, height >= 1");
+          co.edge.roi = {Index(v[0]), Index(v[1]), Index(v[2]), Index(v[3])};
+        }
+        co.edge.r = r;
+        co.edge.smooth_tails = smooth_tails;
+        co.edge.curve_max = curve_max;
+        co.edge.curve_step = curve_step;
+        co.edge.min_contrast_to_noise = min_contrast_to_noise;
+        std::string why;
+        if (!co.edge.IsValid(&why)) throw InvalidArgument("aosr.compare_mtf: " + why);
+        co.exact = exact;
+        co.tikhonov.prior = ParseTikhonovPrior(prior);
+        if (co.tikhonov.prior == TikhonovPrior::kFitted)
+          throw InvalidArgument("aosr.compare_mtf", "prior", prior, "identity | gradient | laplacian | power-spectrum");
+        DatasetProblemOptions dpo;
+        dpo.method = ReconstructionMethod::kTikhonov;
+        dpo.weights = ParseDatasetWeights(weights);
+        if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "nominal")
+          dpo.nominal_psfs = true;
+        else if (py::isinstance<py::str>(model_psfs))
+          throw InvalidArgument("aosr.compare_mtf", "model_psfs", model_psfs.cast<std::string>(), "'nominal' | an (N, K, K) array");
+        else if (!model_psfs.is_none())
+          dpo.model_psfs = StackFromArray(model_psfs, "model_psfs");
+        std::vector<MtfSubject> subjects;
+        for (std::size_t i = 0; i < py::len(images); ++i) subjects.push_back(MtfSubjectFrom(images[i], i));
+        std::shared_ptr<const Dataset> d;
+        if (!dataset.is_none()) d = DatasetArgument(dataset, "aosr.compare_mtf");
+        MtfComparison c;
+        WithoutGil([&] {
+          if (d) co.problem = std::make_shared<const ReconstructionProblem>(ProblemFromDataset(*d, dpo).problem);
+          c = CompareMtf(subjects, co);
+          if (!plot.empty()) WriteFigure(plot, {MtfComparisonPlot(c)});
+          if (!table.empty()) {
+            const std::string csv = MtfComparisonCsv(c);
+            AtomicWrite(table, [&csv](const std::string& tmp) {
+              std::ofstream f(tmp);
+              f << csv;
+              if (!f) throw IoError(tmp, "could not write the table");
+            });
+          }
+        });
+        py::list out;
+        for (const MtfComparisonEntry& e : c.entries) {
+          py::dict d2;
+          d2["label"] = e.label;
+          d2["method"] = e.method;
+          d2["measured"] = e.measured;
+          d2["refusal"] = e.refusal;
+          if (e.measured) {
+            d2["frequency"] = MtfArray(e.edge.frequency);
+            d2["mtf"] = MtfArray(e.edge.mtf);
+            d2["mtf50"] = e.edge.mtf50.reached ? py::object(py::float_(e.edge.mtf50.frequency)) : py::object(py::none());
+            d2["nyquist"] = e.edge.has_nyquist ? py::object(py::dict(py::arg("frequency") = e.edge.nyquist.frequency,
+                                                                      py::arg("mtf") = e.edge.nyquist.mtf))
+                                               : py::object(py::none());
+            d2["edge_angle_deg"] = e.edge.angle_deg;
+            d2["contrast_to_noise"] = e.edge.contrast_to_noise;
+          }
+          d2["exact_status"] = e.exact_status;
+          if (e.exact) {
+            py::dict x;
+            x["frequency"] = MtfArray(e.exact->frequency);
+            x["mtf"] = MtfArray(e.exact->mtf);
+            x["alias"] = MtfArray(e.exact->alias);
+            x["direction"] = py::make_tuple(e.exact->direction_y, e.exact->direction_x);
+            d2["exact"] = x;
+          } else {
+            d2["exact"] = py::none();
+          }
+          out.append(d2);
+        }
+        return out;
+      },
+      py::arg("images"), py::arg("dataset") = py::none(), py::kw_only(), py::arg("roi") = py::none(), py::arg("r") = 0,
+      py::arg("weights") = "auto", py::arg("model_psfs") = py::none(), py::arg("prior") = "gradient",
+      py::arg("exact") = true, py::arg("smooth_tails") = true, py::arg("curve_max") = 0.5, py::arg("curve_step") = 0.01,
+      py::arg("min_contrast_to_noise") = 10.0, py::arg("plot") = "", py::arg("table") = "",
+      R"doc(The slanted-edge MTF of several outputs read in one region, beside the exact transfer of the linear methods
+(include/aosr/solvers/mtf_comparison.hpp; `aosr mtf A.fits B.fits ... --manifest DIR`).
+
+images    a list of aosr.Reconstruction (method, lambda and effective PSF known), FITS paths aosr wrote (METHOD,
+          REGUL, the PSF extension), or (label, 2-D array) tuples (measured only)
+dataset   the dataset they were reconstructed from (aosr.Dataset or a path): gives tikhonov outputs their exact
+          curve, with the weights / model_psfs the reconstruction used ('auto', 'nominal', an (N, K, K) array) and
+          its prior; linear outputs carry theirs (the effective PSF)
+roi, r, curve_max, curve_step, min_contrast_to_noise   the edge reading (aosr.mtf); smooth_tails=False for
+          noise-free or ringing edges (reconstructions): the smoothing removes ringing tails
+exact     False: measured curves only
+plot, table   optional PNG and CSV paths (the CLI's -o and --table)
+
+Returns one dict per image: label, method, measured, refusal (why its edge was refused, else ''), frequency, mtf,
+mtf50, nyquist, edge_angle_deg, contrast_to_noise (when measured), exact_status ('exact' | 'approximate: ...' |
+'signal-dependent' (tv, map) | 'measured only' | 'unavailable: ...' | 'off') and exact ({frequency, mtf, alias,
+direction} or None). Raises aosr.InvalidArgument when no image has a usable edge.)doc");
+
+  m.def(
+      "bicubic",
+      [](py::handle frame, int r) {
+        const Image f = ImageFromArray(frame, "frame");
+        if (r < 1 || r > 64) throw InvalidArgument("aosr.bicubic", "r", std::to_string(r), "1 .. 64");
+        return MoveImage(WithoutGil([&] { return BicubicUpsample(f, r); }));
+      },
+      py::arg("frame"), py::arg("r"),
+      "One camera frame upsampled r times by bicubic interpolation, in flux per HR pixel: the single-frame baseline of\n"
+      "`aosr demo` (include/aosr/solvers/shift_and_add.hpp BicubicUpsample).");
 }
 
 }  // namespace aosr::python

@@ -71,3 +71,37 @@ def test_slanted_edge_scene_and_usaf_resolving_power(demo_scene_path):
     assert aosr.usaf_resolving_power(np.ones_like(truth), scene)["finest"] is None
     with pytest.raises(aosr.InvalidArgument, match="HR frame"):
         aosr.usaf_resolving_power(truth[:10], scene)
+
+
+def test_compare_mtf_exact_transfer_of_the_linear_methods(demo_scene_path, tmp_path):
+    # A noise-free edge dataset: Tikhonov's and the linear output's edges match their exact transfer
+    # (solvers/linear_transfer.hpp) within issue 33's 0.03 up to the HR Nyquist; TV is marked signal-dependent.
+    j = aosr.read_json(demo_scene_path)
+    j["detector"] = {"frame_px": 128, "noise": "none"}
+    j["objects"] = [{"type": "slanted-edge", "angle_deg": 5.0, "low": 0.1, "high": 1.0}]
+    ds = aosr.simulate(aosr.scene_from_dict(j, source=demo_scene_path))
+    # Noise-free frames: GCV would run to the smallest λ (no noise to balance); a fixed λ instead.
+    opts = {"tikhonov": {"lambda_": 1e-3}, "tv": {"iterations": 20}}
+    recs = [aosr.reconstruct(ds, m, **opts.get(m, {})) for m in ("tikhonov", "linear", "tv")]
+    out = aosr.compare_mtf(recs + [("truth", ds.truth)], ds, roi=(64, 32, 128, 192), r=2, smooth_tails=False,
+                           plot=str(tmp_path / "mtf.png"), table=str(tmp_path / "mtf.csv"))
+    assert [o["label"] for o in out] == ["tikhonov", "linear", "tv", "truth"]
+    for o in out[:2]:
+        assert o["exact_status"] == "exact"
+        assert o["frequency"][-1] == pytest.approx(0.5)
+        assert np.max(np.abs(o["mtf"] - o["exact"]["mtf"])) < 0.03
+    assert out[0]["exact"]["alias"].shape == out[0]["exact"]["mtf"].shape
+    assert out[2]["exact_status"] == "signal-dependent" and out[2]["exact"] is None
+    assert out[3]["exact_status"] == "measured only"
+    assert (tmp_path / "mtf.png").exists()
+    assert (tmp_path / "mtf.csv").read_text().startswith("frequency_cycles_per_px,tikhonov edge,")
+    # Without the dataset Tikhonov's curve is unavailable; a wrong exact model would be far off.
+    assert aosr.compare_mtf(recs[:1], roi=(64, 32, 128, 192))[0]["exact_status"].startswith("unavailable")
+    wrong = aosr.compare_mtf(recs[:1], ds, roi=(64, 32, 128, 192), smooth_tails=False, prior="identity")[0]
+    assert np.max(np.abs(wrong["mtf"] - wrong["exact"]["mtf"])) > 0.03
+    with pytest.raises(aosr.InvalidArgument, match="images\\[0\\]"):
+        aosr.compare_mtf([3.0])
+    with pytest.raises(aosr.InvalidArgument, match="prior"):
+        aosr.compare_mtf(recs[:1], ds, prior="fitted")
+    with pytest.raises(aosr.InvalidArgument, match="no image has a usable edge"):
+        aosr.compare_mtf([("flat", np.ones((64, 64)))])

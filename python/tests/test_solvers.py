@@ -302,3 +302,12 @@ def test_stars_psf_matches_the_cli(cli, tmp_path):
         aosr.stars_psf(ds, threshold=3)
     with pytest.raises(aosr.InvalidArgument, match="'nominal' . 'stars'"):
         aosr.reconstruct(ds, "tikhonov", model_psfs="star")
+
+
+def test_bicubic_conserves_flux_and_checks_r():
+    frame = np.random.default_rng(3).random((12, 10))
+    up = aosr.bicubic(frame, 3)
+    assert up.shape == (36, 30)
+    assert up.sum() == pytest.approx(frame.sum(), rel=0.02)  # flux per HR pixel: sums agree up to the borders
+    with pytest.raises(aosr.InvalidArgument, match="r"):
+        aosr.bicubic(frame, 0)
