@@ -10,6 +10,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/metrics.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/scene/dataset_memory.hpp"
 #include "aosr/scene/pipeline.hpp"
 #include "aosr/solvers/psf_field_model.hpp"
@@ -138,6 +139,40 @@ TEST(PsfFieldModelErrorsTest, WhatCannotUseAFieldModelSaysSo) {
   EXPECT_THAT([] { ParseDatasetPsfField("grid"); }, ::testing::ThrowsMessage<InvalidArgument>(HasSubstr("auto | none | tiles | operator")));
   EXPECT_THAT([] { FieldTilePsfs(PsfFieldGrid({8, 8}, 2, 2), {}, 2); },
               ::testing::ThrowsMessage<InvalidArgument>(HasSubstr("one stack per node")));
+}
+
+}  // namespace AOSR_TEST_NS
+}  // namespace aosr
+
+namespace aosr {
+namespace AOSR_TEST_NS {
+
+// Reproducible: the field's simulation and both field models give the same bytes on 1 and 2 threads (tiles are
+// solved in parallel and blended in tile order; the operator's sum runs in node order).
+TEST(PsfFieldModelStabilityTest, SameBytesOnOneAndTwoThreads) {
+  nlohmann::json j = WideScene();
+  j["frames"] = 2;
+  j["detector"]["frame_px"] = 48;
+  const int saved = DefaultThreads();
+  std::vector<Image> images;
+  for (int threads : {1, 2}) {
+    SetDefaultThreads(threads);
+    const SceneSpec scene = ParseScene(j, "<test>");
+    const Dataset d = DatasetFromSimulation(scene, ScenePipeline(scene).Run());
+    images.push_back(d.frames[1]);
+    ReconstructOptions o;
+    o.method = ReconstructionMethod::kTikhonov;
+    DatasetProblemOptions dpo;
+    dpo.method = o.method;
+    for (DatasetPsfField f : {DatasetPsfField::kTiles, DatasetPsfField::kOperator}) {
+      dpo.psf_field = f;
+      images.push_back(ReconstructDataset(ProblemFromDataset(d, dpo), o).image);
+    }
+  }
+  SetDefaultThreads(saved);
+  const std::size_t half = images.size() / 2;
+  for (std::size_t k = 0; k < half; ++k)
+    EXPECT_TRUE((images[k].array() == images[k + half].array()).all()) << "output " << k;
 }
 
 }  // namespace AOSR_TEST_NS
