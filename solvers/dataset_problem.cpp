@@ -243,6 +243,12 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
                   "tiles: the target-PSF output is a per-frequency design, made tile by tile with local PSFs");
   }
   if (d.psf_field && own_psfs && model_based && options.psf_field != DatasetPsfField::kNone) {
+    // Registration shifts the model's PSFs by each frame's estimated correction; the nodes' PSFs would keep the
+    // commanded offsets, and the two models would disagree.
+    CheckArgument(options.offsets != DatasetOffsets::kEstimate, kDatasetProblemFn, "offsets",
+                  std::string("estimate with psf_field ") + ToString(options.psf_field),
+                  "dm, centroids or auto with a field model (registration does not move the field's PSFs yet), or "
+                  "psf_field none");
     DatasetProblem::Field f;
     f.approach = options.psf_field == DatasetPsfField::kOperator ? DatasetPsfField::kOperator : DatasetPsfField::kTiles;
     f.grid = d.psf_field->grid;

@@ -132,6 +132,13 @@ TEST(PsfFieldModelErrorsTest, WhatCannotUseAFieldModelSaysSo) {
   dpo.nominal_psfs = false;
   EXPECT_THAT([&] { ProblemFromDataset(plain, dpo); },
               ::testing::ThrowsMessage<InvalidArgument>(HasSubstr("a dataset with a psf_field")));
+  // Registration moves the model's PSFs, not the field's: refused with a field model, also under auto.
+  dpo.psf_field = DatasetPsfField::kAuto;
+  dpo.method = ReconstructionMethod::kTikhonov;
+  dpo.offsets = DatasetOffsets::kEstimate;
+  EXPECT_THAT([&] { ProblemFromDataset(d, dpo); },
+              ::testing::ThrowsMessage<InvalidArgument>(HasSubstr("registration does not move the field's PSFs")));
+  dpo.offsets = DatasetOffsets::kAuto;
   // Auto with drizzle: no field model, no error.
   dpo.psf_field = DatasetPsfField::kAuto;
   dpo.method = ReconstructionMethod::kDrizzle;

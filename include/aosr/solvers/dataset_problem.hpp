@@ -73,6 +73,7 @@ enum class DatasetWeights { kAuto, kDataset, kMask, kBackground };
 //   kTiles     the field model by tiles with local PSFs; InvalidArgument for a dataset without a psf_field,
 //              with model_psfs or stars_psfs (the field's PSFs are the dataset's), or for a method that uses no
 //              PSF
+//   (Not with DatasetOffsets::kEstimate: registration would shift the centre's PSFs and not the field's.)
 //   kOperator  the field model as one space-variant operator over the whole field (MultiFrameModel::
 //              WithPsfField): exact for the interpolated PSF, solved by the operator paths (Tikhonov's PCG, TV's
 //              CG x-update, MAP); the same refusals as kTiles, and the linear method (a per-frequency design)
