@@ -7,10 +7,11 @@
 #    pch_defines and time_macros sloppiness and GCC's -fpch-preprocess (ccache's manual, "Precompiled headers").
 #  * mold (else lld), when installed: linking the ~40 executables and the Python module is a large share of an
 #    incremental build; GNU ld takes seconds per test executable, mold a fraction of one.
-#  * Precompiled headers (aosr_precompile): the standard library, Eigen and (tests) GoogleTest, parsed once per
-#    target instead of once per file. The test executables share one precompiled header (REUSE_FROM), built once.
-#  * Unity builds of the test executables (aosr_unity): a few test files compiled as one, in small batches so that
-#    a compile error still names its file (CMake includes the sources by path, so diagnostics and __FILE__ keep it).
+#  * One precompiled header (the standard library, Eigen, JSON, GoogleTest) shared by all test executables
+#    (REUSE_FROM), built once.
+#  * Unity builds (aosr_unity) of the libraries, the engine, the Python module and the test executables: a few
+#    files compiled as one, in small batches so that a compile error still names its file (CMake includes the
+#    sources by path, so diagnostics and __FILE__ keep it).
 #
 # AOSR_FAST_BUILD=OFF turns the precompiled headers and unity builds off (e.g. to check that every file includes
 # what it uses); ccache and the linker follow what is installed (CMAKE_CXX_COMPILER_LAUNCHER and
@@ -52,20 +53,13 @@ if(_aosr_ld)
   endif()
 endif()
 
-# The headers worth precompiling: parsed by most files of a target and slow to parse (Eigen's templates above all;
-# <Eigen/Dense> brings the decompositions that the optics, AO, solver and design code instantiate; nlohmann's JSON
-# comes with the io layer's public config header).
-set(AOSR_PCH_LIBRARY_HEADERS <algorithm> <cmath> <complex> <functional> <memory> <string> <vector> <Eigen/Core>
-    <Eigen/Dense>)
-set(AOSR_PCH_JSON_HEADERS ${AOSR_PCH_LIBRARY_HEADERS} <nlohmann/json.hpp>)
-set(AOSR_PCH_TEST_HEADERS ${AOSR_PCH_JSON_HEADERS} <gtest/gtest.h> <gmock/gmock.h>)
-
-# aosr_precompile(TARGET HEADERS...): TARGET's files start from a precompiled header of HEADERS.
-function(aosr_precompile target)
-  if(AOSR_FAST_BUILD)
-    target_precompile_headers(${target} PRIVATE ${ARGN})
-  endif()
-endfunction()
+# The headers worth precompiling for the test executables, which share one precompiled header (tests/CMakeLists.txt):
+# built once, it replaces the parse of Eigen, JSON and GoogleTest in every one of ~90 unity batches. The libraries,
+# the engine and the Python module have none: with two to six unity batches a target, building a target's own
+# header (5-13 s each) cost more than it saved. Measured (bench/results/build.md): command 1's build 347 s wall,
+# 656 compiler CPU-s with them; 300 s, 547 CPU-s without.
+set(AOSR_PCH_TEST_HEADERS <algorithm> <cmath> <complex> <functional> <memory> <string> <vector> <Eigen/Core>
+    <Eigen/Dense> <nlohmann/json.hpp> <gtest/gtest.h> <gmock/gmock.h>)
 
 # aosr_unity(TARGET [BATCH]): TARGET's sources compiled in unity batches of BATCH (default AOSR_UNITY_BATCH)
 # files. A file with its own compile options is compiled alone (SKIP_UNITY_BUILD_INCLUSION where it is set).

@@ -13,22 +13,28 @@ if [ "${1:-}" = "--tests" ]; then
   shift
 fi
 
+# Command 1 (the libraries, the `aosr` command, the Python module and its pip install): only what those need, so
+# that a first set-up installs no more than it uses (bench/results/build.md, "A clean clone").
 packages=(cmake g++ make pkg-config
           # ninja schedules the build with less overhead than make, mold links in a fraction of GNU ld's time, and
           # ccache skips files compiled before with the same flags (cmake/BuildSpeed.cmake, bench/results/build.md)
           ninja-build mold ccache
           libeigen3-dev libceres-dev libfftw3-dev libopencv-dev libopenimageio-dev libcfitsio-dev
-          nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev
+          nlohmann-json3-dev libcli11-dev
+          # CMake configures the test targets (built only with --tests) and needs GoogleTest's config for that.
+          libgtest-dev libgmock-dev
           # OpenImageIO's CMake config names its command-line tools as imported targets and fails
           # when they are absent, which --no-install-recommends leaves them.
           openimageio-tools
-          # the WCS check of tests/cli/wcs_astropy_check.py reads aosr's FITS files with astropy (wcslib)
-          python3-astropy python3-numpy)
-# The Python package (python/, `import aosr`): pybind11 bindings built for Debian's /usr/bin/python3, numpy and
-# astropy for users and tests, Dask's distributed scheduler for aosr.distributed, pytest for the python tests.
-packages+=(pybind11-dev python3-dev python3-numpy python3-astropy python3-dask python3-distributed python3-pytest)
-# `pip install .` (pyproject.toml, setup.py) with Debian's pip, setuptools and wheel, and virtualenvs (python3-venv).
-packages+=(python3-pip python3-venv python3-setuptools python3-wheel)
+          # The Python package (python/, `import aosr`): pybind11 bindings built for Debian's /usr/bin/python3,
+          # numpy, and `pip install .` (pyproject.toml, setup.py) with Debian's pip, setuptools and wheel.
+          pybind11-dev python3-dev python3-numpy python3-pip python3-setuptools python3-wheel)
+if ((${#targets[@]} > 1)); then
+  # --tests (command 2) adds what the tests and the optional parts use: astropy reads aosr's FITS WCS in the
+  # checks (tests/cli/wcs_astropy_check.py), Dask's distributed scheduler runs aosr.distributed, pytest the Python
+  # tests, python3-venv the pip-install test's virtualenv.
+  packages+=(python3-astropy python3-dask python3-distributed python3-pytest python3-venv)
+fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

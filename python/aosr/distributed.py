@@ -49,7 +49,11 @@ def get_client(client=None, n_workers=2, threads_per_worker=1, **cluster_kwargs)
     if client == "serial":
         yield None
         return
-    from dask.distributed import Client, LocalCluster
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError as e:
+        raise ImportError("aosr.distributed needs Dask's distributed scheduler: on Debian 12, apt-get install "
+                          "python3-distributed (scripts/setup.sh --tests installs it)") from e
 
     if client is None:
         cluster_kwargs.setdefault("dashboard_address", None)
