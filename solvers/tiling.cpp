@@ -279,6 +279,9 @@ bool TilingOptions::IsValid(std::string* why) const {
     return false;
   };
   if (tile < 1) return fail("tile = " + std::to_string(tile) + "; allowed: >= 1 camera pixel");
+  if (!only_tiles.empty() && checkpoint_dir.empty())
+    return fail("only_tiles without checkpoint_dir; allowed: only_tiles with a checkpoint folder to solve them into");
+  if (!only_tiles.empty() && plan_only) return fail("only_tiles with plan_only; allowed: one or the other");
   if (overlap < -1) return fail("overlap = " + std::to_string(overlap) + "; allowed: -1 (automatic) or >= 0");
   if (!(psf_tail > 0 && psf_tail < 1)) return fail("psf_tail = " + ToString(psf_tail) + "; allowed: (0, 1)");
   return true;
@@ -476,6 +479,18 @@ TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, 
                       FormatBytes(limit_bytes) + ": raise --memory-limit (AOSR_MEMORY_LIMIT) or give fewer or smaller frames");
 }
 
+void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options, double limit_bytes,
+                       TilingOptions* tiling) {
+  if (tiling->overlap < 0) tiling->overlap = SuggestTileOverlap(field, options, *tiling);
+  if (tiling->tile <= 0) {
+    const bool aux = options.method == ReconstructionMethod::kTikhonov && options.tikhonov.compute_std;
+    const TilingOptions chosen = ChooseTiling(field, options.method, tiling->overlap, DefaultThreads(), limit_bytes, aux);
+    tiling->tile = chosen.tile;
+    tiling->parallel_tiles = chosen.parallel_tiles;
+  }
+  tiling->regularisation_window = ChooseRegularisationWindow(field, options.method, limit_bytes);
+}
+
 namespace {
 
 // What the engine reads of a field: a problem with its whole-grid model, or FieldData (kernels only).
@@ -604,7 +619,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
   ts.tiles_y = ts.tiles.back().ty + 1;
   ts.tiles_x = ts.tiles.back().tx + 1;
   const int count = int(ts.tiles.size());
-  if (count == 1 && whole_model && !tiling.rows) {
+  if (count == 1 && whole_model && !tiling.rows && !tiling.plan_only && tiling.only_tiles.empty()) {
     // One tile: the whole field, exactly as Reconstruct solves it.
     Reconstruction out = Reconstruct(*in.problem, options);
     ts.regularisation = out.regularisation;
@@ -681,9 +696,22 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
                                      : "central " + std::to_string(wy) + " x " + std::to_string(wx) + " camera px";
     }
     if (!chosen) ts.regularisation_source = "given";
+    ts.options = fix;
     fix.progress = o.progress;
     o = fix;
   }
+  if (tiling.plan_only) {
+    Reconstruction planned;
+    planned.summary.method = ToString(options.method);
+    planned.summary.message = "planned: " + std::to_string(ts.tiles_y) + " x " + std::to_string(ts.tiles_x) +
+                              " tiles of <= " + std::to_string(tiling.tile) + " camera px, overlap " +
+                              std::to_string(overlap) + "; regularisation (" + ts.regularisation_source + ")";
+    if (summary) *summary = std::move(ts);
+    return planned;
+  }
+  for (const int k : tiling.only_tiles)
+    CheckArgument(k >= 0 && k < count, kTilingFn, "tiling.only_tiles", k,
+                  "a tile index in [0, " + std::to_string(count) + ")");
 
   // The tiles in batches (one per thread, or one at a time), each read from the checkpoint folder if a previous
   // run finished it, else solved (and written there). A batch is blended in tile order, then dropped.
@@ -740,6 +768,35 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
           }
     }
   };
+
+  if (!tiling.only_tiles.empty()) {
+    // Separate jobs: these tiles into the checkpoint folder, nothing blended.
+    const std::vector<int>& ks = tiling.only_tiles;
+    std::vector<TileOutcome> outcomes(ks.size());
+    if (tiling.parallel_tiles) {
+      ParallelFor(Index(ks.size()), [&](Index j) { solve(ks[j], &outcomes[j]); });
+    } else {
+      for (std::size_t j = 0; j < ks.size(); ++j) solve(ks[j], &outcomes[j]);
+    }
+    Reconstruction job;
+    job.summary.method = ToString(options.method);
+    job.summary.termination = Termination::kConverged;
+    int resumed = 0;
+    for (const TileOutcome& t : outcomes) {
+      const Termination term = t.cancelled ? Termination::kUserCancelled : t.rec.summary.termination;
+      ts.tile_terminations.push_back(term);
+      if (Severity(term) > Severity(job.summary.termination)) job.summary.termination = term;
+      job.summary.iterations += t.rec.summary.iterations;
+      resumed += t.resumed;
+    }
+    ts.tiles_resumed = resumed;
+    job.summary.message = "solved " + std::to_string(ks.size()) + " of " + std::to_string(count) +
+                          " tiles into " + tiling.checkpoint_dir + " (" + std::to_string(resumed) + " already there)";
+    job.summary.seconds = job.seconds_total =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (summary) *summary = std::move(ts);
+    return job;
+  }
 
   const int batch = tiling.parallel_tiles ? std::max(1, DefaultThreads()) : 1;
   const std::vector<int> last_row = LastTileRow(ts.tiles, ts.tiles_x, r, overlap, ts.tiles_y, hr.rows);

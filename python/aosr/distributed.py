@@ -1,7 +1,7 @@
 """aosr.distributed: the embarrassingly parallel work of aosr mapped over a ``dask.distributed.Client``.
 
-Each function maps one library call per item (a dataset to reconstruct, a design configuration, a calibration
-trial) over a Dask client and gathers the results in input order. There is no algorithm and no scheduler
+Each function maps one library call per item (a dataset to reconstruct, a tile of one dataset, a design
+configuration, a calibration trial) over a Dask client and gathers the results in input order. There is no algorithm and no scheduler
 here: Dask schedules, retries and reports progress; aosr computes.
 
 Which client (the ``client`` argument of every function):
@@ -28,11 +28,12 @@ import glob
 import hashlib
 import json
 import os
+import shutil
 import tempfile
 
 import aosr
 
-__all__ = ["get_client", "reconstruct_many", "design_sweep", "calibration_trials", "map_tasks"]
+__all__ = ["get_client", "reconstruct_many", "reconstruct_tiles", "design_sweep", "calibration_trials", "map_tasks"]
 
 RESULTS_FORMAT = "aosr-batch-results"
 RESULTS_VERSION = 1
@@ -242,6 +243,97 @@ def reconstruct_many(datasets, output_dir, method="tikhonov", *, client=None, na
     if results:
         _write_json_atomically(os.path.join(output_dir, results), manifest)
     return records
+
+
+# ---- The tiles of one dataset ------------------------------------------------------------------------------
+
+def _tile_task(task):
+    """One tile of a plan, solved into the shared checkpoint folder (atomically: a worker killed mid-write
+    leaves no tile). Returns the tile's record."""
+    _prepare_worker(task["threads"])
+    record = aosr._aosr._tiles(task["dataset"], task["method"], phase="solve", plan=task["plan"],
+                               tiles=[task["tile"]], checkpoint_dir=task["checkpoint_dir"], weights=task["weights"],
+                               offsets=task["offsets"], options=task["options"])
+    record["tile"] = task["tile"]
+    record["worker_pid"] = os.getpid()
+    return record
+
+
+def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, tile=0, tile_overlap=-1,
+                      memory_limit=None, checkpoint_dir=None, weights="auto", offsets="auto", threads=1,
+                      dtype="float32", progress=False, n_workers=2, **options):
+    """Reconstructs one dataset by tiles, one Dask task per tile: a detector too large for one process's memory,
+    or one reconstruction spread over a cluster (solvers/tiling.hpp, "A whole detector").
+
+    The client plans once: the dataset's tiles (``tile`` camera px, or the largest whose run fits
+    ``memory_limit``), their overlap and one regularisation for the whole field (λ, κ or TV's μ, chosen on a
+    central window). Each task opens the dataset from its path (shared storage: frames are not shipped through
+    the scheduler), solves its tile with the plan's options and writes it to ``checkpoint_dir``. The client then
+    blends the tiles in order. The image has the bytes of the serial run
+    ``aosr.reconstruct(dataset, method, tile=..., tile_overlap=..., memory_limit=...)`` by tiles without a
+    whole-grid model, whoever solved which tile; a task whose worker dies is run again by Dask, and a rerun with
+    the same ``checkpoint_dir`` solves only the tiles that are missing.
+
+    dataset         a dataset folder or manifest path every worker can read
+    output          optional FITS path: the image (``dtype``) with the HR grid's WCS, written atomically
+    method, **options   as aosr.reconstruct (the CLI's defaults)
+    tile, tile_overlap, memory_limit   as aosr.reconstruct; tile 0 chooses the tiles under memory_limit
+    checkpoint_dir  an existing folder on shared storage for the tiles (kept: a rerun resumes from it); None: a
+                    temporary folder next to ``output`` (or in the system's temporary folder), removed at the end
+    threads         aosr threads per task
+    client, n_workers, progress   see the module doc
+
+    Returns the aosr.Reconstruction of the blend (its summary says how many tiles and that they were resumed
+    from the folder).
+    """
+    if not isinstance(dataset, (str, os.PathLike)):
+        raise aosr.InvalidArgument("aosr.distributed.reconstruct_tiles: invalid dataset = "
+                                   f"{type(dataset).__name__}; allowed: a dataset folder or manifest path that "
+                                   "every worker can read")
+    if dtype not in ("float32", "float64"):
+        raise aosr.InvalidArgument(f"aosr.distributed.reconstruct_tiles: invalid dtype = {dtype}; allowed: "
+                                   "float32 | float64")
+    if checkpoint_dir is not None and not os.path.isdir(checkpoint_dir):
+        raise aosr.InvalidArgument(f"aosr.distributed.reconstruct_tiles: invalid checkpoint_dir = {checkpoint_dir}; "
+                                   "allowed: an existing folder (on storage the workers share)")
+    dataset = os.path.abspath(os.fspath(dataset))
+    common = {"weights": weights, "offsets": offsets, "options": options}
+    plan = aosr._aosr._tiles(dataset, method, phase="plan", tile=tile, tile_overlap=tile_overlap,
+                             memory_limit=memory_limit, **common)
+    own_folder = checkpoint_dir is None
+    if own_folder:
+        parent = os.path.dirname(os.path.abspath(output)) if output else None
+        checkpoint_dir = tempfile.mkdtemp(prefix="aosr-tiles-", dir=parent)
+    checkpoint_dir = os.path.abspath(checkpoint_dir)
+    try:
+        tasks = [dict(common, dataset=dataset, method=method, plan=plan, tile=k, checkpoint_dir=checkpoint_dir,
+                      threads=threads) for k in range(plan["tiles"])]
+        key = hashlib.sha256(json.dumps([dataset, method, plan, weights, offsets, repr(sorted(options.items())),
+                                         checkpoint_dir], sort_keys=True, default=str).encode()).hexdigest()[:16]
+        map_tasks(_tile_task, tasks, client=client, progress=progress, n_workers=n_workers,
+                  key_prefix=f"aosr-tile-{key}")
+        rec = aosr._aosr._tiles(dataset, method, phase="blend", plan=plan, checkpoint_dir=checkpoint_dir, **common)
+    finally:
+        _remove_stale_temporaries([os.path.join(checkpoint_dir, f"tile_{k}.bin") for k in range(plan["tiles"])])
+        if own_folder:
+            shutil.rmtree(checkpoint_dir, ignore_errors=True)
+    if output:
+        ds = aosr.open_dataset(dataset)
+        header = {
+            "ORIGIN": f"aosr {aosr.__version__}",
+            "AOSRDATA": "reconstruction",
+            "METHOD": method,
+            "SRFACTOR": ds.r,
+            "NFRAMES": len(ds),
+            "REGUL": rec.regularisation,
+            "TERMINAT": rec.summary["termination"],
+            "NITER": rec.summary["iterations"],
+            "NTILES": plan["tiles"],
+            "TILE": plan["tile"],
+        }
+        header.update(ds.hr_header("electron"))
+        aosr.write_fits(output, rec.image, header, dtype=dtype)
+    return rec
 
 
 # ---- Design sweeps -----------------------------------------------------------------------------------------

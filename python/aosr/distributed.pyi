@@ -2,7 +2,7 @@ import os
 from contextlib import AbstractContextManager
 from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, TypeVar, Union
 
-from . import Dataset, Scene
+from . import Dataset, Reconstruction, Scene
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -19,6 +19,12 @@ def reconstruct_many(datasets: Sequence[Union[str, "os.PathLike[str]", Dataset]]
                      method: str = "tikhonov", *, client: ClientLike = None, names: Optional[Sequence[str]] = None,
                      threads: int = 1, dtype: str = "float32", evaluate: bool = True, progress: bool = False,
                      n_workers: int = 2, results: Optional[str] = "results.json", **options: Any) -> List[Dict[str, Any]]: ...
+def reconstruct_tiles(dataset: Union[str, "os.PathLike[str]"], output: Union[str, "os.PathLike[str]", None] = None,
+                      method: str = "tikhonov", *, client: ClientLike = None, tile: int = 0, tile_overlap: int = -1,
+                      memory_limit: Union[float, str, None] = None,
+                      checkpoint_dir: Union[str, "os.PathLike[str]", None] = None, weights: str = "auto",
+                      offsets: str = "auto", threads: int = 1, dtype: str = "float32", progress: bool = False,
+                      n_workers: int = 2, **options: Any) -> Reconstruction: ...
 def design_sweep(configs: Iterable[Dict[str, Any]], *, client: ClientLike = None, progress: bool = False,
                  n_workers: int = 2) -> List[Dict[str, Any]]: ...
 def calibration_trials(spec: str = "paper-bench", seeds: Iterable[int] = ..., *, client: ClientLike = None,

@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/io/atomic_file.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/frame_power_spectrum.hpp"
@@ -307,6 +308,9 @@ struct PyReconstruction {
   std::optional<StarsPsfResult> stars_psf;
   std::string psf_field = "none";  // the field model used: "none" | "tiles"
   int r = 1;
+  // Set when the whole grid did not fit the memory limit and the run went by tiles without a whole-grid model.
+  std::optional<TilingOptions> by_tiles_for_memory;
+  double whole_grid_bytes = 0, memory_limit_bytes = 0;
 };
 
 // StarsPsfOptions from keyword arguments (or a dict) under the fields' names; unknown names are errors.
@@ -390,6 +394,50 @@ py::array_t<double> MtfArray(const std::vector<double>& v) { return py::array_t<
 
 py::dict ReconstructOptionsHelp() { return ReconstructTable().Describe(CliDefaults()); }
 
+// The values FixRegularisation fixes (solvers/tiling.cpp), as a plan's dict for aosr.distributed.reconstruct_tiles:
+// a worker applies them instead of choosing again, so every tile is solved with the client's options exactly.
+py::dict RegularisationDict(const ReconstructOptions& o) {
+  using namespace pybind11::literals;
+  const TikhonovOptions& t = o.tikhonov;
+  py::dict d("tikhonov"_a = py::dict("lambda_rule"_a = int(t.lambda_rule), "lambda"_a = t.lambda,
+                                     "prior"_a = int(t.prior), "spectrum_slope"_a = t.spectrum_slope,
+                                     "spectrum_corner"_a = t.spectrum_corner),
+             "linear"_a = py::dict("kappa"_a = o.linear.kappa, "kind"_a = int(o.linear.kind),
+                                   "fwhm_hr_px"_a = o.linear.fwhm_hr_px));
+  if (o.fixed_automatic)
+    d["automatic"] = py::dict("pilot_lambda"_a = o.fixed_automatic->pilot_lambda, "mu"_a = o.fixed_automatic->mu,
+                              "contrast"_a = o.fixed_automatic->contrast);
+  return d;
+}
+
+void ApplyRegularisationDict(const py::dict& d, ReconstructOptions* o) {
+  const py::dict t = d["tikhonov"].cast<py::dict>(), l = d["linear"].cast<py::dict>();
+  o->tikhonov.lambda_rule = static_cast<TikhonovLambdaRule>(t["lambda_rule"].cast<int>());
+  o->tikhonov.lambda = t["lambda"].cast<double>();
+  o->tikhonov.prior = static_cast<TikhonovPrior>(t["prior"].cast<int>());
+  o->tikhonov.spectrum_slope = t["spectrum_slope"].cast<double>();
+  o->tikhonov.spectrum_corner = t["spectrum_corner"].cast<double>();
+  o->linear.kappa = l["kappa"].cast<double>();
+  o->linear.kind = static_cast<TargetPsfKind>(l["kind"].cast<int>());
+  o->linear.fwhm_hr_px = l["fwhm_hr_px"].cast<double>();
+  if (d.contains("automatic")) {
+    const py::dict a = d["automatic"].cast<py::dict>();
+    o->fixed_automatic = AutomaticRegularisation{a["pilot_lambda"].cast<double>(), a["mu"].cast<double>(),
+                                                 a["contrast"].cast<double>()};
+  }
+}
+
+// A memory limit argument: None (the process's), bytes, or '512M' / '8G'.
+MemoryLimit MemoryLimitArgument(const py::object& memory_limit, const char* fn) {
+  if (memory_limit.is_none()) return CurrentMemoryLimit();
+  if (py::isinstance<py::str>(memory_limit))
+    return {ParseByteSize(memory_limit.cast<std::string>(), std::string(fn) + ": memory_limit"), "memory_limit"};
+  const double bytes = memory_limit.cast<double>();
+  if (!(bytes > 0) || !std::isfinite(bytes))
+    throw InvalidArgument(fn, "memory_limit", ToString(bytes), "bytes > 0, or '512M', '8G'");
+  return {bytes, "memory_limit"};
+}
+
 void BindSolvers(py::module_& m) {
   py::class_<PyReconstruction, std::shared_ptr<PyReconstruction>>(
       m, "Reconstruction",
@@ -470,6 +518,22 @@ void BindSolvers(py::module_& m) {
                              "the field-varying model used: 'none' | 'tiles' | 'operator' (reconstruct's psf_field)")
       .def_property_readonly("masked_pixels", [](const PyReconstruction& r) { return r.masked_pixels; })
       .def_property_readonly(
+          "memory_plan",
+          [](const PyReconstruction& r) -> py::object {
+            if (!r.by_tiles_for_memory) return py::none();
+            py::dict d;
+            d["whole_grid_bytes"] = r.whole_grid_bytes;
+            d["memory_limit_bytes"] = r.memory_limit_bytes;
+            d["tile"] = r.by_tiles_for_memory->tile;
+            d["tile_overlap"] = r.by_tiles_for_memory->overlap;
+            d["parallel_tiles"] = r.by_tiles_for_memory->parallel_tiles;
+            d["regularisation_window"] = r.by_tiles_for_memory->regularisation_window;
+            return std::move(d);
+          },
+          "None when the whole grid was reconstructed at once; else the whole grid did not fit memory_limit and the "
+          "run went by tiles without a whole-grid model: dict(whole_grid_bytes, memory_limit_bytes, tile, "
+          "tile_overlap, parallel_tiles, regularisation_window)")
+      .def_property_readonly(
           "registration",
           [](const PyReconstruction& r) -> py::object {
             // offsets='estimate': per frame commanded and estimated offsets and the standard error, camera px.
@@ -511,7 +575,7 @@ void BindSolvers(py::module_& m) {
       [](py::object dataset, const std::string& method, const std::string& weights, const std::string& offsets,
          py::object model_psfs, py::object progress, double registration_range, const std::string& registration_anchor,
          py::object stars, int tile, int tile_overlap, const std::string& resume, const std::string& psf_field,
-         py::kwargs kwargs) {
+         py::object memory_limit, py::kwargs kwargs) {
         // Everything is parsed and checked before any work (as the CLI does).
         TilingOptions tiling;
         tiling.tile = tile;
@@ -549,6 +613,7 @@ void BindSolvers(py::module_& m) {
                                 "'nominal' | 'stars' | an (N, K, K) array");
         else if (!model_psfs.is_none())
           dpo.model_psfs = StackFromArray(model_psfs, "model_psfs");
+        const MemoryLimit limit = MemoryLimitArgument(memory_limit, "aosr.reconstruct");
         const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, "aosr.reconstruct");
         PythonProgress poll(progress);
         o.progress = poll.Callback();
@@ -561,8 +626,17 @@ void BindSolvers(py::module_& m) {
             if (o.method == ReconstructionMethod::kLinear) o.linear.image = DiffractionTargetPsf(*d);
             else o.linear.kind = TargetPsfKind::kAuto;  // only the linear method reads it
           }
+          // A whole detector (solvers/tiling.hpp): when the whole-grid model and solve would pass the limit, the
+          // run goes by tiles without a whole-grid model, chosen to fit, as `aosr reconstruct` does.
+          if (!WholeGridFits(*d, o.method, limit.bytes, &out->whole_grid_bytes)) dpo.whole_grid_model = false;
           const DatasetProblem dp = ProblemFromDataset(*d, dpo);
           warning = dp.warning;
+          if (dp.field) {
+            if (dp.psf_field) tiling.regularisation_window = ChooseRegularisationWindow(*dp.field, o.method, limit.bytes);
+            else FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
+            out->by_tiles_for_memory = tiling;
+            out->memory_limit_bytes = limit.bytes;
+          }
           out->rec = ReconstructDataset(dp, o, tiling);
           if (dp.psf_field) out->psf_field = ToString(dp.psf_field->approach);
           out->weights_source = dp.weights_source;
@@ -582,6 +656,7 @@ void BindSolvers(py::module_& m) {
       py::arg("offsets") = "auto", py::arg("model_psfs") = py::none(), py::arg("progress") = py::none(),
       py::arg("registration_range") = 0.5, py::arg("registration_anchor") = "mean", py::arg("stars") = py::none(),
       py::arg("tile") = 0, py::arg("tile_overlap") = -1, py::arg("resume") = "", py::arg("psf_field") = "auto",
+      py::arg("memory_limit") = py::none(),
       R"doc(Super-resolves a dataset with one method: the library's Reconstruct (include/aosr/solvers/reconstruct.hpp),
 the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and the same bits.
 
@@ -612,6 +687,10 @@ psf_field   'auto' (a dataset with a psf_field, with a method that models the PS
             tile sets their size, default half the grid spacing) | 'operator' (one space-variant operator over
             the whole field: exact for the interpolated PSF, slower; not for 'linear';
             include/aosr/solvers/psf_field_model.hpp). Reconstruction.psf_field says which was used
+memory_limit  None (the process's limit: AOSR_MEMORY_LIMIT, else the machine) | bytes | '512M', '8G': when the
+            whole-grid model and solve need more, the run goes by tiles without a whole-grid model, the tiles
+            (unless tile is given) and the regularisation's window chosen to fit, as `aosr reconstruct` does for a
+            whole detector; Reconstruction.memory_plan then says so
 progress    optional callable(dict) called during tikhonov, tv and map (stage, iteration, total, value,
             value_name, elapsed_seconds); returning False cancels (termination 'cancelled')
 **options   the CLI's options under their names (lambda_, lambda_rule, prior, boundary, std, noise_sigma, mu,
@@ -624,6 +703,99 @@ progress    optional callable(dict) called during tikhonov, tv and map (stage, i
 Returns an aosr.Reconstruction (image, aux, aux_name, summary dict, regularisation, seconds_total).
 The GIL is released during the solve; Ctrl-C stops tv/map (and tikhonov's CG path) after the current
 iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) naming the option, IoError for unreadable files.)doc");
+
+  // The tiles of one dataset as separate jobs, for aosr.distributed.reconstruct_tiles (python/aosr/distributed.py):
+  // phase 'plan' (the client: tiles, overlap and the regularisation fixed once), 'solve' (a worker: the given
+  // tiles into checkpoint_dir, from the plan) and 'blend' (the client: every tile resumed from checkpoint_dir).
+  // Each phase opens the dataset itself (a path on shared storage) and builds its FieldData: no whole-grid model.
+  m.def(
+      "_tiles",
+      [](py::object dataset, const std::string& method, const std::string& phase, py::dict plan,
+         std::vector<int> tiles, const std::string& checkpoint_dir, int tile, int tile_overlap,
+         py::object memory_limit, const std::string& weights, const std::string& offsets,
+         py::dict options) -> py::object {
+        const char* fn = "aosr.distributed.reconstruct_tiles";
+        if (phase != "plan" && phase != "solve" && phase != "blend")
+          throw InvalidArgument(fn, "phase", phase, "'plan' | 'solve' | 'blend'");
+        ReconstructOptions o = CliDefaults();
+        o.method = ParseReconstructionMethod(method);
+        ReconstructTable().Apply(o, options);
+        DatasetProblemOptions dpo;
+        dpo.weights = ParseDatasetWeights(weights);
+        dpo.offsets = ParseDatasetOffsets(offsets);
+        dpo.method = o.method;
+        dpo.whole_grid_model = false;
+        const MemoryLimit limit = MemoryLimitArgument(memory_limit, fn);
+        TilingOptions tiling;
+        tiling.parallel_tiles = false;  // one tile per task; the task's threads work inside it
+        tiling.checkpoint_key = "aosr.distributed.reconstruct_tiles " + method + " " + weights + " " + offsets;
+        if (phase == "plan") {
+          tiling.tile = tile;
+          tiling.overlap = tile_overlap;
+          if (tile != 0) {
+            std::string why;
+            if (!tiling.IsValid(&why)) throw InvalidArgument(fn, "tile / tile_overlap", why, "valid tiling");
+          }
+        } else {
+          tiling.tile = plan["tile"].cast<int>();
+          tiling.overlap = plan["tile_overlap"].cast<int>();
+          tiling.regularisation_window = plan["regularisation_window"].cast<int>();
+          ApplyRegularisationDict(plan["regularisation"].cast<py::dict>(), &o);
+          tiling.checkpoint_dir = checkpoint_dir;
+          if (phase == "solve") {
+            if (tiles.empty()) throw InvalidArgument(fn, "tiles", "[]", "at least one tile index");
+            tiling.only_tiles = tiles;
+          }
+        }
+        const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, fn);
+        auto out = std::make_shared<PyReconstruction>();
+        TilingSummary ts;
+        WithoutGil([&] {
+          if (o.linear.kind == TargetPsfKind::kImage && o.linear.image.size() == 0) {  // target_psf='diffraction'
+            if (o.method == ReconstructionMethod::kLinear) o.linear.image = DiffractionTargetPsf(*d);
+            else o.linear.kind = TargetPsfKind::kAuto;
+          }
+          const DatasetProblem dp = ProblemFromDataset(*d, dpo);
+          if (dp.psf_field)
+            throw InvalidArgument(fn, "dataset", "one with a psf_field",
+                                  "a dataset without a field-varying PSF (for one with, aosr.reconstruct by tiles)");
+          if (phase == "plan") {
+            FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
+            tiling.plan_only = true;
+          }
+          out->rec = ReconstructTiled(*dp.field, o, tiling, &ts);
+          out->method = ToString(o.method);
+          out->weights_source = dp.weights_source;
+          out->offsets_source = dp.offsets_source;
+          out->masked_pixels = dp.masked_pixels;
+          out->r = d->r;
+        });
+        if (phase == "blend") return py::cast(out);
+        py::dict result;
+        if (phase == "plan") {
+          result["tile"] = ts.tile;
+          result["tile_overlap"] = ts.overlap;
+          result["regularisation_window"] = tiling.regularisation_window;
+          result["tiles"] = int(ts.tiles.size());
+          result["tiles_y"] = ts.tiles_y;
+          result["tiles_x"] = ts.tiles_x;
+          result["regularisation"] = RegularisationDict(ts.options);
+          result["regularisation_source"] = ts.regularisation_source;
+        } else {
+          py::list terms;
+          for (Termination t : ts.tile_terminations) terms.append(ToString(t));
+          result["terminations"] = terms;
+          result["resumed"] = ts.tiles_resumed;
+          result["seconds"] = out->rec.seconds_total;
+          result["message"] = out->rec.summary.message;
+        }
+        return std::move(result);
+      },
+      py::arg("dataset"), py::arg("method"), py::kw_only(), py::arg("phase"), py::arg("plan") = py::dict(),
+      py::arg("tiles") = std::vector<int>{}, py::arg("checkpoint_dir") = "", py::arg("tile") = 0,
+      py::arg("tile_overlap") = -1, py::arg("memory_limit") = py::none(), py::arg("weights") = "auto",
+      py::arg("offsets") = "auto", py::arg("options") = py::dict(),
+      "Internal: the phases of aosr.distributed.reconstruct_tiles (plan, solve tiles, blend).");
 
   m.def(
       "stars_psf",

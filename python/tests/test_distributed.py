@@ -181,3 +181,73 @@ def test_design_sweep_on_workers_equals_serial(cluster):
     in_loop = ad.design_sweep(configs, client="serial")
     assert [r["design"]["design"] for r in on_workers] == [r["design"]["design"] for r in in_loop]
     assert [r["config"]["seed"] for r in on_workers] == [1, 2]
+
+
+# ---- The tiles of one dataset on the workers ---------------------------------------------------------------
+
+TILES = {"tile": 32, "tile_overlap": 12, "memory_limit": "4M"}  # the demo's 128² frames: 4 x 4 tiles
+TILE_OPTIONS = {"iterations": 150}  # tv: ~0.1 s per tile, so that a worker is killed while it solves one
+
+
+@pytest.fixture(scope="module")
+def tiles_serial(batch):
+    """The serial run by tiles without a whole-grid model (the memory limit forces it), in this process."""
+    return aosr.reconstruct(batch[0], "tv", **TILES, **TILE_OPTIONS)
+
+
+def test_tiles_on_two_workers_equal_the_serial_run(batch, tiles_serial, cluster, tmp_path):
+    client, _ = cluster
+    folder = tmp_path / "tiles"
+    folder.mkdir()
+    rec = ad.reconstruct_tiles(batch[0], tmp_path / "out.fits", "tv", client=client, checkpoint_dir=folder,
+                               dtype="float64", **TILES, **TILE_OPTIONS)
+    assert tiles_serial.memory_plan is not None and tiles_serial.memory_plan["tile"] == 32
+    assert bits_equal(rec.image, tiles_serial.image)
+    assert rec.regularisation == tiles_serial.regularisation
+    assert "16 tiles resumed" in rec.summary["message"]
+    image, header = aosr.read_fits(tmp_path / "out.fits")
+    assert bits_equal(image, rec.image) and header["NTILES"] == 16 and "CRVAL1" in header
+    assert sorted(p.name for p in folder.iterdir()) == sorted(f"tile_{k}.bin" for k in range(16))
+    # A rerun with the same folder solves nothing again: the blend alone.
+    again = ad.reconstruct_tiles(batch[0], None, "tv", client="serial", checkpoint_dir=folder, **TILES, **TILE_OPTIONS)
+    assert bits_equal(again.image, rec.image)
+
+
+def test_tiles_survive_a_killed_worker(batch, tiles_serial, fresh_cluster, tmp_path):
+    client, workers = fresh_cluster
+    folder = tmp_path / "tiles"
+    folder.mkdir()
+    killed = []
+
+    def kill_when_busy():
+        victim = workers[1]
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            busy = [addr for addr, keys in client.processing().items() if keys]
+            names = {a: w.get("name") for a, w in client.scheduler_info()["workers"].items()}
+            if any(names.get(a) == "w1" for a in busy) and any(folder.glob("tile_*.bin")):
+                victim.send_signal(signal.SIGKILL)
+                killed.append(time.time())
+                return
+            time.sleep(0.05)
+
+    import threading
+    t = threading.Thread(target=kill_when_busy)
+    t.start()
+    rec = ad.reconstruct_tiles(batch[0], None, "tv", client=client, checkpoint_dir=folder, **TILES, **TILE_OPTIONS)
+    t.join()
+    assert killed, "the worker was not killed mid-run"
+    assert workers[1].wait(timeout=10) == -signal.SIGKILL
+    assert bits_equal(rec.image, tiles_serial.image)
+    assert not [p for p in folder.iterdir() if not p.name.endswith(".bin")]  # no temporary left
+
+
+@pytest.mark.parametrize("kwargs,needle", [
+    ({"dtype": "int8"}, "dtype"),
+    ({"checkpoint_dir": "/nonexistent/aosr"}, "checkpoint_dir"),
+    ({"tile": -3}, "tile"),
+    ({"memory_limit": "300K"}, "memory"),
+])
+def test_reconstruct_tiles_bad_arguments(batch, kwargs, needle):
+    with pytest.raises((aosr.InvalidArgument, aosr.ResourceError), match=needle):
+        ad.reconstruct_tiles(batch[0], None, "tikhonov", client="serial", **kwargs)

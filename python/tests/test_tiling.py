@@ -53,3 +53,37 @@ def test_resume_gives_the_same_bytes(demo_dir, tmp_path):
     assert "3 tiles resumed" in again.summary["message"]
     for rec in (first, again):
         assert np.array_equal(rec.image.view(np.uint64), plain.image.view(np.uint64))
+
+
+def test_a_whole_detector_goes_by_tiles_under_the_memory_limit(demo_dir, cli, tmp_path):
+    """memory_limit below the whole grid's need: tiles without a whole-grid model (FieldData), as the CLI's
+    --memory-limit does; the same tiles as the whole-grid model's, the same image as the CLI's row-written file."""
+    kw = dict(lambda_=0.01, tile=32, tile_overlap=12)
+    held = aosr.reconstruct(demo_dir, "tikhonov", **kw)
+    assert held.memory_plan is None
+    small = aosr.reconstruct(demo_dir, "tikhonov", memory_limit="4M", **kw)
+    plan = small.memory_plan
+    assert plan is not None
+    assert plan["whole_grid_bytes"] > 4 * 1024**2 and plan["memory_limit_bytes"] == 4 * 1024**2
+    assert (plan["tile"], plan["tile_overlap"]) == (32, 12)
+    peak = np.abs(held.image).max()
+    # The window models are the kernels cut by the rule CutModel applies to whole-grid kernels (tiling.hpp).
+    assert np.abs(small.image - held.image).max() < 1e-9 * peak
+    out = tmp_path / "rows.fits"
+    p = cli("reconstruct", demo_dir, "-m", "tikhonov", "--lambda", "0.01", "--tile", "32", "--tile-overlap", "12",
+            "--memory-limit", "4M", "-o", out, "--json")
+    assert "output_by_rows" in json.loads(p.stdout)
+    image, _ = aosr.read_fits(out)
+    assert np.abs(image - small.image).max() < 1e-6 * peak
+    # Tiles chosen to fit when none are given; a limit that no tiling fits is a ResourceError before any work.
+    auto = aosr.reconstruct(demo_dir, "tikhonov", lambda_=0.01, memory_limit=4 * 1024**2)
+    assert auto.memory_plan["tile"] > 0 and auto.image.shape == held.image.shape
+    assert np.isfinite(auto.image).all()
+    with pytest.raises(aosr.ResourceError, match="memory"):
+        aosr.reconstruct(demo_dir, "tikhonov", lambda_=0.01, memory_limit="300K")
+
+
+@pytest.mark.parametrize("limit", [-1, 0, float("nan"), "lots", "12Q"])
+def test_bad_memory_limit_raises_invalid_argument(demo_dir, limit):
+    with pytest.raises(aosr.InvalidArgument, match="memory_limit"):
+        aosr.reconstruct(demo_dir, "tikhonov", memory_limit=limit)

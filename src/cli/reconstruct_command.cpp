@@ -295,14 +295,9 @@ void RunReconstruct(const ReconstructArgs& a) {
   std::unique_ptr<FitsRowWriter> image_writer, aux_writer;
   const std::string streamed_aux_path = AuxPath(a.out, o.method == ReconstructionMethod::kDrizzle ? "weight" : "std");
   if (streamed) {
-    const int overlap = a.tile_overlap >= 0 ? a.tile_overlap : SuggestTileOverlap(*dp.field, o, tiling);
-    if (a.tile == 0 && !dp.psf_field) {
-      const TilingOptions chosen = ChooseTiling(*dp.field, o.method, overlap, DefaultThreads(), limit.bytes,
-                                                o.method == ReconstructionMethod::kTikhonov && o.tikhonov.compute_std);
-      tiling.tile = chosen.tile;
-      tiling.parallel_tiles = chosen.parallel_tiles;
-    }
-    tiling.regularisation_window = ChooseRegularisationWindow(*dp.field, o.method, limit.bytes);
+    // A field model sets its own tiles (ReconstructDataset); otherwise the tiles are chosen to fit.
+    if (dp.psf_field) tiling.regularisation_window = ChooseRegularisationWindow(*dp.field, o.method, limit.bytes);
+    else FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
     if (!a.json)
       std::fprintf(stderr,
                    "aosr reconstruct: the whole grid (%s) needs about %s, more than the memory limit %s (%s): "

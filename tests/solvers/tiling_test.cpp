@@ -496,6 +496,65 @@ TEST(TilingTest, CancelledRunsResumeWithTheSameBytes) {
   EXPECT_THAT(stopped.summary.message, ::testing::HasSubstr("cancelled by the caller after 0 of 9 tiles"));
 }
 
+// The tiles as separate jobs (what aosr.distributed.reconstruct_tiles runs on workers): a plan fixes the
+// regularisation once; each tile solved alone, in any order, into the checkpoint folder; the blend of the
+// folder is the serial run's bytes, with every tile resumed and none solved again.
+TEST(TilingTest, TilesAsSeparateJobsGiveTheSerialBytes) {
+  namespace fs = std::filesystem;
+  const Scene s = MakeScene();
+  const FieldData f = FieldOf(s);
+  for (ReconstructionMethod m : {ReconstructionMethod::kTikhonov, ReconstructionMethod::kTotalVariation}) {
+    ReconstructOptions o;  // automatic regularisation: GCV λ, TV's automatic μ
+    o.method = m;
+    o.tv.max_iterations = 30;
+    TilingOptions t;
+    t.tile = 32;  // 3 x 3
+    t.parallel_tiles = false;
+    t.regularisation_window = 64;
+    const Reconstruction serial = ReconstructTiled(f, o, t);
+    TilingOptions plan = t;
+    plan.plan_only = true;
+    TilingSummary ps;
+    const Reconstruction planned = ReconstructTiled(f, o, plan, &ps);
+    EXPECT_EQ(planned.image.size(), 0) << ToString(m);
+    EXPECT_EQ(ps.regularisation_source, "central 64 x 64 camera px");
+    ASSERT_EQ(ps.tiles.size(), 9u);
+    const fs::path dir = fs::temp_directory_path() / ("aosr_tiling_jobs_" + std::to_string(getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    TilingOptions job = t;
+    job.checkpoint_dir = dir.string();
+    for (const int k : {8, 0, 4, 2, 6, 1, 3, 5, 7}) {
+      job.only_tiles = {k};
+      TilingSummary js;
+      const Reconstruction done = ReconstructTiled(f, ps.options, job, &js);
+      EXPECT_EQ(done.image.size(), 0);
+      EXPECT_EQ(js.tiles_resumed, 0);
+      EXPECT_TRUE(fs::exists(dir / ("tile_" + std::to_string(k) + ".bin"))) << k;
+    }
+    job.only_tiles.clear();
+    TilingSummary bs;
+    const Reconstruction blended = ReconstructTiled(f, ps.options, job, &bs);
+    EXPECT_EQ(bs.tiles_resumed, 9) << ToString(m);
+    ASSERT_EQ(blended.image.size(), serial.image.size());
+    EXPECT_EQ(std::memcmp(blended.image.data(), serial.image.data(), sizeof(double) * serial.image.size()), 0)
+        << ToString(m);
+    EXPECT_EQ(blended.regularisation, serial.regularisation);
+    fs::remove_all(dir);
+  }
+  // Jobs need a folder to put their tiles in, and real tile indices.
+  TilingOptions bad;
+  bad.tile = 32;
+  bad.only_tiles = {0};
+  EXPECT_THROW(ReconstructTiled(f, Fixed(ReconstructionMethod::kTikhonov), bad), InvalidArgument);
+  bad.checkpoint_dir = fs::temp_directory_path().string();
+  bad.only_tiles = {9};
+  EXPECT_THROW(ReconstructTiled(f, Fixed(ReconstructionMethod::kTikhonov), bad), InvalidArgument);
+  bad.only_tiles = {0};
+  bad.plan_only = true;
+  EXPECT_THROW(ReconstructTiled(f, Fixed(ReconstructionMethod::kTikhonov), bad), InvalidArgument);
+}
+
 // The tiling under a memory limit: the largest tile whose run fits, smaller under a smaller limit, and a clear
 // error when not even the smallest fits.
 TEST(TilingTest, ChooseTilingFitsTheMemoryLimit) {

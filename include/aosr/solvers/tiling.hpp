@@ -133,6 +133,14 @@ struct TilingOptions {
   std::function<void(Index hr_row0, const Image& rows, const Image& aux_rows)> rows;
   // Asks the tiles in progress to stop (see "Progress and cancellation"); safe to call from any thread.
   std::function<bool()> stop;
+  // The tiles as separate jobs (aosr.distributed.reconstruct_tiles: any process may solve any tile):
+  //  * plan_only: stop once the overlap, the tiles and the regularisation are fixed; the summary holds them
+  //    (TilingSummary::options), the result no image;
+  //  * only_tiles: solve just these tiles (indices into the summary's tiles) into checkpoint_dir, which is
+  //    required, and blend nothing (the result has no image). With the options a plan fixed, a later run of
+  //    the whole tiling with the same checkpoint_dir resumes every tile: the bytes of one serial run.
+  bool plan_only = false;
+  std::vector<int> only_tiles;
 
   bool IsValid(std::string* why) const;
 };
@@ -147,6 +155,7 @@ struct TilingSummary {
   std::vector<TileWindow> tiles;
   std::vector<Termination> tile_terminations;
   int tiles_resumed = 0;             // read from checkpoint_dir instead of solved
+  ReconstructOptions options;        // what every tile is solved with: the caller's, the regularisation fixed
 };
 
 // The tiles of an m_rows x m_cols camera field (core and window rule above). InvalidArgument (naming
@@ -208,6 +217,13 @@ TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, 
 // The overlap rule's P for a FieldData (its kernels' reach and the method's).
 int SuggestTileOverlap(const FieldData& field, const ReconstructOptions& options, const TilingOptions& tiling,
                        std::string* rule = nullptr);
+
+// Completes *tiling for a FieldData run under a memory limit, as `aosr reconstruct` and aosr.reconstruct do when
+// the whole grid does not fit: the overlap by SuggestTileOverlap unless set (>= 0); unless a tile is set (> 0),
+// ChooseTiling's tile and whether tiles run in parallel (on DefaultThreads()); and always ChooseRegularisationWindow's
+// window. ResourceError as ChooseTiling's.
+void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options, double limit_bytes,
+                       TilingOptions* tiling);
 
 // Reconstruct a FieldData by tiles (tiling.tile >= 1), as the overload below does a problem. The summary's
 // frame_residual_rms is that of each tile's solution over its core (the blended image is never held whole).
