@@ -9,6 +9,7 @@
 #include <map>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <utility>
 
@@ -227,11 +228,25 @@ int RegulariserReach(const std::vector<FrameOffset>& offsets, int r, Reconstruct
 
 }  // namespace
 
+bool RegularisationIsFixed(const ReconstructOptions& o) {
+  switch (o.method) {
+    case ReconstructionMethod::kTikhonov:
+      return o.tikhonov.lambda_rule == TikhonovLambdaRule::kFixed && o.tikhonov.prior != TikhonovPrior::kFitted;
+    case ReconstructionMethod::kLinear:
+      return o.linear.kappa > 0;
+    case ReconstructionMethod::kTotalVariation:
+    case ReconstructionMethod::kMap:
+      return !o.auto_regularisation || o.fixed_automatic.has_value();
+    default:
+      return true;
+  }
+}
+
 bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* o) {
+  if (RegularisationIsFixed(*o)) return false;
   switch (o->method) {
     case ReconstructionMethod::kTikhonov: {
       TikhonovOptions& t = o->tikhonov;
-      if (t.lambda_rule == TikhonovLambdaRule::kFixed && t.prior != TikhonovPrior::kFitted) return false;
       ReconstructOptions ro = *o;
       ro.tikhonov.compute_std = false;
       ro.progress = nullptr;
@@ -251,7 +266,6 @@ bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* o) 
       return true;
     }
     case ReconstructionMethod::kLinear: {
-      if (o->linear.kappa > 0) return false;
       ReconstructOptions ro = *o;
       ro.linear.compute_noise = false;
       ro.progress = nullptr;
@@ -265,7 +279,6 @@ bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* o) 
     }
     case ReconstructionMethod::kTotalVariation:
     case ReconstructionMethod::kMap:
-      if (!o->auto_regularisation || o->fixed_automatic) return false;
       o->fixed_automatic = ChooseAutomaticRegularisation(rep, *o);
       return true;
     default:
@@ -633,12 +646,20 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
   // Each window's model: the caller's local PSFs, or the whole model's kernels (or the field's) cut to the
   // window, one model per window shape, shared.
   const ImageStack kernels = tiling.local_psfs || !whole_model ? ImageStack{} : OriginKernels(*in.problem->model);
-  std::map<std::pair<Index, Index>, std::shared_ptr<const MultiFrameModel>> shared_models;
+  // Made on first use (a job of one tile needs one shape, a plan none), under a lock: tiles run concurrently.
+  TileModelStore local_store;
+  TileModelStore& store = tiling.model_store && !tiling.local_psfs ? *tiling.model_store : local_store;
   auto window_model = [&](Shape window) {
     if (whole_model) return CutModel(kernels, hr, window, r);
     return CutModelFromCentred(in.field->kernels, window, r);
   };
-  auto window_problem = [&](const TileWindow& t) {
+  auto shared_model = [&](Shape window) {
+    const std::lock_guard<std::mutex> lock(store.mutex);
+    std::shared_ptr<const MultiFrameModel>& m = store.models[{window.rows, window.cols}];
+    if (!m) m = window_model(window);
+    return m;
+  };
+  auto window_problem = [&](const TileWindow& t, bool share_model = true) {
     const Shape window{t.rows * r, t.cols * r};
     std::shared_ptr<const MultiFrameModel> model;
     if (tiling.local_psfs) {
@@ -648,16 +669,10 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
                     "one per frame (" + std::to_string(in.frames->size()) + ")");
       model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(window, r, psfs));
     } else {
-      auto it = shared_models.find({window.rows, window.cols});
-      model = it != shared_models.end() ? it->second : window_model(window);
+      model = share_model ? shared_model(window) : window_model(window);
     }
     return CutWindow(lr, *in.frames, *in.weights, *in.offsets, t, std::move(model));
   };
-  if (!tiling.local_psfs)
-    for (const TileWindow& t : ts.tiles) {
-      auto& m = shared_models[{t.rows * r, t.cols * r}];
-      if (!m) m = window_model({t.rows * r, t.cols * r});
-    }
 
   // One regularisation for the field, chosen on the whole field, a central window of it, or the central tile.
   const int central = (ts.tiles_y / 2) * ts.tiles_x + ts.tiles_x / 2;
@@ -671,7 +686,9 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     bool chosen = false;
     ReconstructOptions fix = options;
     fix.progress = nullptr;
-    if (!tiling.regularisation_from_whole_field) {
+    if (RegularisationIsFixed(fix)) {
+      // Nothing to choose (given values, or a plan's): no representative problem to build.
+    } else if (!tiling.regularisation_from_whole_field) {
       ReconstructionProblem p = window_problem(ts.tiles[central]);
       RemoveWrapJumps(&p);
       chosen = FixRegularisation(p, &fix);
@@ -687,7 +704,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
       rep.core_x0 = rep.x0 = (lr.cols - wx) / 2;
       rep.core_rows = rep.rows = wy;
       rep.core_cols = rep.cols = wx;
-      ReconstructionProblem p = window_problem(rep);
+      ReconstructionProblem p = window_problem(rep, /*share_model=*/false);
       // A window smaller than the field: its frames' periodic components (no wrap-around jumps).
       if (wy < lr.rows || wx < lr.cols) RemoveWrapJumps(&p);
       chosen = FixRegularisation(p, &fix);

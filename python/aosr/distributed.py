@@ -253,7 +253,7 @@ def _tile_task(task):
     _prepare_worker(task["threads"])
     record = aosr._aosr._tiles(task["dataset"], task["method"], phase="solve", plan=task["plan"],
                                tiles=[task["tile"]], checkpoint_dir=task["checkpoint_dir"], weights=task["weights"],
-                               offsets=task["offsets"], options=task["options"])
+                               offsets=task["offsets"], options=task["options"], keep=True)
     record["tile"] = task["tile"]
     record["worker_pid"] = os.getpid()
     return record

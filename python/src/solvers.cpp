@@ -1,7 +1,10 @@
 // Bindings of the solvers layer: aosr.reconstruct(dataset, method, **options) for every method of
 // include/aosr/solvers/reconstruct.hpp, and the one table that maps keyword arguments onto
 // ReconstructOptions (ReconstructTable below). A new method's options are a few lines there.
+#include <algorithm>
+#include <filesystem>
 #include <fstream>
+#include <mutex>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/memory.hpp"
@@ -427,6 +430,39 @@ void ApplyRegularisationDict(const py::dict& d, ReconstructOptions* o) {
   }
 }
 
+// What a Dask worker keeps between the tiles it solves of one dataset (aosr.distributed.reconstruct_tiles): the
+// dataset and its FieldData, so that each further tile costs its solve, not a read of the frames and their
+// kernels again. One dataset at a time, keyed by the path, the size and time of every file in its folder and the
+// options that shape the problem; a changed file or other options make a new entry.
+struct TileDataCache {
+  std::mutex mutex;
+  std::string key;
+  std::shared_ptr<const Dataset> dataset;
+  std::shared_ptr<const DatasetProblem> problem;
+  std::shared_ptr<TileModelStore> models;
+};
+
+TileDataCache& WorkerTileData() {
+  static TileDataCache cache;
+  return cache;
+}
+
+std::string TileDataKey(const std::string& path, const std::string& options) {
+  namespace fs = std::filesystem;
+  const fs::path p = fs::absolute(path);
+  const fs::path folder = fs::is_directory(p) ? p : p.parent_path();
+  std::vector<std::string> files;
+  for (const fs::directory_entry& e : fs::directory_iterator(folder)) {
+    if (!e.is_regular_file()) continue;
+    files.push_back(e.path().filename().string() + ":" + std::to_string(e.file_size()) + ":" +
+                    std::to_string(e.last_write_time().time_since_epoch().count()));
+  }
+  std::sort(files.begin(), files.end());
+  std::string key = p.string() + "|" + options;
+  for (const std::string& f : files) key += "|" + f;
+  return key;
+}
+
 // A memory limit argument: None (the process's), bytes, or '512M' / '8G'.
 MemoryLimit MemoryLimitArgument(const py::object& memory_limit, const char* fn) {
   if (memory_limit.is_none()) return CurrentMemoryLimit();
@@ -713,7 +749,7 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
       [](py::object dataset, const std::string& method, const std::string& phase, py::dict plan,
          std::vector<int> tiles, const std::string& checkpoint_dir, int tile, int tile_overlap,
          py::object memory_limit, const std::string& weights, const std::string& offsets,
-         py::dict options) -> py::object {
+         py::dict options, bool keep) -> py::object {
         const char* fn = "aosr.distributed.reconstruct_tiles";
         if (phase != "plan" && phase != "solve" && phase != "blend")
           throw InvalidArgument(fn, "phase", phase, "'plan' | 'solve' | 'blend'");
@@ -747,7 +783,26 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
             tiling.only_tiles = tiles;
           }
         }
-        const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, fn);
+        // keep (the tasks): the dataset and its FieldData stay in this process for the next tile.
+        const bool by_path = py::isinstance<py::str>(dataset) || py::hasattr(dataset, "__fspath__");
+        const std::string key = keep && by_path ? TileDataKey(PathString(dataset), method + " " + weights + " " + offsets) : "";
+        TileDataCache& cache = WorkerTileData();
+        std::unique_lock<std::mutex> lock(cache.mutex, std::defer_lock);
+        if (!key.empty()) lock.lock();
+        std::shared_ptr<const Dataset> d;
+        std::shared_ptr<const DatasetProblem> problem;
+        if (!key.empty() && cache.key == key) {
+          d = cache.dataset;
+          problem = cache.problem;
+        } else {
+          if (!key.empty()) {  // free the previous dataset first
+            cache.key.clear();
+            cache.dataset.reset();
+            cache.problem.reset();
+            cache.models.reset();
+          }
+          d = DatasetArgument(dataset, fn);
+        }
         auto out = std::make_shared<PyReconstruction>();
         TilingSummary ts;
         WithoutGil([&] {
@@ -755,7 +810,15 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
             if (o.method == ReconstructionMethod::kLinear) o.linear.image = DiffractionTargetPsf(*d);
             else o.linear.kind = TargetPsfKind::kAuto;
           }
-          const DatasetProblem dp = ProblemFromDataset(*d, dpo);
+          if (!problem) problem = std::make_shared<const DatasetProblem>(ProblemFromDataset(*d, dpo));
+          if (!key.empty() && cache.key != key) {
+            cache.key = key;
+            cache.dataset = d;
+            cache.problem = problem;
+            cache.models = std::make_shared<TileModelStore>();
+          }
+          if (!key.empty() && phase == "solve") tiling.model_store = cache.models;
+          const DatasetProblem& dp = *problem;
           if (dp.psf_field)
             throw InvalidArgument(fn, "dataset", "one with a psf_field",
                                   "a dataset without a field-varying PSF (for one with, aosr.reconstruct by tiles)");
@@ -794,7 +857,7 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
       py::arg("dataset"), py::arg("method"), py::kw_only(), py::arg("phase"), py::arg("plan") = py::dict(),
       py::arg("tiles") = std::vector<int>{}, py::arg("checkpoint_dir") = "", py::arg("tile") = 0,
       py::arg("tile_overlap") = -1, py::arg("memory_limit") = py::none(), py::arg("weights") = "auto",
-      py::arg("offsets") = "auto", py::arg("options") = py::dict(),
+      py::arg("offsets") = "auto", py::arg("options") = py::dict(), py::arg("keep") = false,
       "Internal: the phases of aosr.distributed.reconstruct_tiles (plan, solve tiles, blend).");
 
   m.def(

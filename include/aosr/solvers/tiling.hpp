@@ -78,6 +78,9 @@
 #pragma once
 
 #include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -92,6 +95,12 @@ struct TileWindow {
   int ty = 0, tx = 0;     // position in the tile grid
   Index core_y0 = 0, core_x0 = 0, core_rows = 0, core_cols = 0;
   Index y0 = 0, x0 = 0, rows = 0, cols = 0;
+};
+
+// Window models by HR shape (TilingOptions::model_store).
+struct TileModelStore {
+  std::mutex mutex;
+  std::map<std::pair<Index, Index>, std::shared_ptr<const MultiFrameModel>> models;
 };
 
 struct TilingOptions {
@@ -141,6 +150,10 @@ struct TilingOptions {
   //    the whole tiling with the same checkpoint_dir resumes every tile: the bytes of one serial run.
   bool plan_only = false;
   std::vector<int> only_tiles;
+  // Jobs of one field in one process (only_tiles, a call per tile): window models kept across the calls, so that
+  // tiles of one shape share a model as they do in one run. The caller keeps one store per field (same kernels,
+  // r and model options). Empty: the models live for one call.
+  std::shared_ptr<TileModelStore> model_store;
 
   bool IsValid(std::string* why) const;
 };
@@ -182,6 +195,8 @@ int SuggestTileOverlap(const ReconstructionProblem& problem, const ReconstructOp
 // what a whole-field solve of another model of the same frames can use to match it. Returns whether anything
 // was chosen (false: the options' values are used as given).
 bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* options);
+// Whether the options leave nothing for FixRegularisation to choose.
+bool RegularisationIsFixed(const ReconstructOptions& options);
 
 // A field without a whole-grid model (see "A whole detector" above). frames, weights and offsets as in
 // ReconstructionProblem (problem.hpp) on the camera grid `lr`; kernels: one per frame, centred (image.hpp
