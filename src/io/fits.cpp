@@ -542,8 +542,13 @@ FitsData ReadFitsExtension(const std::string& path, const std::string& name) {
 
 void WriteFitsWithExtensions(const std::string& path, const Image& primary, const FitsHeader& header,
                              const std::vector<FitsExtension>& extensions, FitsType type) {
-  const char* fn = "WriteFitsWithExtensions";
-  CheckPlanes(fn, "primary", ImageStack{primary}, type);
+  WriteFitsCubeWithExtensions(path, ImageStack{primary}, header, extensions, type);
+}
+
+void WriteFitsCubeWithExtensions(const std::string& path, const ImageStack& primary, const FitsHeader& header,
+                                 const std::vector<FitsExtension>& extensions, FitsType type) {
+  const char* fn = primary.size() == 1 ? "WriteFitsWithExtensions" : "WriteFitsCubeWithExtensions";
+  CheckPlanes(fn, "primary", primary, type);
   std::vector<std::string> seen;
   for (size_t e = 0; e < extensions.size(); ++e) {
     const FitsExtension& x = extensions[e];
@@ -567,7 +572,7 @@ void WriteFitsWithExtensions(const std::string& path, const Image& primary, cons
     FitsFile file;
     int status = 0;
     if (fits_create_diskfile(file.out(), tmp.c_str(), &status)) ThrowFits(path, status, "cannot create");
-    WriteHdu(file.get(), path, ImageStack{primary}, header, type, 2);
+    WriteHdu(file.get(), path, primary, header, type, primary.size() == 1 ? 2 : 3);
     for (const FitsExtension& x : extensions) {
       FitsHeader h;
       for (const FitsKeyword& k : x.header.keywords())

@@ -120,6 +120,10 @@ struct FitsExtension {
 void WriteFitsWithExtensions(const std::string& path, const Image& primary, const FitsHeader& header,
                              const std::vector<FitsExtension>& extensions, FitsType type = FitsType::kFloat32);
 
+// The same with a primary cube (NAXIS = 3 for more than one plane): e.g. a movie with its times in an extension.
+void WriteFitsCubeWithExtensions(const std::string& path, const ImageStack& primary, const FitsHeader& header,
+                                 const std::vector<FitsExtension>& extensions, FitsType type = FitsType::kFloat32);
+
 // Reads the image extension whose EXTNAME is `name` (case-insensitive, as cfitsio matches it); its header
 // includes EXTNAME. IoError naming the path and the names the file has when none matches, or for the
 // reasons of ReadFits (no data, NAXIS other than 2 or 3, truncated).
