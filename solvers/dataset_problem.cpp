@@ -337,6 +337,16 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   }
   std::vector<FrameOffset> centroids;  // of the kernels as given: folding moves their first moments
   for (const Image& k : psfs) centroids.push_back(KernelCentroid(k));
+  if (!options.whole_grid_model) {
+    CheckArgument(options.offsets != DatasetOffsets::kEstimate, kDatasetProblemFn, "offsets",
+                  "estimate without a whole-grid model", "dm, centroids or auto (registration needs the whole grid)");
+    CheckArgument(!(out.psf_field && out.psf_field->approach == DatasetPsfField::kOperator), kDatasetProblemFn,
+                  "psf_field", "operator without a whole-grid model", "tiles (the operator spans the whole grid)");
+    out.field = FieldData();
+    out.field->lr = d.frame;
+    out.field->r = d.r;
+    out.field->kernels = psfs;  // as the whole-grid model takes them (not renormalised), not folded
+  }
   for (Image& k : psfs)
     if (k.rows() > d.hr_frame.rows || k.cols() > d.hr_frame.cols) {
       k = FoldOnto(k, d.hr_frame);
@@ -344,6 +354,7 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     }
   // The model holds one HR transfer function per frame (complex, half spectrum) and builds each from a padded
   // real kernel: refuse a dataset whose r and frame count cannot fit before building them.
+  if (!out.field) {
   const double hr_pixels = double(d.hr_frame.rows) * double(d.hr_frame.cols);
   CheckMemory(double(n) * 16.0 * hr_pixels / 2 + 16.0 * hr_pixels,
               std::string(kDatasetProblemFn) + ": the model of " + std::to_string(n) + " frames on the HR grid " + ToString(d.hr_frame) +
@@ -361,6 +372,7 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
                     " field points x " + std::to_string(n) + " frames on the HR grid " + ToString(d.hr_frame));
     out.problem.model =
         std::make_shared<const MultiFrameModel>(out.problem.model->WithPsfField(out.psf_field->grid, nodes));
+  }
   }
 
   // ---- Frames (e⁻) and weights. ---------------------------------------------------------------------------
@@ -391,6 +403,14 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     }
   }
   out.offsets_source = dm ? "dm shifts" : "psf centroids";
+  if (out.field) {
+    out.field->frames = std::move(out.problem.frames);
+    out.field->weights = std::move(out.problem.weights);
+    out.field->offsets = std::move(out.problem.offsets);
+    out.problem = {};
+    out.field->Validate(kDatasetProblemFn);
+    return out;
+  }
   out.problem.Validate(kDatasetProblemFn);
   if (options.offsets == DatasetOffsets::kEstimate) {
     RegistrationResult reg = RegisterFrames(out.problem, options.registration);
@@ -400,6 +420,16 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     out.registration = std::move(reg);
   }
   return out;
+}
+
+bool WholeGridFits(const Dataset& d, ReconstructionMethod method, double limit_bytes, double* need) {
+  const double hr_pixels = double(d.hr_frame.rows) * double(d.hr_frame.cols);
+  const double lr_pixels = double(d.frame.rows) * double(d.frame.cols);
+  const int n = int(d.frames.size());
+  // The model (N half spectra), the data in electrons and the weights, and the solve.
+  const double bytes = 8.0 * n * hr_pixels + 16.0 * n * lr_pixels + EstimateSolveBytes(method, n, hr_pixels, true);
+  if (need) *need = bytes;
+  return bytes <= limit_bytes;
 }
 
 }  // namespace aosr

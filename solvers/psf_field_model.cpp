@@ -61,8 +61,9 @@ Reconstruction ReconstructDataset(const DatasetProblem& problem, const Reconstru
     return Reconstruct(problem.problem, o);
   }
   if (problem.psf_field) {
-    const int r = problem.problem.model->r();
-    if (tiling.tile == 0) tiling.tile = SuggestFieldTile(problem.psf_field->grid, r, problem.problem.model->lr_shape());
+    const int r = problem.field ? problem.field->r : problem.problem.model->r();
+    const Shape lr = problem.field ? problem.field->lr : problem.problem.model->lr_shape();
+    if (tiling.tile == 0) tiling.tile = SuggestFieldTile(problem.psf_field->grid, r, lr);
     tiling.local_psfs = FieldTilePsfs(problem.psf_field->grid, problem.psf_field->psfs, r);
     // The checkpoint fingerprint covers the whole field's model; the nodes' PSFs enter through this checksum.
     double checksum = 0.0;
@@ -75,7 +76,14 @@ Reconstruction ReconstructDataset(const DatasetProblem& problem, const Reconstru
     std::snprintf(text, sizeof text, "|psf_field tiles %dx%d %.17g", problem.psf_field->grid.ny(),
                   problem.psf_field->grid.nx(), checksum);
     tiling.checkpoint_key += text;
+    if (problem.field) return ReconstructTiled(*problem.field, options, tiling, summary);
     return ReconstructTiled(problem.problem, options, tiling, summary);
+  }
+  if (problem.field) {
+    if (tiling.tile <= 0)
+      throw InvalidArgument("ReconstructDataset", "tiling.tile", std::to_string(tiling.tile),
+                            ">= 1 for a problem without a whole-grid model (ChooseTiling picks one)");
+    return ReconstructTiled(*problem.field, options, tiling, summary);
   }
   if (tiling.tile > 0) return ReconstructTiled(problem.problem, options, tiling, summary);
   return Reconstruct(problem.problem, options);

@@ -104,28 +104,25 @@ struct TileReader {
 
 }  // namespace
 
-std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& o,
-                             const TilingOptions& tiling, int overlap) {
-  TileFnv f;
-  f.String("aosr tiles v1");
-  const MultiFrameModel& m = *problem.model;
-  f.Value(m.hr_shape().rows);
-  f.Value(m.hr_shape().cols);
-  f.Value(m.r());
-  for (int i = 0; i < m.frames(); ++i) {
-    const ComplexImage& otf = m.otf(i);
-    f.Bytes(otf.data(), sizeof(Complex) * otf.size());
-  }
-  for (std::size_t i = 0; i < problem.frames.size(); ++i) {
+namespace {
+
+// The data part of the fingerprint: the frames' weighted pixels, the weights and the offsets.
+void HashTileData(const ImageStack& frames, const ImageStack& weights, const std::vector<FrameOffset>& offsets,
+                  TileFnv* f) {
+  for (std::size_t i = 0; i < frames.size(); ++i) {
     // Only weighted pixels are data (a masked pixel may hold anything, NaN with any payload).
-    const Image& a = problem.frames[i];
+    const Image& a = frames[i];
     for (Index k = 0; k < a.size(); ++k) {
-      const bool on = problem.weights.empty() || problem.weights[i].data()[k] > 0;
-      f.Value(on ? a.data()[k] : 0.0);
+      const bool on = weights.empty() || weights[i].data()[k] > 0;
+      f->Value(on ? a.data()[k] : 0.0);
     }
   }
-  for (const Image& w : problem.weights) f.Array(w);
-  for (const FrameOffset& off : problem.offsets) f.Value(off.dy), f.Value(off.dx);
+  for (const Image& w : weights) f->Array(w);
+  for (const FrameOffset& off : offsets) f->Value(off.dy), f->Value(off.dx);
+}
+
+void HashTileOptions(const ReconstructOptions& o, const TilingOptions& tiling, int overlap, TileFnv* fp) {
+  TileFnv& f = *fp;
   f.Value(tiling.tile);
   f.Value(overlap);
   f.String(tiling.checkpoint_key);
@@ -143,6 +140,37 @@ std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const Reconst
   f.Value(o.map.lambda), f.Value(int(o.map.prior)), f.Value(int(o.map.likelihood)), f.Value(int(o.map.positivity));
   f.Value(o.map.max_iterations), f.Value(o.map.read_noise);
   f.Value(int(o.drizzle.kernel)), f.Value(o.drizzle.pixfrac), f.Value(o.drizzle.fill_value);
+}
+
+}  // namespace
+
+std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& o,
+                             const TilingOptions& tiling, int overlap) {
+  TileFnv f;
+  f.String("aosr tiles v1");
+  const MultiFrameModel& m = *problem.model;
+  f.Value(m.hr_shape().rows);
+  f.Value(m.hr_shape().cols);
+  f.Value(m.r());
+  for (int i = 0; i < m.frames(); ++i) {
+    const ComplexImage& otf = m.otf(i);
+    f.Bytes(otf.data(), sizeof(Complex) * otf.size());
+  }
+  HashTileData(problem.frames, problem.weights, problem.offsets, &f);
+  HashTileOptions(o, tiling, overlap, &f);
+  return f.h;
+}
+
+std::uint64_t RunFingerprint(const FieldData& field, const ReconstructOptions& o, const TilingOptions& tiling,
+                             int overlap) {
+  TileFnv f;
+  f.String("aosr field tiles v1");
+  f.Value(field.lr.rows);
+  f.Value(field.lr.cols);
+  f.Value(field.r);
+  for (const Image& k : field.kernels) f.Array(k);
+  HashTileData(field.frames, field.weights, field.offsets, &f);
+  HashTileOptions(o, tiling, overlap, &f);
   return f.h;
 }
 

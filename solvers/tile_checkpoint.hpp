@@ -16,6 +16,9 @@ namespace aosr::tiling_internal {
 // TilingOptions::checkpoint_key (what the hash cannot see: local PSFs, options not listed).
 std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& fixed,
                              const TilingOptions& tiling, int overlap);
+// The same for a field without a whole-grid model: its kernels instead of the model's OTFs.
+std::uint64_t RunFingerprint(const FieldData& field, const ReconstructOptions& fixed, const TilingOptions& tiling,
+                             int overlap);
 
 // dir/tile_<index>.bin.
 std::string TilePath(const std::string& dir, int index);

@@ -7,12 +7,16 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <limits>
 #include <memory>
+#include <optional>
 #include <utility>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/core/parallel.hpp"
+#include "aosr/core/progress.hpp"
 #include "aosr/solvers/padded_model.hpp"
 #include "tile_checkpoint.hpp"
 
@@ -101,9 +105,9 @@ std::shared_ptr<const MultiFrameModel> CutModel(const ImageStack& kernels, Shape
 }
 
 // The frames' and weights' windows and the offsets of `tile` (wrapped), with `model` on the window's HR grid.
-ReconstructionProblem CutProblem(const ReconstructionProblem& problem, const TileWindow& tile,
-                                 std::shared_ptr<const MultiFrameModel> model) {
-  const Shape lr = problem.model->lr_shape();
+ReconstructionProblem CutWindow(Shape lr, const ImageStack& frames, const ImageStack& weights,
+                                const std::vector<FrameOffset>& offsets, const TileWindow& tile,
+                                std::shared_ptr<const MultiFrameModel> model) {
   auto cut = [&](const Image& a) {
     Image s(tile.rows, tile.cols);
     for (Index y = 0; y < tile.rows; ++y) {
@@ -114,10 +118,75 @@ ReconstructionProblem CutProblem(const ReconstructionProblem& problem, const Til
   };
   ReconstructionProblem p;
   p.model = std::move(model);
-  for (const Image& f : problem.frames) p.frames.push_back(cut(f));
-  for (const Image& w : problem.weights) p.weights.push_back(cut(w));
-  p.offsets = problem.offsets;
+  for (const Image& f : frames) p.frames.push_back(cut(f));
+  for (const Image& w : weights) p.weights.push_back(cut(w));
+  p.offsets = offsets;
   return p;
+}
+
+ReconstructionProblem CutProblem(const ReconstructionProblem& problem, const TileWindow& tile,
+                                 std::shared_ptr<const MultiFrameModel> model) {
+  return CutWindow(problem.model->lr_shape(), problem.frames, problem.weights, problem.offsets, tile,
+                   std::move(model));
+}
+
+// A model on the window's HR grid from centred kernels (image.hpp: centre pixel K/2): each entry at signed
+// offset s = index − K/2 (per axis) kept where s is also a signed offset of the window grid, dropped otherwise
+// (the rule CutModel applies to the whole grid's kernels, so that both give the same window models).
+std::shared_ptr<const MultiFrameModel> CutModelFromCentred(const ImageStack& kernels, Shape window, int r) {
+  std::vector<ComplexImage> otfs;
+  for (const Image& k : kernels) {
+    Image kp = Image::Zero(window.rows, window.cols);
+    for (Index y = 0; y < k.rows(); ++y) {
+      const Index sy = y - k.rows() / 2, wy = WrapIndex(sy, window.rows);
+      if (SignedFrequency(wy, window.rows) != sy) continue;
+      for (Index x = 0; x < k.cols(); ++x) {
+        const Index sx = x - k.cols() / 2, wx = WrapIndex(sx, window.cols);
+        if (SignedFrequency(wx, window.cols) != sx) continue;
+        kp(wy, wx) += k(y, x);
+      }
+    }
+    otfs.push_back(FftR2C(kp));
+  }
+  return std::make_shared<const MultiFrameModel>(window, r, std::move(otfs));
+}
+
+// The periodic component of an image (Moisan, "Periodic plus smooth image decomposition", J. Math. Imaging
+// Vis. 39, 2011): u = p + s with s smooth (the solution of a Poisson problem driven by the jumps across u's
+// opposite edges) and p periodic, without those jumps. A window cut out of a field wraps around with a jump
+// at each edge, which GCV reads as detail (on tiling_test's scene a 64 px window of the 96 px field gave
+// λ = 3e-10 against 7e-3); p keeps the window's detail and noise and drops the jumps. Returns s.
+Image SmoothComponent(const Image& u) {
+  const Index m = u.rows(), n = u.cols();
+  Image v = Image::Zero(m, n);
+  for (Index x = 0; x < n; ++x) {
+    const double d = u(m - 1, x) - u(0, x);
+    v(0, x) += d;
+    v(m - 1, x) -= d;
+  }
+  for (Index y = 0; y < m; ++y) {
+    const double d = u(y, n - 1) - u(y, 0);
+    v(y, 0) += d;
+    v(y, n - 1) -= d;
+  }
+  ComplexImage s = FftR2C(v);
+  for (Index q = 0; q < s.rows(); ++q)
+    for (Index r = 0; r < s.cols(); ++r) {
+      const double den = 2 * std::cos(kTwoPi * double(q) / double(m)) + 2 * std::cos(kTwoPi * double(r) / double(n)) - 4;
+      s(q, r) = (q == 0 && r == 0) ? Complex(0) : s(q, r) / den;
+    }
+  return FftC2R(s, n);
+}
+
+// The frames of a window without their wrap-around jumps: each frame less the smooth component of the frames'
+// mean (one s for all, so that the frames stay consistent with each other: each its own s made GCV's λ 76
+// times the whole field's on tiling_test's scene).
+void RemoveWrapJumps(ReconstructionProblem* p) {
+  const ImageStack clean = p->CleanFrames();
+  Image mean = Image::Zero(clean.front().rows(), clean.front().cols());
+  for (const Image& f : clean) mean += f / double(clean.size());
+  const Image s = SmoothComponent(mean);
+  for (std::size_t i = 0; i < clean.size(); ++i) p->frames[i] = clean[i] - s;
 }
 
 bool AnyWeighted(const ReconstructionProblem& p) {
@@ -140,7 +209,7 @@ int Severity(Termination t) {
 }
 
 // The overlap rule's reach (camera px, before doubling) of the method's regulariser and support.
-int RegulariserReach(const ReconstructionProblem& problem, ReconstructionMethod method) {
+int RegulariserReach(const std::vector<FrameOffset>& offsets, int r, ReconstructionMethod method) {
   switch (method) {
     case ReconstructionMethod::kTotalVariation:
     case ReconstructionMethod::kMap:
@@ -150,8 +219,8 @@ int RegulariserReach(const ReconstructionProblem& problem, ReconstructionMethod 
       return 3;
     default: {
       double off = 0;
-      for (const FrameOffset& o : problem.offsets) off = std::max({off, std::abs(o.dy), std::abs(o.dx)});
-      return 1 + int(std::ceil(off / problem.model->r()));
+      for (const FrameOffset& o : offsets) off = std::max({off, std::abs(o.dy), std::abs(o.dx)});
+      return 1 + int(std::ceil(off / r));
     }
   }
 }
@@ -293,23 +362,220 @@ int SuggestTileOverlap(const ReconstructionProblem& problem, const ReconstructOp
                         options.method == ReconstructionMethod::kTotalVariation ||
                         options.method == ReconstructionMethod::kMap;
   const int psf = uses_psf ? PaddedModel::SuggestPadding(*problem.model, tiling.psf_tail) : 0;
-  const int reg = RegulariserReach(problem, options.method);
+  const int reg = RegulariserReach(problem.offsets, problem.model->r(), options.method);
   if (rule)
     *rule = "2 x (psf " + std::to_string(psf) + " + " + ToString(options.method) + " reach " +
             std::to_string(reg) + ")";
   return 2 * (psf + reg);
 }
 
-Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const ReconstructOptions& options,
-                                const TilingOptions& tiling, TilingSummary* summary) {
+int SuggestTileOverlap(const FieldData& field, const ReconstructOptions& options, const TilingOptions& tiling,
+                       std::string* rule) {
+  // The kernels' reach, from a model on a grid just large enough to hold them (the rule's cap, half the LR
+  // side, is then never below it).
+  Index side = 1;
+  for (const Image& k : field.kernels) side = std::max({side, Index(k.rows()), Index(k.cols())});
+  side = (side + field.r - 1) / field.r * field.r;
+  ReconstructionProblem probe;
+  probe.model =
+      std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels({side, side}, field.r, field.kernels));
+  probe.frames.assign(field.kernels.size(), Image::Zero(side / field.r, side / field.r));
+  probe.offsets = field.offsets;
+  return SuggestTileOverlap(probe, options, tiling, rule);
+}
+
+void FieldData::Validate(const std::string& function) const {
+  CheckArgument(r >= 1, function, "field.r", r, ">= 1");
+  CheckArgument(lr.rows >= 1 && lr.cols >= 1, function, "field.lr", ToString(lr), "at least 1 x 1 camera px");
+  const std::size_t n = frames.size();
+  CheckArgument(n >= 1, function, "field.frames", 0, "at least one frame");
+  CheckArgument(kernels.size() == n, function, "field.kernels", kernels.size(),
+                "one per frame (" + std::to_string(n) + ")");
+  CheckArgument(weights.empty() || weights.size() == n, function, "field.weights", weights.size(),
+                "0 or one per frame (" + std::to_string(n) + ")");
+  CheckArgument(offsets.empty() || offsets.size() == n, function, "field.offsets", offsets.size(),
+                "0 or one per frame (" + std::to_string(n) + ")");
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::string f = "field.frames[" + std::to_string(i) + "]";
+    CheckArgument(ShapeOf(frames[i]) == lr, function, f + " shape", ToString(ShapeOf(frames[i])), ToString(lr));
+    if (!weights.empty())
+      CheckArgument(ShapeOf(weights[i]) == lr, function, "field.weights[" + std::to_string(i) + "] shape",
+                    ToString(ShapeOf(weights[i])), ToString(lr));
+    for (Index y = 0; y < lr.rows; ++y)
+      for (Index x = 0; x < lr.cols; ++x)
+        if (!std::isfinite(frames[i](y, x)) && (weights.empty() || weights[i](y, x) > 0))
+          throw InvalidArgument(function + ": " + f + "(" + std::to_string(y) + ", " + std::to_string(x) + ") = " +
+                                ToString(frames[i](y, x)) + "; allowed: finite values, or weight 0 at that pixel (mask it)");
+    if (!weights.empty())
+      CheckArgument(AllFinite(weights[i]) && weights[i].minCoeff() >= 0, function,
+                    "field.weights[" + std::to_string(i) + "]", "(negative or non-finite values)",
+                    "finite weights >= 0 (0 masks a pixel)");
+    const Image& k = kernels[i];
+    CheckArgument(k.size() > 0 && AllFinite(k) && k.sum() > 0, function, "field.kernels[" + std::to_string(i) + "]",
+                  k.size() == 0 ? std::string("empty") : "sum " + ToString(k.sum()),
+                  "finite values with a positive sum");
+  }
+}
+
+double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, int tile, int overlap, int concurrent,
+                          bool aux) {
+  const double lr_px = double(field.lr.rows) * double(field.lr.cols);
+  const double data = 8.0 * lr_px * double(field.frames.size() + field.weights.size());
+  const double side = double(std::min<Index>(tile + 2 * Index(overlap), std::max(field.lr.rows, field.lr.cols)));
+  const double window_hr = side * side * double(field.r) * double(field.r);
+  const bool weighted = !field.weights.empty();
+  // A tile's solve, its cut frames and the result it hands back (image, second map, the blend weight).
+  const double solve = EstimateSolveBytes(method, int(field.frames.size()), window_hr, weighted) + 8.0 * 3 * window_hr;
+  // Two tile rows of output accumulators (numerator and denominator, twice with a second map).
+  const double band = 2.0 * side * field.r * double(field.lr.cols) * field.r * 8.0 * (aux ? 4 : 2);
+  return data + concurrent * solve + band;
+}
+
+int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod method, double limit_bytes) {
+  const double data =
+      8.0 * double(field.lr.rows) * double(field.lr.cols) * double(field.frames.size() + field.weights.size());
+  const Index largest = std::max(field.lr.rows, field.lr.cols);
+  for (const int w : {512, 384, 256, 192, 128, 96, 64, 48, 32}) {
+    const Index wy = std::min<Index>(w, field.lr.rows), wx = std::min<Index>(w, field.lr.cols);
+    const double hr = double(wy * field.r) * double(wx * field.r);
+    if (data + EstimateSolveBytes(method, int(field.frames.size()), hr, !field.weights.empty()) <= limit_bytes)
+      return w >= largest ? 0 : w;
+  }
+  return 32;
+}
+
+TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, int overlap, int threads,
+                           double limit_bytes, bool aux) {
+  CheckArgument(overlap >= 0, "ChooseTiling", "overlap", overlap, ">= 0 camera px");
+  CheckArgument(threads >= 1, "ChooseTiling", "threads", threads, ">= 1");
+  TilingOptions t;
+  t.overlap = overlap;
+  t.regularisation_window = ChooseRegularisationWindow(field, method, limit_bytes);
+  double smallest = 0;
+  int smallest_tile = 0;
+  for (const int tile : {512, 384, 256, 192, 128, 96, 64, 48, 32, 24, 16}) {
+    // Not past twice the field, and a core must hold the overlap's ramp (MakeTiles).
+    if (tile > 2 * std::max(field.lr.rows, field.lr.cols) || (tile < overlap && smallest_tile > 0)) continue;
+    smallest_tile = tile;
+    for (const bool parallel : {true, false}) {
+      if (parallel && threads == 1) continue;
+      const double need = EstimateTiledBytes(field, method, tile, overlap, parallel ? threads : 1, aux);
+      smallest = need;
+      if (need <= limit_bytes) {
+        t.tile = tile;
+        t.parallel_tiles = parallel;
+        return t;
+      }
+    }
+  }
+  throw ResourceError("ChooseTiling: the smallest tiling of " + ToString(field.lr) + " camera px x " +
+                      std::to_string(field.frames.size()) + " frames at r = " + std::to_string(field.r) + " (" +
+                      ToString(method) + ", tiles of " + std::to_string(smallest_tile) +
+                      " camera px one at a time, overlap " + std::to_string(overlap) +
+                      ") needs about " + FormatBytes(smallest) + " of memory (estimate), more than the limit of " +
+                      FormatBytes(limit_bytes) + ": raise --memory-limit (AOSR_MEMORY_LIMIT) or give fewer or smaller frames");
+}
+
+namespace {
+
+// What the engine reads of a field: a problem with its whole-grid model, or FieldData (kernels only).
+struct TiledInput {
+  Shape lr, hr;
+  int r = 0;
+  const ImageStack* frames = nullptr;
+  const ImageStack* weights = nullptr;
+  const std::vector<FrameOffset>* offsets = nullptr;
+  const ReconstructionProblem* problem = nullptr;  // set when the whole problem exists
+  const FieldData* field = nullptr;                // else this
+};
+
+// The raised-cosine blend of finished tiles, kept row by row: a row exists from the first tile that touches
+// it until the last one (in tile order) has been added, then it is handed on and freed.
+class RowBlend {
+ public:
+  RowBlend(Shape hr, bool aux) : hr_(hr), aux_(aux), rows_(hr.rows) {}
+
+  void Add(const TileWindow& t, int r, const Image& w, const Image& image, const Image* aux_image) {
+    for (Index y = 0; y < w.rows(); ++y) {
+      const Index fy = WrapIndex(t.y0 * r + y, hr_.rows);
+      Row* row = nullptr;
+      for (Index x = 0; x < w.cols(); ++x) {
+        const double wk = w(y, x);
+        if (wk == 0) continue;
+        if (!row) row = Get(fy);
+        const Index fx = WrapIndex(t.x0 * r + x, hr_.cols);
+        row->num[fx] += wk * image(y, x);
+        row->den[fx] += wk;
+        if (aux_image) {
+          row->anum[fx] += wk * (*aux_image)(y, x);
+          row->aden[fx] += wk;
+        }
+      }
+    }
+  }
+
+  // Rows [y0, y1) as blended images (num / den; the second map 0 where no tile had one), freed afterwards.
+  void Take(Index y0, Index y1, Image* image, Image* aux) {
+    *image = Image::Zero(y1 - y0, hr_.cols);
+    *aux = aux_ ? Image::Zero(y1 - y0, hr_.cols) : Image();
+    for (Index y = y0; y < y1; ++y) {
+      std::unique_ptr<Row> row = std::move(rows_[y]);
+      if (!row) continue;
+      for (Index x = 0; x < hr_.cols; ++x) {
+        if (row->den[x] > 0) (*image)(y - y0, x) = row->num[x] / row->den[x];
+        if (aux_ && row->aden[x] > 0) (*aux)(y - y0, x) = row->anum[x] / row->aden[x];
+      }
+    }
+  }
+
+ private:
+  struct Row {
+    std::vector<double> num, den, anum, aden;
+  };
+  Row* Get(Index y) {
+    if (!rows_[y]) {
+      rows_[y] = std::make_unique<Row>();
+      rows_[y]->num.assign(hr_.cols, 0.0);
+      rows_[y]->den.assign(hr_.cols, 0.0);
+      if (aux_) rows_[y]->anum.assign(hr_.cols, 0.0), rows_[y]->aden.assign(hr_.cols, 0.0);
+    }
+    return rows_[y].get();
+  }
+  Shape hr_;
+  bool aux_;
+  std::vector<std::unique_ptr<Row>> rows_;
+};
+
+// Per HR row, the last tile row whose window has a non-zero blend weight on it (the row is final once that tile
+// row has been added).
+std::vector<int> LastTileRow(const std::vector<TileWindow>& tiles, int tiles_x, int r, int overlap, int tiles_y,
+                             Index hr_rows) {
+  std::vector<int> last(hr_rows, 0);
+  for (std::size_t k = 0; k < tiles.size(); k += tiles_x) {
+    const TileWindow& t = tiles[k];
+    const std::vector<double> wy =
+        AxisWeight(t.y0, t.rows, t.core_y0, t.core_y0 + t.core_rows, r, overlap, tiles_y);
+    for (Index y = 0; y < Index(wy.size()); ++y)
+      if (wy[y] != 0) {
+        int& l = last[WrapIndex(t.y0 * r + y, hr_rows)];
+        l = std::max(l, t.ty);
+      }
+  }
+  return last;
+}
+
+Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options, const TilingOptions& tiling,
+                        TilingSummary* summary) {
   const auto start = std::chrono::steady_clock::now();
-  problem.Validate(kTilingFn);
   std::string why;
   if (!tiling.IsValid(&why)) throw InvalidArgument(std::string(kTilingFn) + ": tiling." + why);
+  CheckArgument(tiling.regularisation_window >= 0, kTilingFn, "tiling.regularisation_window",
+                tiling.regularisation_window, "0 (the whole field) or W >= 1 camera px");
   if (!tiling.checkpoint_dir.empty() && !std::filesystem::is_directory(tiling.checkpoint_dir))
     throw InvalidArgument(kTilingFn, "tiling.checkpoint_dir", tiling.checkpoint_dir, "an existing folder");
-  const Shape lr = problem.model->lr_shape(), hr = problem.model->hr_shape();
-  const int r = problem.model->r();
+  const Shape lr = in.lr, hr = in.hr;
+  const int r = in.r;
+  const bool whole_model = in.problem != nullptr;
 
   // The overlap: given, or the rule capped to what the field allows.
   TilingSummary ts;
@@ -317,10 +583,13 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
   if (overlap >= 0) {
     ts.overlap_rule = "given";
   } else {
-    overlap = SuggestTileOverlap(problem, options, tiling, &ts.overlap_rule);
+    if (whole_model) {
+      overlap = SuggestTileOverlap(*in.problem, options, tiling, &ts.overlap_rule);
+    } else {
+      overlap = SuggestTileOverlap(*in.field, options, tiling, &ts.overlap_rule);
+    }
     Index cap = overlap;
-    for (const auto& [m, axis] : {std::pair<Index, int>{lr.rows, 0}, std::pair<Index, int>{lr.cols, 1}}) {
-      (void)axis;
+    for (const Index m : {lr.rows, lr.cols}) {
       const std::vector<Index> c = Cuts(m, tiling.tile);
       if (c.size() <= 2) continue;
       const auto [smallest, largest] = CoreRange(c);
@@ -335,9 +604,9 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
   ts.tiles_y = ts.tiles.back().ty + 1;
   ts.tiles_x = ts.tiles.back().tx + 1;
   const int count = int(ts.tiles.size());
-  if (count == 1) {
+  if (count == 1 && whole_model && !tiling.rows) {
     // One tile: the whole field, exactly as Reconstruct solves it.
-    Reconstruction out = Reconstruct(problem, options);
+    Reconstruction out = Reconstruct(*in.problem, options);
     ts.regularisation = out.regularisation;
     ts.regularisation_source = "whole field (one tile)";
     ts.tile_terminations = {out.summary.termination};
@@ -346,122 +615,281 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
     return out;
   }
 
-  // Each tile's problem: its window of the data and its model (the caller's local PSFs, or the problem's
-  // kernels cut to the window: one model per window shape, shared).
-  const ImageStack kernels = tiling.local_psfs ? ImageStack{} : OriginKernels(*problem.model);
+  // Each window's model: the caller's local PSFs, or the whole model's kernels (or the field's) cut to the
+  // window, one model per window shape, shared.
+  const ImageStack kernels = tiling.local_psfs || !whole_model ? ImageStack{} : OriginKernels(*in.problem->model);
   std::map<std::pair<Index, Index>, std::shared_ptr<const MultiFrameModel>> shared_models;
-  auto tile_problem = [&](const TileWindow& t) {
+  auto window_model = [&](Shape window) {
+    if (whole_model) return CutModel(kernels, hr, window, r);
+    return CutModelFromCentred(in.field->kernels, window, r);
+  };
+  auto window_problem = [&](const TileWindow& t) {
     const Shape window{t.rows * r, t.cols * r};
-    if (tiling.local_psfs) return TileProblem(problem, t, tiling.local_psfs(t));
-    return CutProblem(problem, t, shared_models.at({window.rows, window.cols}));
+    std::shared_ptr<const MultiFrameModel> model;
+    if (tiling.local_psfs) {
+      const ImageStack psfs = tiling.local_psfs(t);
+      CheckArgument(int(psfs.size()) == int(in.frames->size()), kTilingFn, "local_psfs",
+                    std::to_string(psfs.size()) + " kernels",
+                    "one per frame (" + std::to_string(in.frames->size()) + ")");
+      model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(window, r, psfs));
+    } else {
+      auto it = shared_models.find({window.rows, window.cols});
+      model = it != shared_models.end() ? it->second : window_model(window);
+    }
+    return CutWindow(lr, *in.frames, *in.weights, *in.offsets, t, std::move(model));
   };
   if (!tiling.local_psfs)
     for (const TileWindow& t : ts.tiles) {
       auto& m = shared_models[{t.rows * r, t.cols * r}];
-      if (!m) m = CutModel(kernels, hr, {t.rows * r, t.cols * r}, r);
+      if (!m) m = window_model({t.rows * r, t.cols * r});
     }
 
-  // One regularisation for the field, chosen on the central tile (or the whole field).
+  // One regularisation for the field, chosen on the whole field, a central window of it, or the central tile.
   const int central = (ts.tiles_y / 2) * ts.tiles_x + ts.tiles_x / 2;
   ReconstructOptions o = options;
   o.progress = nullptr;  // tiles may run concurrently; the callback need not be thread-safe
+  if (tiling.stop) {
+    const std::function<bool()> stop = tiling.stop;
+    o.progress = [stop](const Progress&) { return !stop(); };
+  }
   {
-    const bool whole = tiling.regularisation_from_whole_field;
-    const bool chosen = whole ? FixRegularisation(problem, &o) : FixRegularisation(tile_problem(ts.tiles[central]), &o);
-    ts.regularisation_source = chosen ? (whole ? "whole field" : "central tile") : "given";
-  }
-
-  // The tiles, in parallel or one after the other (each writes only its own slot), each read from the checkpoint
-  // folder if a previous run finished it, else solved and written there.
-  const bool checkpoint = !tiling.checkpoint_dir.empty();
-  const std::uint64_t fingerprint =
-      checkpoint ? tiling_internal::RunFingerprint(problem, o, tiling, overlap) : 0;
-  std::vector<Reconstruction> rec(count);
-  std::vector<char> empty(count, 0), resumed(count, 0);
-  auto solve = [&](Index k) {
-    const std::string path = checkpoint ? tiling_internal::TilePath(tiling.checkpoint_dir, int(k)) : "";
-    if (checkpoint && tiling_internal::ReadTile(path, fingerprint, int(k), &rec[k])) {
-      resumed[k] = 1;
-      empty[k] = rec[k].summary.method.empty() && rec[k].summary.message == "no data";
-      return;
-    }
-    const ReconstructionProblem p = tile_problem(ts.tiles[k]);
-    if (!AnyWeighted(p)) {  // nothing observed in the window: zeros, said in the summary
-      empty[k] = 1;
-      rec[k].image = Image::Zero(p.model->hr_shape().rows, p.model->hr_shape().cols);
-      rec[k].summary.message = "no data";
+    bool chosen = false;
+    ReconstructOptions fix = options;
+    fix.progress = nullptr;
+    if (!tiling.regularisation_from_whole_field) {
+      ReconstructionProblem p = window_problem(ts.tiles[central]);
+      RemoveWrapJumps(&p);
+      chosen = FixRegularisation(p, &fix);
+      ts.regularisation_source = "central tile";
+    } else if (tiling.regularisation_window == 0 && whole_model) {
+      chosen = FixRegularisation(*in.problem, &fix);
+      ts.regularisation_source = "whole field";
     } else {
-      rec[k] = Reconstruct(p, o);
+      TileWindow rep;
+      const Index wy = tiling.regularisation_window == 0 ? lr.rows : std::min<Index>(tiling.regularisation_window, lr.rows);
+      const Index wx = tiling.regularisation_window == 0 ? lr.cols : std::min<Index>(tiling.regularisation_window, lr.cols);
+      rep.core_y0 = rep.y0 = (lr.rows - wy) / 2;
+      rep.core_x0 = rep.x0 = (lr.cols - wx) / 2;
+      rep.core_rows = rep.rows = wy;
+      rep.core_cols = rep.cols = wx;
+      ReconstructionProblem p = window_problem(rep);
+      // A window smaller than the field: its frames' periodic components (no wrap-around jumps).
+      if (wy < lr.rows || wx < lr.cols) RemoveWrapJumps(&p);
+      chosen = FixRegularisation(p, &fix);
+      ts.regularisation_source = (wy == lr.rows && wx == lr.cols)
+                                     ? std::string("whole field")
+                                     : "central " + std::to_string(wy) + " x " + std::to_string(wx) + " camera px";
     }
-    if (checkpoint) tiling_internal::WriteTile(path, fingerprint, int(k), rec[k]);
-  };
-  if (tiling.parallel_tiles) {
-    ParallelFor(count, solve);
-  } else {
-    for (Index k = 0; k < count; ++k) solve(k);
+    if (!chosen) ts.regularisation_source = "given";
+    fix.progress = o.progress;
+    o = fix;
   }
 
-  // The blend Σ w_k x_k / Σ w_k, serial in tile order (the same bytes for any thread count).
-  Image num = Image::Zero(hr.rows, hr.cols), den = Image::Zero(hr.rows, hr.cols);
-  const Reconstruction& c = rec[central];
-  const bool has_aux = c.aux.size() > 0;
-  Image aux_num = has_aux ? Image::Zero(hr.rows, hr.cols) : Image();
-  Image aux_den = has_aux ? Image::Zero(hr.rows, hr.cols) : Image();  // a tile without the map adds no weight
-  for (int k = 0; k < count; ++k) {
+  // The tiles in batches (one per thread, or one at a time), each read from the checkpoint folder if a previous
+  // run finished it, else solved (and written there). A batch is blended in tile order, then dropped.
+  const bool checkpoint = !tiling.checkpoint_dir.empty();
+  ReconstructOptions fingerprint_options = o;
+  fingerprint_options.progress = nullptr;
+  const std::uint64_t fingerprint =
+      !checkpoint ? 0
+      : whole_model ? tiling_internal::RunFingerprint(*in.problem, fingerprint_options, tiling, overlap)
+                    : tiling_internal::RunFingerprint(*in.field, fingerprint_options, tiling, overlap);
+  // Without a whole image at the end, the residual is each tile's over its core.
+  const bool misfit_by_tiles = !whole_model || bool(tiling.rows);
+  const int n = int(in.frames->size());
+  struct TileOutcome {
+    Reconstruction rec;
+    bool empty = false, resumed = false, cancelled = false;
+    std::vector<double> ss, px;  // per frame: Σ residual² and pixel count over the core (misfit_by_tiles)
+  };
+  auto solve = [&](int k, TileOutcome* out) {
+    const std::string path = checkpoint ? tiling_internal::TilePath(tiling.checkpoint_dir, k) : "";
     const TileWindow& t = ts.tiles[k];
-    const Image w = TileBlendWeight(t, r, overlap, ts.tiles_y, ts.tiles_x);
-    const bool aux = has_aux && rec[k].aux.size() == w.size();
-    for (Index y = 0; y < w.rows(); ++y) {
-      const Index fy = WrapIndex(t.y0 * r + y, hr.rows);
-      for (Index x = 0; x < w.cols(); ++x) {
-        const double wk = w(y, x);
-        if (wk == 0) continue;
-        const Index fx = WrapIndex(t.x0 * r + x, hr.cols);
-        num(fy, fx) += wk * rec[k].image(y, x);
-        den(fy, fx) += wk;
-        if (aux) {
-          aux_num(fy, fx) += wk * rec[k].aux(y, x);
-          aux_den(fy, fx) += wk;
+    std::optional<ReconstructionProblem> p;
+    if (checkpoint && tiling_internal::ReadTile(path, fingerprint, k, &out->rec)) {
+      out->resumed = true;
+      out->empty = out->rec.summary.method.empty() && out->rec.summary.message == "no data";
+    } else {
+      p = window_problem(t);
+      if (!AnyWeighted(*p)) {  // nothing observed in the window: zeros, said in the summary
+        out->empty = true;
+        out->rec.image = Image::Zero(p->model->hr_shape().rows, p->model->hr_shape().cols);
+        out->rec.summary.message = "no data";
+      } else {
+        out->rec = Reconstruct(*p, o);
+        if (out->rec.summary.termination == Termination::kUserCancelled) {
+          out->cancelled = true;
+          return;
         }
       }
+      if (checkpoint) tiling_internal::WriteTile(path, fingerprint, k, out->rec);
+    }
+    if (misfit_by_tiles && !out->empty) {
+      if (!p) p = window_problem(t);
+      const ImageStack predicted = p->model->Render(out->rec.image);
+      out->ss.assign(n, 0.0);
+      out->px.assign(n, 0.0);
+      const Index cy = t.core_y0 - t.y0, cx = t.core_x0 - t.x0;
+      for (int i = 0; i < n; ++i)
+        for (Index y = cy; y < cy + t.core_rows; ++y)
+          for (Index x = cx; x < cx + t.core_cols; ++x) {
+            if (!p->weights.empty() && !(p->weights[i](y, x) > 0)) continue;
+            const double d = p->frames[i](y, x) - predicted[i](y, x);
+            out->ss[i] += d * d;
+            out->px[i] += 1;
+          }
+    }
+  };
+
+  const int batch = tiling.parallel_tiles ? std::max(1, DefaultThreads()) : 1;
+  const std::vector<int> last_row = LastTileRow(ts.tiles, ts.tiles_x, r, overlap, ts.tiles_y, hr.rows);
+  RowBlend blend(hr, true);
+  bool has_aux = false;
+  std::string aux_name;
+  Reconstruction out;
+  out.image = tiling.rows ? Image() : Image::Zero(hr.rows, hr.cols);
+  Image aux_whole;
+  int emitted_rows = 0;  // tile rows whose final HR rows have been handed on
+  auto emit = [&](Index y0, Index y1) {
+    if (y1 <= y0) return;
+    Image rows, aux_rows;
+    blend.Take(y0, y1, &rows, &aux_rows);
+    if (!has_aux) aux_rows = Image();
+    if (tiling.rows) {
+      tiling.rows(y0, rows, aux_rows);
+    } else {
+      out.image.middleRows(y0, y1 - y0) = rows;
+      if (has_aux) {
+        if (aux_whole.size() == 0) aux_whole = Image::Zero(hr.rows, hr.cols);
+        aux_whole.middleRows(y0, y1 - y0) = aux_rows;
+      }
+    }
+  };
+  // Hands on every row whose last tile row is among the first `done_rows`, in runs of consecutive rows.
+  auto emit_finished = [&](int done_rows) {
+    for (; emitted_rows < done_rows; ++emitted_rows) {
+      Index y = 0;
+      while (y < hr.rows) {
+        if (last_row[y] != emitted_rows) {
+          ++y;
+          continue;
+        }
+        Index e = y;
+        while (e < hr.rows && last_row[e] == emitted_rows) ++e;
+        emit(y, e);
+        y = e;
+      }
+    }
+  };
+
+  // Every batch is reported (a tile takes seconds to minutes: no rate limit needed), so a caller can stop
+  // after any batch.
+  ProgressReporter reporter(options.progress, "tiles", count, "", 0.0);
+  Reconstruction central_rec;
+  std::vector<Termination> terminations(count, Termination::kConverged);
+  std::vector<std::string> messages(count);
+  std::vector<double> ss(n, 0.0), px(n, 0.0);
+  int empties = 0, done = 0;
+  bool cancelled = false;
+  for (int b0 = 0; b0 < count && !cancelled; b0 += batch) {
+    const int b1 = std::min(count, b0 + batch);
+    std::vector<TileOutcome> outcomes(b1 - b0);
+    if (tiling.parallel_tiles) {
+      ParallelFor(b1 - b0, [&](Index j) { solve(b0 + int(j), &outcomes[j]); });
+    } else {
+      for (int j = 0; j < b1 - b0; ++j) solve(b0 + j, &outcomes[j]);
+    }
+    for (int j = 0; j < b1 - b0 && !cancelled; ++j) {
+      const int k = b0 + j;
+      TileOutcome& t = outcomes[j];
+      if (t.cancelled) {
+        cancelled = true;
+        break;
+      }
+      if (k == 0 || (!has_aux && t.rec.aux.size() > 0)) {
+        has_aux = has_aux || t.rec.aux.size() > 0;
+        if (t.rec.aux.size() > 0) aux_name = t.rec.aux_name;
+      }
+      const Image w = TileBlendWeight(ts.tiles[k], r, overlap, ts.tiles_y, ts.tiles_x);
+      const bool aux = t.rec.aux.size() == w.size();
+      blend.Add(ts.tiles[k], r, w, t.rec.image, aux ? &t.rec.aux : nullptr);
+      terminations[k] = t.rec.summary.termination;
+      messages[k] = t.rec.summary.message;
+      out.summary.iterations += t.rec.summary.iterations;
+      empties += t.empty;
+      ts.tiles_resumed += t.resumed;
+      for (int i = 0; i < int(t.ss.size()); ++i) ss[i] += t.ss[i], px[i] += t.px[i];
+      if (k == central) {
+        central_rec = std::move(t.rec);
+        central_rec.image = Image();
+        central_rec.aux = Image();
+      } else {
+        t.rec = Reconstruction();
+      }
+      ++done;
+      if ((k + 1) % ts.tiles_x == 0) emit_finished((k + 1) / ts.tiles_x);
+    }
+    if (!cancelled && !reporter.Report(done, std::numeric_limits<double>::quiet_NaN(), done == count))
+      cancelled = done < count;
+    if (!cancelled && tiling.stop && done < count && tiling.stop()) cancelled = true;
+  }
+  reporter.Finish(done, std::numeric_limits<double>::quiet_NaN());
+  reporter.RethrowIfThrown();
+  if (!tiling.rows) {
+    // What is left (rows of tiles not solved when cancelled): as blended so far, 0 where nothing was added.
+    for (Index y = 0; y < hr.rows;) {
+      if (last_row[y] < emitted_rows) {
+        ++y;
+        continue;
+      }
+      Index e = y;
+      while (e < hr.rows && last_row[e] >= emitted_rows) ++e;
+      emit(y, e);
+      y = e;
     }
   }
 
-  Reconstruction out;
-  out.image = num / den;
-  if (has_aux) {
-    out.aux = (aux_den > 0).select(aux_num / aux_den, 0.0);
-    out.aux_name = c.aux_name;
+  const Reconstruction& c = central_rec;
+  if (has_aux && !tiling.rows) {
+    out.aux = aux_whole.size() ? aux_whole : Image::Zero(hr.rows, hr.cols);
+    out.aux_name = aux_name;
+  } else if (has_aux) {
+    out.aux_name = aux_name;
   }
   out.regularisation = c.regularisation;
   out.effective_psf = c.effective_psf;
   out.noise_correlation = c.noise_correlation;
   out.leakage_spectrum = c.leakage_spectrum;
   out.linear = c.linear;
-  out.summary.method = c.summary.method;
-  int worst = central, empties = 0;
-  for (int k = 0; k < count; ++k) {
-    ts.tile_terminations.push_back(rec[k].summary.termination);
-    out.summary.iterations += rec[k].summary.iterations;
-    empties += empty[k];
-    ts.tiles_resumed += resumed[k];
-    if (Severity(rec[k].summary.termination) > Severity(rec[worst].summary.termination)) worst = k;
-  }
+  out.summary.method = c.summary.method.empty() ? ToString(options.method) : c.summary.method;
+  int worst = central;
+  for (int k = 0; k < done; ++k)
+    if (Severity(terminations[k]) > Severity(terminations[worst])) worst = k;
+  ts.tile_terminations.assign(terminations.begin(), terminations.begin() + done);
   ts.regularisation = out.regularisation;
-  out.summary.termination = rec[worst].summary.termination;
+  out.summary.termination = cancelled ? Termination::kUserCancelled : terminations[worst];
   out.summary.message = "tiled: " + std::to_string(ts.tiles_y) + " x " + std::to_string(ts.tiles_x) +
                         " tiles of <= " + std::to_string(tiling.tile) + " camera px, overlap " +
                         std::to_string(overlap) + " (" + ts.overlap_rule + "); regularisation " +
                         ToString(out.regularisation) + " (" + ts.regularisation_source + ")";
+  if (cancelled)
+    out.summary.message += "; cancelled by the caller after " + std::to_string(done) + " of " +
+                           std::to_string(count) + " tiles";
   if (empties > 0) out.summary.message += "; " + std::to_string(empties) + " tiles without data (zero)";
   if (checkpoint) out.summary.message += "; " + std::to_string(ts.tiles_resumed) + " tiles resumed";
-  out.summary.message += "; central tile: " + c.summary.message;
-  if (worst != central)
-    out.summary.message += "; worst tile " + std::to_string(worst) + " (" +
-                           ToString(rec[worst].summary.termination) + "): " + rec[worst].summary.message;
-  if (AllFinite(out.image)) {
-    WeightedDataMisfit(problem, out.image, &out.summary.frame_residual_rms);
-  } else if (!(options.method == ReconstructionMethod::kDrizzle && std::isnan(options.drizzle.fill_value))) {
+  if (central < done) out.summary.message += "; central tile: " + messages[central];
+  if (worst != central && worst < done)
+    out.summary.message += "; worst tile " + std::to_string(worst) + " (" + ToString(terminations[worst]) +
+                           "): " + messages[worst];
+  if (misfit_by_tiles) {
+    out.summary.frame_residual_rms.clear();
+    for (int i = 0; i < n; ++i) out.summary.frame_residual_rms.push_back(px[i] > 0 ? std::sqrt(ss[i] / px[i]) : 0.0);
+    out.summary.message += "; residuals are the tiles' over their cores";
+  } else if (AllFinite(out.image)) {
+    WeightedDataMisfit(*in.problem, out.image, &out.summary.frame_residual_rms);
+  }
+  if (!tiling.rows && !AllFinite(out.image) &&
+      !(options.method == ReconstructionMethod::kDrizzle && std::isnan(options.drizzle.fill_value))) {
     out.image.setZero();
     out.summary.termination = Termination::kFailed;
     out.summary.message = "non-finite estimate discarded (image zeroed): " + out.summary.message;
@@ -470,6 +898,36 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (summary) *summary = std::move(ts);
   return out;
+}
+
+}  // namespace
+
+Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const ReconstructOptions& options,
+                                const TilingOptions& tiling, TilingSummary* summary) {
+  problem.Validate(kTilingFn);
+  TiledInput in;
+  in.lr = problem.model->lr_shape();
+  in.hr = problem.model->hr_shape();
+  in.r = problem.model->r();
+  in.frames = &problem.frames;
+  in.weights = &problem.weights;
+  in.offsets = &problem.offsets;
+  in.problem = &problem;
+  return RunTiles(in, options, tiling, summary);
+}
+
+Reconstruction ReconstructTiled(const FieldData& field, const ReconstructOptions& options, const TilingOptions& tiling,
+                                TilingSummary* summary) {
+  field.Validate(kTilingFn);
+  TiledInput in;
+  in.lr = field.lr;
+  in.hr = {field.lr.rows * field.r, field.lr.cols * field.r};
+  in.r = field.r;
+  in.frames = &field.frames;
+  in.weights = &field.weights;
+  in.offsets = &field.offsets;
+  in.field = &field;
+  return RunTiles(in, options, tiling, summary);
 }
 
 }  // namespace aosr

@@ -1,5 +1,9 @@
 #include "cli_util.hpp"
 
+#include <signal.h>
+
+#include <csignal>
+
 #include <unistd.h>
 
 #include <algorithm>
@@ -101,6 +105,34 @@ const std::string& CommandLine() { return CommandLineStorage(); }
 std::string JoinPath(const std::string& dir, const std::string& name) {
   return (std::filesystem::path(dir) / name).string();
 }
+
+namespace {
+volatile std::sig_atomic_t interrupt_flag_raised = 0;
+void OnInterruptFlagSignal(int) {
+  interrupt_flag_raised = 1;
+  std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C ends the process
+}
+}  // namespace
+
+InterruptFlag::InterruptFlag(bool enabled) : enabled_(enabled) {
+  interrupt_flag_raised = 0;
+  if (!enabled_) return;
+  auto* previous = new struct sigaction();
+  struct sigaction action {};
+  action.sa_handler = OnInterruptFlagSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, previous);
+  previous_ = previous;
+}
+
+InterruptFlag::~InterruptFlag() {
+  if (!enabled_) return;
+  auto* previous = static_cast<struct sigaction*>(previous_);
+  sigaction(SIGINT, previous, nullptr);
+  delete previous;
+}
+
+bool InterruptFlag::raised() const { return enabled_ && interrupt_flag_raised != 0; }
 
 void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads) {
   if (with_threads)

@@ -54,6 +54,23 @@ struct ExecutionArgs {
   std::string fft_planner = "estimate";  // estimate | measure | patient
   std::string memory_limit;            // empty: AOSR_MEMORY_LIMIT or the machine's (core/memory.hpp)
 };
+// Ctrl-C as a request to stop (a tiled reconstruction stops cleanly between iterations): while an enabled
+// InterruptFlag lives, the first SIGINT only raises the flag (and puts back the default action, so a second
+// one ends the process at once); the previous action is restored when it is destroyed. Disabled: nothing is
+// installed and raised() stays false. One at a time.
+class InterruptFlag {
+ public:
+  explicit InterruptFlag(bool enabled);
+  ~InterruptFlag();
+  InterruptFlag(const InterruptFlag&) = delete;
+  InterruptFlag& operator=(const InterruptFlag&) = delete;
+  bool raised() const;  // safe from any thread
+
+ private:
+  bool enabled_;
+  void* previous_ = nullptr;  // the previous struct sigaction
+};
+
 // Adds --threads, --fft-planner and --memory-limit to `cmd` (--threads only if `with_threads`: design and calibrate have
 // their own, which ApplyExecution is then given).
 void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads = true);

@@ -232,7 +232,7 @@ void RunDemo(const DemoArgs& args) {
     progress.Step("bicubic upsampling of frame 0");
     Stopwatch c;
     results.push_back({"bicubic", "bicubic (1 frame)", BicubicUpsample(scene.frames[0], scene.options.r), {}, 0,
-                       "one frame", false, "", 0, "converged"});
+                       "one frame", false, "", 0, "converged", {}});
     results.back().seconds = c.Seconds();
   }
   double tikhonov_lambda = 0, tv_mu = 0;
@@ -258,7 +258,7 @@ void RunDemo(const DemoArgs& args) {
     if (args.map_iterations > 0) o.map.max_iterations = args.map_iterations;
     Reconstruction rec = Reconstruct(problem, o);
     MethodResult m{run.name, run.label, std::move(rec.image), {}, rec.seconds_total, rec.summary.message, true,
-                   "", rec.summary.iterations, ToString(rec.summary.termination)};
+                   "", rec.summary.iterations, ToString(rec.summary.termination), {}};
     if (run.method == ReconstructionMethod::kTikhonov) tikhonov_lambda = rec.regularisation;
     if (run.method == ReconstructionMethod::kTotalVariation) tv_mu = rec.regularisation;
     if (run.method == ReconstructionMethod::kLinear) {

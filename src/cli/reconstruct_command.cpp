@@ -13,7 +13,9 @@
 #include <string>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/memory.hpp"
 #include "aosr/core/metrics.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
@@ -178,7 +180,6 @@ void RunReconstruct(const ReconstructArgs& a) {
     if (!tiling.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--tile / --tile-overlap", why, "valid tiling");
   }
   if (!a.resume.empty()) {
-    if (a.tile <= 0) throw InvalidArgument("aosr reconstruct", "--resume", a.resume, "only with --tile");
     std::error_code ec;
     fs::create_directories(a.resume, ec);
     if (!fs::is_directory(a.resume))
@@ -239,6 +240,19 @@ void RunReconstruct(const ReconstructArgs& a) {
                             "1 .. " + std::to_string(most) + " for this dataset, crop and centre (rings at least " +
                                 ToString(kMinRingWidthPx) + " HR px wide, the SSIM window)");
   }
+  // A whole detector: when the whole-grid model and solve would pass the memory limit, the reconstruction runs
+  // by tiles without a whole-grid model (solvers/tiling.hpp, "A whole detector"), its output written by rows.
+  const MemoryLimit limit = CurrentMemoryLimit();
+  double whole_need = 0;
+  const bool whole_fits = WholeGridFits(d, o.method, limit.bytes, &whole_need);
+  if (!whole_fits) {
+    if (a.rings > 0)
+      throw InvalidArgument("aosr reconstruct", "--rings", std::to_string(a.rings),
+                            "a dataset whose whole-grid reconstruction fits in memory (this one needs about " +
+                                FormatBytes(whole_need) + ", the limit is " + FormatBytes(limit.bytes) +
+                                "): score the written image with aosr evaluate");
+    dpo.whole_grid_model = false;
+  }
   const fs::path out_canonical = fs::weakly_canonical(a.out);
   const std::set<fs::path> inputs = DatasetInputFiles(d);
   for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std"), a.stars_psf_out})
@@ -275,10 +289,52 @@ void RunReconstruct(const ReconstructArgs& a) {
   progress.Step(std::string("reconstructing with ") + ToString(o.method) + " (" + std::to_string(d.size()) +
                 " frames of " + ToString(d.frame) + ", r = " + std::to_string(d.r) + ")");
   o.progress = bar.Callback();
+  // Without a whole-grid model: tiles chosen under the memory limit (unless given), the regularisation on the
+  // largest central window that fits (512 camera px at most), and the output written by rows as tiles finish.
+  const bool streamed = dp.field.has_value();
+  std::unique_ptr<FitsRowWriter> image_writer, aux_writer;
+  const std::string streamed_aux_path = AuxPath(a.out, o.method == ReconstructionMethod::kDrizzle ? "weight" : "std");
+  if (streamed) {
+    const int overlap = a.tile_overlap >= 0 ? a.tile_overlap : SuggestTileOverlap(*dp.field, o, tiling);
+    if (a.tile == 0 && !dp.psf_field) {
+      const TilingOptions chosen = ChooseTiling(*dp.field, o.method, overlap, DefaultThreads(), limit.bytes,
+                                                o.method == ReconstructionMethod::kTikhonov && o.tikhonov.compute_std);
+      tiling.tile = chosen.tile;
+      tiling.parallel_tiles = chosen.parallel_tiles;
+    }
+    tiling.regularisation_window = ChooseRegularisationWindow(*dp.field, o.method, limit.bytes);
+    if (!a.json)
+      std::fprintf(stderr,
+                   "aosr reconstruct: the whole grid (%s) needs about %s, more than the memory limit %s (%s): "
+                   "tiles of %d camera px, the output written by rows\n",
+                   ToString(d.hr_frame).c_str(), FormatBytes(whole_need).c_str(), FormatBytes(limit.bytes).c_str(),
+                   limit.source.c_str(), tiling.tile);
+    image_writer = std::make_unique<FitsRowWriter>(a.out, d.hr_frame);
+    tiling.rows = [&](Index y0, const Image& rows, const Image& aux_rows) {
+      image_writer->WriteRows(y0, rows);
+      if (aux_rows.size() == 0) return;
+      if (!aux_writer) aux_writer = std::make_unique<FitsRowWriter>(streamed_aux_path, d.hr_frame);
+      aux_writer->WriteRows(y0, aux_rows);
+    };
+  } else if (a.tile == 0 && !a.resume.empty() && !dp.psf_field) {
+    throw InvalidArgument("aosr reconstruct", "--resume", a.resume,
+                          "only with --tile, a field model or a dataset reconstructed by tiles for its size");
+  }
+  // Ctrl-C in a tiled run stops it cleanly: the tiles in progress stop at their next iteration, the finished
+  // ones stay in --resume's folder, and nothing is written. A second Ctrl-C ends the process at once.
+  const bool tiled_run = tiling.tile > 0 || dp.psf_field.has_value();
+  InterruptFlag interrupt(tiled_run);
+  if (tiled_run) tiling.stop = [&interrupt] { return interrupt.raised(); };
   TilingSummary ts;
   const Reconstruction rec = ReconstructDataset(dp, o, tiling, &ts);
   const bool tiled = !ts.tiles.empty();
   bar.Clear();
+  if (interrupt.raised()) {
+    std::fprintf(stderr, "aosr reconstruct: interrupted: %s; nothing written%s\n", rec.summary.message.c_str(),
+                 a.resume.empty() ? " (with --resume DIR a rerun continues from the finished tiles)"
+                                  : ("; rerun the same command to continue from the tiles in " + a.resume).c_str());
+    std::exit(130);
+  }
 
   FitsHeader h;
   h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
@@ -334,9 +390,11 @@ void RunReconstruct(const ReconstructArgs& a) {
     add("NOISE_CORR", rec.noise_correlation, "noise covariance xi(dy, dx) [electron^2], lag 0 at the centre",
         FitsType::kFloat64);
     add("LEAKAGE", rec.leakage_spectrum, "leakage per HR frequency, zero frequency at (M/2, M/2)", FitsType::kFloat32);
-    WriteFitsWithExtensions(a.out, rec.image, h, ext, FitsType::kFloat32);
+    if (streamed) image_writer->Finish(h, ext);
+    else WriteFitsWithExtensions(a.out, rec.image, h, ext, FitsType::kFloat32);
   } else {
-    WriteFits(a.out, rec.image, h, FitsType::kFloat32);
+    if (streamed) image_writer->Finish(h);
+    else WriteFits(a.out, rec.image, h, FitsType::kFloat32);
   }
   std::string aux_path;
   if (!rec.aux_name.empty()) {
@@ -345,7 +403,8 @@ void RunReconstruct(const ReconstructArgs& a) {
     ha.Set("AOSRDATA", rec.aux_name, "content of this HDU");
     // std: electrons, as the image; Drizzle's weight: summed input weights, no unit of its own.
     SetHrImageKeywords(d, rec.aux_name == "weight" ? "" : "electron", &ha);
-    WriteFits(aux_path, rec.aux, ha, FitsType::kFloat32);
+    if (streamed && aux_writer) aux_writer->Finish(ha);
+    else if (!streamed) WriteFits(aux_path, rec.aux, ha, FitsType::kFloat32);
   }
 
   nlohmann::json j = {{"method", ToString(o.method)},
@@ -437,8 +496,13 @@ void RunReconstruct(const ReconstructArgs& a) {
     if (noise_unscaled)
       j["linear"]["noise_note"] = "weights are a validity mask: noise figures assume sigma = 1 e- per pixel; pass --noise-sigma";
   }
+  if (streamed) {
+    j["output_by_rows"] = {{"whole_grid_bytes", whole_need}, {"memory_limit_bytes", limit.bytes},
+                           {"memory_limit_source", limit.source}, {"peak_resident_bytes", PeakResidentBytes()}};
+    if (d.truth) j["metrics_note"] = "not computed: the image was never held whole; score it with aosr evaluate";
+  }
   std::string aligned_line, rings_table;
-  if (d.truth) {
+  if (d.truth && !streamed) {
     MetricOptions mo;
     mo.crop_px = int(d.trustworthy_border_px * d.r);
     if (2 * mo.crop_px + 11 > std::min(d.hr_frame.rows, d.hr_frame.cols)) mo.crop_px = 0;

@@ -2,7 +2,10 @@
 
 #include <fitsio.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cfloat>
@@ -582,6 +585,91 @@ void WriteFitsCubeWithExtensions(const std::string& path, const ImageStack& prim
     file.Close(path);
     ClearFitsMessages();
   });
+}
+
+namespace {
+// The reserved header space of a FitsRowWriter's primary HDU, in keywords: a reconstruction's header with WCS
+// and the linear method's summary holds about 60.
+constexpr int kFitsRowWriterHeaderKeywords = 400;
+}  // namespace
+
+FitsRowWriter::FitsRowWriter(const std::string& path, Shape shape, FitsType type)
+    : path_(path), shape_(shape), type_(type) {
+  CheckArgument(shape.rows > 0 && shape.cols > 0, "FitsRowWriter", "shape", ToString(shape), "non-empty");
+  const std::filesystem::path p(path);
+  const std::filesystem::path dir = p.parent_path().empty() ? std::filesystem::path(".") : p.parent_path();
+  if (!std::filesystem::is_directory(dir)) throw IoError(path, "its folder does not exist");
+  static std::atomic<unsigned> counter{0};
+  tmp_ = path + ".tmp-" + std::to_string(::getpid()) + "-rows" + std::to_string(counter++);
+  ClearFitsMessages();
+  fitsfile* f = nullptr;
+  int status = 0;
+  if (fits_create_diskfile(&f, tmp_.c_str(), &status)) ThrowFits(path, status, "cannot create");
+  file_ = f;
+  LONGLONG axes[2] = {shape.cols, shape.rows};
+  const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
+  if (fits_create_imgll(f, bitpix, 2, axes, &status)) ThrowFits(path, status, "cannot create the image HDU");
+  if (fits_set_hdrsize(f, kFitsRowWriterHeaderKeywords, &status))
+    ThrowFits(path, status, "cannot reserve header space");
+  ClearFitsMessages();
+}
+
+FitsRowWriter::~FitsRowWriter() {
+  if (file_ != nullptr) {
+    int status = 0;
+    fits_close_file(static_cast<fitsfile*>(file_), &status);
+    ClearFitsMessages();
+  }
+  if (!tmp_.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(tmp_, ec);
+  }
+}
+
+void FitsRowWriter::WriteRows(Index row0, const Image& rows) {
+  CheckArgument(file_ != nullptr, "FitsRowWriter::WriteRows", "state", "finished", "a writer not yet finished");
+  CheckArgument(rows.cols() == shape_.cols && row0 >= 0 && row0 + rows.rows() <= shape_.rows,
+                "FitsRowWriter::WriteRows", "rows", std::to_string(rows.rows()) + " x " + std::to_string(rows.cols()) +
+                " at row " + std::to_string(row0), "rows inside the " + ToString(shape_) + " image");
+  if (rows.size() == 0) return;
+  CheckPlanes("FitsRowWriter::WriteRows", "", ImageStack{rows}, type_);
+  // Images are row-major (image.hpp), as FITS stores them (x fastest): the block is contiguous.
+  LONGLONG first[2] = {1, LONGLONG(row0) + 1};
+  const LONGLONG n = LONGLONG(rows.size());
+  int status = 0;
+  ClearFitsMessages();
+  if (type_ == FitsType::kFloat32) {
+    std::vector<float> data = Flatten<float>(ImageStack{rows});
+    fits_write_pixll(static_cast<fitsfile*>(file_), TFLOAT, first, n, data.data(), &status);
+  } else {
+    std::vector<double> data = Flatten<double>(ImageStack{rows});
+    fits_write_pixll(static_cast<fitsfile*>(file_), TDOUBLE, first, n, data.data(), &status);
+  }
+  if (status) ThrowFits(path_, status, "cannot write rows " + std::to_string(row0) + " to " +
+                                           std::to_string(row0 + rows.rows() - 1));
+  ClearFitsMessages();
+}
+
+void FitsRowWriter::Finish(const FitsHeader& header, const std::vector<FitsExtension>& extensions) {
+  CheckArgument(file_ != nullptr, "FitsRowWriter::Finish", "state", "finished", "a writer not yet finished");
+  fitsfile* f = static_cast<fitsfile*>(file_);
+  ClearFitsMessages();
+  for (const FitsKeyword& k : header.keywords()) WriteKeyword(f, k, path_);
+  for (const FitsExtension& x : extensions) {
+    CheckPlanes("FitsRowWriter::Finish", "extension " + x.name, x.planes, x.type);
+    FitsHeader h;
+    for (const FitsKeyword& k : x.header.keywords())
+      if (k.name != "EXTNAME") h.Set(k.name, k.value, k.comment);
+    WriteHdu(f, path_, x.planes, h, x.type, x.planes.size() == 1 ? 2 : 3, x.name);
+  }
+  int status = 0;
+  file_ = nullptr;
+  if (fits_close_file(f, &status)) ThrowFits(path_, status, "cannot close (flush) the file");
+  ClearFitsMessages();
+  std::error_code ec;
+  std::filesystem::rename(tmp_, path_, ec);
+  if (ec) throw IoError(path_, "cannot rename " + tmp_ + " onto it: " + ec.message());
+  tmp_.clear();
 }
 
 Image ReadFitsImage(const std::string& path) {

@@ -324,5 +324,54 @@ TEST(FitsHeaderTest, SetNormalisesNamesAndRefusesStructuralOnes) {
   EXPECT_THROW(h.Set("BZERO", 0.0), InvalidArgument);
 }
 
+
+// FitsRowWriter: rows in any order (unwritten ones read 0), the header and extensions added at the end, the
+// file in place only after Finish, bytes of the pixels as WriteFits writes them; without Finish, no file and no
+// temporary is left.
+TEST(FitsTest, RowWriterWritesRowsInAnyOrderAndAppearsOnlyWhenFinished) {
+  TempDir dir;
+  const std::string path = dir.File("rows.fits"), whole = dir.File("whole.fits");
+  const Image img = Coded(9, 7, 0.0, 0.123456789);
+  FitsHeader h;
+  h.Set("METHOD", std::string("tikhonov"), "written at the end");
+  for (int k = 0; k < 60; ++k) h.Set("KEY" + std::to_string(k), double(k), "a reconstruction's worth of keywords");
+  FitsExtension e;
+  e.name = "PSF";
+  e.planes = {Coded(3, 3, 1.0, 0.5)};
+  e.type = FitsType::kFloat64;
+  {
+    FitsRowWriter w(path, {9, 7}, FitsType::kFloat64);
+    w.WriteRows(6, img.middleRows(6, 3));
+    w.WriteRows(0, img.middleRows(0, 2));  // rows 2..5 never written
+    EXPECT_FALSE(std::filesystem::exists(path)) << "not before Finish";
+    w.Finish(h, {e});
+  }
+  const FitsData back = ReadFits(path);
+  Image expected = img;
+  expected.middleRows(2, 4).setZero();
+  EXPECT_TRUE((back.planes.at(0) == expected).all());
+  EXPECT_EQ(back.header.GetString("METHOD"), "tikhonov");
+  EXPECT_EQ(back.header.GetDouble("KEY59"), 59.0);
+  EXPECT_TRUE((ReadFitsExtension(path, "PSF").planes.at(0) == e.planes[0]).all());
+  // Float32 rows: the same values as WriteFits writes.
+  {
+    FitsRowWriter w(path, {9, 7});
+    for (Index y = 8; y >= 0; --y) w.WriteRows(y, img.middleRows(y, 1));
+    w.Finish(h);
+  }
+  WriteFits(whole, img, h);
+  EXPECT_TRUE((ReadFitsImage(path) == ReadFitsImage(whole)).all());
+  // Abandoned (an error or a cancelled run): nothing new appears, the previous file stays, no temporary is left.
+  {
+    FitsRowWriter w(dir.File("gone.fits"), {9, 7});
+    w.WriteRows(0, img.middleRows(0, 3));
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.File("gone.fits")));
+  EXPECT_EQ(dir.List(), (std::vector<std::string>{"rows.fits", "whole.fits"}));
+  EXPECT_THROW(FitsRowWriter(dir.File("no/such/folder.fits"), {9, 7}), IoError);
+  FitsRowWriter w(dir.File("bad.fits"), {9, 7});
+  EXPECT_THROW(w.WriteRows(8, img.middleRows(0, 2)), InvalidArgument);  // past the last row
+}
+
 }  // namespace
 }  // namespace aosr

@@ -54,7 +54,7 @@ TEST(TilingErrorsTest, BadLocalPsfs) {
   t.overlap = 4;
   t.local_psfs = [](const TileWindow&) { return ImageStack{test::GaussianKernel(5, 1.0)}; };  // one, not two
   EXPECT_THAT(test::ErrorOf([&] { ReconstructTiled(p, o, t); }),
-              AllOf(HasSubstr("TileProblem"), HasSubstr("psfs"), HasSubstr("1 kernels")));
+              AllOf(HasSubstr("ReconstructTiled"), HasSubstr("local_psfs"), HasSubstr("1 kernels")));
 }
 
 TEST(TilingErrorsTest, BadOptionsOfTheMethodAreNamed) {

@@ -124,6 +124,32 @@ void WriteFitsWithExtensions(const std::string& path, const Image& primary, cons
 void WriteFitsCubeWithExtensions(const std::string& path, const ImageStack& primary, const FitsHeader& header,
                                  const std::vector<FitsExtension>& extensions, FitsType type = FitsType::kFloat32);
 
+// A 2-D image written by rows, for an image that is never held whole (a tiled reconstruction of a whole
+// detector, solvers/tiling.hpp). The primary HDU is created with its full shape in a temporary file beside
+// `path` (as AtomicWrite names it); rows are written in any order (rows never written read as 0); Finish adds
+// the header's keywords (a reconstruction's are known only at the end; space for them is reserved up front, so
+// the pixels are not moved), then the extensions, and renames the file onto `path`: it appears complete or not
+// at all. Destroyed without Finish (an error, a cancelled run), it removes the temporary file.
+// IoError naming `path` for a missing folder or a failed write; InvalidArgument as WriteFits for values.
+class FitsRowWriter {
+ public:
+  FitsRowWriter(const std::string& path, Shape shape, FitsType type = FitsType::kFloat32);
+  ~FitsRowWriter();
+  FitsRowWriter(const FitsRowWriter&) = delete;
+  FitsRowWriter& operator=(const FitsRowWriter&) = delete;
+
+  // Rows [row0, row0 + rows.rows()) of the image; rows.cols() must be the image's width.
+  void WriteRows(Index row0, const Image& rows);
+  // Ends the file (see above). Extensions follow WriteFitsWithExtensions's rules.
+  void Finish(const FitsHeader& header, const std::vector<FitsExtension>& extensions = {});
+
+ private:
+  std::string path_, tmp_;
+  Shape shape_;
+  FitsType type_;
+  void* file_ = nullptr;  // fitsfile*
+};
+
 // Reads the image extension whose EXTNAME is `name` (case-insensitive, as cfitsio matches it); its header
 // includes EXTNAME. IoError naming the path and the names the file has when none matches, or for the
 // reasons of ReadFits (no data, NAXIS other than 2 or 3, truncated).

@@ -62,6 +62,7 @@
 #include "aosr/solvers/reconstruct.hpp"
 #include "aosr/solvers/registration.hpp"
 #include "aosr/solvers/stars_psf.hpp"
+#include "aosr/solvers/tiling.hpp"
 
 namespace aosr {
 
@@ -113,6 +114,11 @@ struct DatasetProblemOptions {
   RegistrationOptions registration;
   // The field-varying model (DatasetPsfField above); with nominal_psfs the field's nominal PSFs.
   DatasetPsfField psf_field = DatasetPsfField::kAuto;
+  // false: no whole-grid model; DatasetProblem::field holds the data and the model's kernels instead, for a
+  // reconstruction by tiles (solvers/tiling.hpp, "A whole detector") of a field whose whole-grid model does
+  // not fit in memory (WholeGridFits). Not with offsets kEstimate or psf_field operator (both need the
+  // whole-grid model).
+  bool whole_grid_model = true;
 };
 
 struct DatasetProblem {
@@ -138,7 +144,15 @@ struct DatasetProblem {
     std::vector<ImageStack> psfs;
   };
   std::optional<Field> psf_field;
+  // DatasetProblemOptions::whole_grid_model false: the frames, weights and offsets (moved out of `problem`,
+  // whose model is then null) with the model's PSFs as centred kernels (as the model takes them, not folded).
+  std::optional<FieldData> field;
 };
+
+// Whether a whole-grid reconstruction of `dataset` by `method` fits under `limit_bytes`: the model's transfer
+// functions and the method's solve (EstimateSolveBytes, weighted), next to the frames and weights. *need gets
+// the estimate.
+bool WholeGridFits(const Dataset& dataset, ReconstructionMethod method, double limit_bytes, double* need = nullptr);
 
 // Throws InvalidArgument naming the option for an inconsistent request (kDataset without weights, a PSF
 // stack of the wrong count or with a non-positive sum).

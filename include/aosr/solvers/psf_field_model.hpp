@@ -44,8 +44,9 @@ int SuggestFieldTile(const PsfFieldGrid& grid, int r, Shape lr);
 // The one entry point of a dataset reconstruction, for the CLI and Python alike: with a field model
 // (DatasetProblem::psf_field) by tiles with local PSFs (tiling.tile 0: SuggestFieldTile), or with the
 // space-variant operator (the regularisation fixed on the centre's model, as FixRegularisation does for tiles;
-// tiling.tile must be 0); without one, tiled when tiling.tile > 0, else the whole grid (Reconstruct).
-// `summary` (may be null) is filled when tiled.
+// tiling.tile must be 0); without one, tiled when tiling.tile > 0, else the whole grid (Reconstruct). A problem
+// without a whole-grid model (DatasetProblem::field) is always tiled (tiling.tile >= 1 unless a field model
+// suggests it). `summary` (may be null) is filled when tiled.
 Reconstruction ReconstructDataset(const DatasetProblem& problem, const ReconstructOptions& options,
                                   TilingOptions tiling = {}, TilingSummary* summary = nullptr);
 

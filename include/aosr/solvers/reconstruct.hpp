@@ -117,6 +117,13 @@ struct Reconstruction {
 AutomaticRegularisation ChooseAutomaticRegularisation(const ReconstructionProblem& problem,
                                                       const ReconstructOptions& options);
 
+// The bytes a solve of `method` on an HR grid of `hr_pixels` with N frames holds at its peak, beyond its
+// input: the model's transfer functions, the data's spectra and the method's work arrays (estimates of the
+// large arrays, as core/memory.hpp's). Reconstruct checks it against the memory limit before it starts; the
+// tile engine (tiling.hpp) sizes its tiles with it. Measured against peak RSS in
+// bench/results/whole_detector.md.
+double EstimateSolveBytes(ReconstructionMethod method, int frames, double hr_pixels, bool weighted);
+
 // Validates the problem and options (InvalidArgument names the field); never returns NaN: a non-finite
 // estimate is reported as Termination::kFailed with the image zeroed.
 Reconstruction Reconstruct(const ReconstructionProblem& problem, const ReconstructOptions& options);

@@ -52,8 +52,29 @@
 // Second maps and the linear method's kernels: aux maps (posterior std, noise std, Drizzle weight) are blended
 // with the same weights (a std map blended linearly: exact where tiles agree, an approximation in the ramps);
 // effective_psf, noise_correlation, leakage_spectrum (on the tile's grid) and the linear summary are the
-// central tile's. Not done here: a memory limit per tile or automatic tiling, cancellation, reading frames by
-// sections.
+// central tile's.
+//
+// A whole detector (issue 32). A field too large for one solve is given as FieldData: the frames, weights and
+// offsets of the whole field and each frame's PSF as a small centred kernel, with no whole-grid model (the
+// model of an 8192² HR grid alone holds N half spectra of 0.5 GiB each). Each tile's model is built from the
+// kernels on its window (kernels larger than the window are cut to it, as the whole-grid kernels are above).
+// What it costs in memory:
+//   * the tiles run in batches (one tile per thread when parallel_tiles, else one at a time); a batch's
+//     results are blended in tile order, then dropped;
+//   * the blend keeps only the output rows that a tile still to come touches: the band of one tile row (its
+//     window, r·(core + 2P) HR rows) plus, because windows wrap around the field, the first tile row's ramp
+//     into the field's last rows and the last tile row's ramp into its first rows, which are complete only at
+//     the end. Finished rows go to TilingOptions::rows (a FITS file written by rows, for example) and are
+//     freed; without a sink they are copied into the result's image.
+// So the peak is the data (frames and weights), the batch's solves (EstimateSolveBytes) and about two tile
+// rows of output, independent of the field's size. The bytes are those of the same tiling blended whole.
+//
+// Progress and cancellation: with ReconstructOptions::progress set, the engine reports the stage "tiles" after
+// each batch (iteration = tiles done, total = tiles) from the calling thread, and stops before the next batch
+// when the callback returns false (Termination::kUserCancelled; the finished tiles are checkpointed when
+// checkpoint_dir is set, so a rerun resumes). TilingOptions::stop, safe to call from any thread, is read by the
+// tiles' own solvers between iterations, so a tile in progress stops too (its result is discarded, never
+// blended or checkpointed). The tiles' solvers report nothing else (they may run concurrently).
 #pragma once
 
 #include <functional>
@@ -102,6 +123,16 @@ struct TilingOptions {
   // What else the fingerprint should cover (the caller's description of its local PSFs or options the
   // fingerprint does not list; the CLI gives its arguments).
   std::string checkpoint_key;
+  // The representative problem of the regularisation when regularisation_from_whole_field: 0 the whole field;
+  // W > 0 the central W x W camera px of the field (the whole axis where the field is smaller), solved as
+  // one periodic window. For a field whose whole-grid solve does not fit in memory (ChooseTiling picks it).
+  int regularisation_window = 0;
+  // Where finished output rows go (see "A whole detector" above): called from the calling thread, rows in
+  // increasing order within each call, every HR row exactly once. `aux_rows` is empty when the method has no
+  // second map. With a sink the result's image and aux are left empty. Empty: the result holds the image.
+  std::function<void(Index hr_row0, const Image& rows, const Image& aux_rows)> rows;
+  // Asks the tiles in progress to stop (see "Progress and cancellation"); safe to call from any thread.
+  std::function<bool()> stop;
 
   bool IsValid(std::string* why) const;
 };
@@ -142,6 +173,46 @@ int SuggestTileOverlap(const ReconstructionProblem& problem, const ReconstructOp
 // what a whole-field solve of another model of the same frames can use to match it. Returns whether anything
 // was chosen (false: the options' values are used as given).
 bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* options);
+
+// A field without a whole-grid model (see "A whole detector" above). frames, weights and offsets as in
+// ReconstructionProblem (problem.hpp) on the camera grid `lr`; kernels: one per frame, centred (image.hpp
+// layout), at HR sampling, of positive sum (used as given, as MultiFrameModel::FromKernels does).
+struct FieldData {
+  Shape lr;
+  int r = 0;
+  ImageStack frames, weights;
+  std::vector<FrameOffset> offsets;
+  ImageStack kernels;
+  // InvalidArgument naming `function` unless the shapes and counts agree (the pixels are checked per tile).
+  void Validate(const std::string& function) const;
+};
+
+// The memory a tiled run of a field holds at its peak (see "A whole detector"): the data, `concurrent` tile
+// solves of windows (tile + 2 overlap)² and two tile rows of output (with the second map when `aux`).
+double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, int tile, int overlap,
+                          int concurrent, bool aux);
+
+// The representative window of the regularisation under a memory limit: the largest of 512, 384, 256, 192,
+// 128, 96, 64, 48, 32 camera px whose solve fits next to the data (0 when that is the whole field; 32 when
+// none fits, and the solve's own memory check then says so).
+int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod method, double limit_bytes);
+
+// The tiling for a field under a memory limit `limit_bytes` (core/memory.hpp): the largest tile from
+// 512, 384, 256, 192, 128, 96, 64, 48, 32, 24, 16 camera px (none below the overlap, the ramp's width) whose
+// run fits (tiles in parallel on `threads` threads if that fits, else one at a time), with the overlap
+// `overlap` (camera px, >= 0) and the regularisation on ChooseRegularisationWindow's window. ResourceError
+// when not even the smallest fits.
+TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, int overlap, int threads,
+                           double limit_bytes, bool aux);
+
+// The overlap rule's P for a FieldData (its kernels' reach and the method's).
+int SuggestTileOverlap(const FieldData& field, const ReconstructOptions& options, const TilingOptions& tiling,
+                       std::string* rule = nullptr);
+
+// Reconstruct a FieldData by tiles (tiling.tile >= 1), as the overload below does a problem. The summary's
+// frame_residual_rms is that of each tile's solution over its core (the blended image is never held whole).
+Reconstruction ReconstructTiled(const FieldData& field, const ReconstructOptions& options, const TilingOptions& tiling,
+                                TilingSummary* summary = nullptr);
 
 // Reconstruct `problem` by tiles (see the top of the file). The result is a Reconstruction of the whole field
 // as Reconstruct returns it: image (and aux) on the whole HR grid; summary with the worst tile's termination,
