@@ -53,6 +53,7 @@ struct VideoArgs {
   int zoom = 1;
   int limit = 0;
   bool batch = false;
+  bool force = false;
   bool json = false;
   ExecutionArgs exec;
 };
@@ -83,6 +84,9 @@ void RunVideo(const VideoArgs& a) {
   vo.window = ParseVideoWindow(a.window);
   vo.tv_iterations = a.tv_iterations;
   vo.slot_filter = !a.batch;
+  // As `aosr reconstruct`: weights are inverse variances, so a weight-1 pixel has sigma 1 (the discrepancy rule).
+  vo.reconstruct.tikhonov.noise_sigma = 1.0;
+  vo.reconstruct.linear.noise_sigma = 1.0;
   vo.reconstruct.tikhonov.prior = ParseTikhonovPrior(a.prior);
   if (a.lambda >= 0) {
     vo.reconstruct.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
@@ -124,35 +128,43 @@ void RunVideo(const VideoArgs& a) {
 
   progress.Step("reading " + a.dataset);
   const Dataset d = LoadDataset(a.dataset);
-  EnsureDirectory(a.out);
   const std::string cube_path = JoinPath(a.out, "video.fits");
   const std::string video_path = JoinPath(a.out, a.video_name);
+  std::vector<std::string> targets = {cube_path};
+  if (!a.no_video) targets.push_back(video_path);
   const std::set<fs::path> inputs = DatasetInputFiles(d);
-  for (const std::string& p : {cube_path, video_path})
+  for (const std::string& p : targets) {
     if (inputs.count(fs::weakly_canonical(p)))
       throw InvalidArgument(kVideoCmd, "-o", a.out, "a folder where no output overwrites an input of the dataset (" + p + ")");
+    std::error_code ec;
+    if (fs::exists(p, ec) && !a.force) throw IoError(p, "exists; pass --force to overwrite it");
+  }
+  // The cube is written plane by plane as the outputs come (FitsCubeWriter): its memory does not grow with the
+  // movie, and no output lands on fresh pages (a page fault per 4 KB: on this project's VMs holding each 512²
+  // output cost ~8 ms, six times its computation; docs/video.md). Sized for the expected count up front.
   const int expected = vo.window == VideoWindow::kSliding ? d.size() - d.slot_count + 1 : d.size() / std::max(1, d.slot_count);
   const int outputs_cap = a.limit > 0 ? std::min(a.limit, std::max(0, expected)) : std::max(0, expected);
-  CheckMemory(double(outputs_cap) * 8.0 * double(d.hr_frame.rows) * double(d.hr_frame.cols),
-              std::string(kVideoCmd) + ": a cube of " + std::to_string(outputs_cap) + " outputs of " + ToString(d.hr_frame) +
-                  " (use --limit)");
 
   Stopwatch setup_clock;
   DatasetVideo video(d, vo, po, a.frame_rate);
   const double setup_seconds = setup_clock.Seconds();
+  // Everything is checked (options, dataset, the model of the phases): only now is the folder made.
+  EnsureDirectory(a.out);
   progress.Step(std::to_string(d.size()) + " frames, " + std::to_string(d.slot_count) + " phases, " +
                 ToString(vo.method) + ", " + ToString(vo.window) + " window, weights: " + video.weights_source());
   if (!video.warning().empty()) std::fprintf(stderr, "warning: %s\n", video.warning().c_str());
 
   std::unique_ptr<VideoFileWriter> writer;
-  ImageStack cube;
+  std::unique_ptr<FitsCubeWriter> cube;
+  int outputs = 0;
   Image times;  // per output: time, window start, first and last input frame
   std::vector<std::array<double, 4>> rows;
   std::map<std::string, int> paths;
   double compute_seconds = 0, filter_seconds = 0;
   int filter_outputs = 0;
   Stopwatch run_clock;
-  while (a.limit <= 0 || int(cube.size()) < a.limit) {
+  double first_done_s = 0;  // run_clock when the first output was written (the filter build is in it)
+  while (a.limit <= 0 || outputs < a.limit) {
     std::optional<VideoFrame> f = video.Next();
     if (!f) break;
     compute_seconds += f->seconds;
@@ -173,9 +185,13 @@ void RunVideo(const VideoArgs& a) {
     const int first = *std::min_element(f->frames.begin(), f->frames.end());
     const int last = *std::max_element(f->frames.begin(), f->frames.end());
     rows.push_back({f->time_s, f->window_start_s, double(first), double(last)});
-    cube.push_back(std::move(f->image));
+    if (!cube) cube = std::make_unique<FitsCubeWriter>(cube_path, ShapeOf(f->image), outputs_cap, FitsType::kFloat32);
+    cube->Append(f->image);
+    if (++outputs == 1) first_done_s = run_clock.Seconds();
   }
-  if (cube.empty())
+  // Steady state end to end: compute, video frame and cube plane of every output after the first.
+  const double wall_per_output_ms = outputs > 1 ? 1e3 * (run_clock.Seconds() - first_done_s) / (outputs - 1) : 0.0;
+  if (!cube)
     throw InvalidArgument(kVideoCmd, "dataset", a.dataset,
                           "at least one frame of each of the " + std::to_string(d.slot_count) + " phases");
   times.resize(Index(rows.size()), 4);
@@ -188,7 +204,7 @@ void RunVideo(const VideoArgs& a) {
   h.Set("METHOD", std::string(ToString(vo.method)), "reconstruction method of every output");
   h.Set("WINDOW", std::string(ToString(vo.window)), "sliding: one output per frame; cycle: per cycle");
   h.Set("NPHASES", (long long)d.slot_count, "DM phases (slots) per window");
-  h.Set("NOUTPUT", (long long)cube.size(), "outputs (planes); times in extension TIMES");
+  h.Set("NOUTPUT", (long long)outputs, "outputs (planes); times in extension TIMES");
   h.Set("TSTART", rows.front()[0], "[s] time of the first output (its newest frame)");
   h.Set("TSTOP", rows.back()[0], "[s] time of the last output");
   if (s.lambda_unweighted >= 0) h.Set("LAMBDAU", s.lambda_unweighted, "Tikhonov lambda of unit-weight frames");
@@ -203,7 +219,7 @@ void RunVideo(const VideoArgs& a) {
   te.header.Set("COL2", std::string("START_S"), "time of its oldest frame [s]");
   te.header.Set("COL3", std::string("FIRST"), "index of its oldest input frame");
   te.header.Set("COL4", std::string("LAST"), "index of its newest input frame");
-  WriteFitsCubeWithExtensions(cube_path, cube, h, {te}, FitsType::kFloat32);
+  cube->Finish(h, {te});
   if (writer) writer->Close();
 
   const double wall = run_clock.Seconds();
@@ -211,7 +227,7 @@ void RunVideo(const VideoArgs& a) {
   const double per_filter_ms = filter_outputs ? 1e3 * (filter_seconds - s.filter_seconds) / filter_outputs : 0.0;
   if (a.json) {
     nlohmann::json j;
-    j["outputs"] = cube.size();
+    j["outputs"] = outputs;
     j["frames_read"] = video.frames_read();
     j["phases"] = d.slot_count;
     j["method"] = ToString(vo.method);
@@ -222,6 +238,7 @@ void RunVideo(const VideoArgs& a) {
     j["compute_s"] = compute_seconds;
     j["wall_s"] = wall;
     j["slot_filter_ms_per_output"] = per_filter_ms;
+    j["wall_ms_per_output"] = wall_per_output_ms;
     j["lambda_unweighted"] = s.lambda_unweighted;
     j["kappa"] = s.kappa;
     j["mu"] = s.mu;
@@ -231,7 +248,7 @@ void RunVideo(const VideoArgs& a) {
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }
-  std::printf("aosr video: %zu outputs from %d frames (%d phases, %s window, %s)\n", cube.size(), video.frames_read(),
+  std::printf("aosr video: %d outputs from %d frames (%d phases, %s window, %s)\n", outputs, video.frames_read(),
               d.slot_count, ToString(vo.window), ToString(vo.method));
   for (const auto& [p, n] : paths) std::printf("  %-12s %d outputs\n", p.c_str(), n);
   if (s.filter_built)
@@ -240,7 +257,8 @@ void RunVideo(const VideoArgs& a) {
   if (s.lambda_unweighted >= 0) std::printf("  lambda (unit-weight frames) %.4g\n", s.lambda_unweighted);
   if (s.kappa > 0) std::printf("  kappa %.4g\n", s.kappa);
   if (s.mu >= 0) std::printf("  TV mu %.4g, %d iterations per warm-started output\n", s.mu, vo.tv_iterations);
-  std::printf("  compute %.3f s (setup %.3f s), wall %.3f s\n", compute_seconds, setup_seconds, wall);
+  std::printf("  compute %.3f s (setup %.3f s), wall %.3f s; %.2f ms per output after the first, writing included\n",
+              compute_seconds, setup_seconds, wall, wall_per_output_ms);
   std::printf("wrote %s (times in extension TIMES)%s%s\n", cube_path.c_str(), writer ? " and " : "",
               writer ? video_path.c_str() : "");
 }
@@ -255,7 +273,8 @@ void RegisterVideo(CLI::App& app) {
       "any dataset as one cycle): one output per new frame from the last frame of each phase (--window sliding) or "
       "one per full cycle. Linear methods apply per-phase Fourier weights computed once (each output equals the "
       "batch reconstruction of its window); tv is warm-started from the previous output. Writes DIR/video.fits (a "
-      "cube, e- per HR pixel per frame, HR WCS, output times in extension TIMES) and DIR/video.avi.");
+      "cube, e- per HR pixel per frame, HR WCS, output times in extension TIMES) and DIR/video.avi; existing ones only with "
+      "--force.");
   cmd->add_option("dataset", a->dataset, "dataset folder or manifest")->required();
   cmd->add_option("-o,--output", a->out, "output folder (created if needed)")->required();
   cmd->add_option("-m,--method", a->method, "tikhonov | linear | tv")
@@ -291,6 +310,7 @@ void RegisterVideo(CLI::App& app) {
   cmd->add_option("--zoom", a->zoom, "video: integer enlargement")->capture_default_str()->check(CLI::Range(1, 16));
   cmd->add_option("--limit", a->limit, "stop after this many outputs (0: all)")->capture_default_str()->check(CLI::Range(0, 1 << 30));
   cmd->add_flag("--batch", a->batch, "the batch solver on every window instead of the slot filter (to compare)");
+  cmd->add_flag("--force", a->force, "overwrite video.fits and the video file in DIR if they exist");
   cmd->add_flag("--json", a->json, "print the summary as JSON");
   AddExecutionOptions(cmd, &a->exec);
   cmd->callback([a] { RunVideo(*a); });
