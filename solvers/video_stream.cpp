@@ -95,7 +95,7 @@ SlotFilter::SlotFilter(Shape lr, int r, const ImageStack& responses)
         weights_[(std::size_t(fy) * std::size_t(hr_half_cols_) + std::size_t(fx)) * std::size_t(n_) + std::size_t(i)] =
             k(fy, fx);
   }
-  spectra_.assign(std::size_t(n_), ComplexImage::Zero(lr.rows, lr.cols));
+  spectra_.assign(std::size_t(lr.rows) * std::size_t(lr.cols) * std::size_t(n_), Complex(0, 0));
   set_.assign(std::size_t(n_), 0);
   hr_half_.resize(hr_.rows, hr_half_cols_);
 }
@@ -106,12 +106,16 @@ void SlotFilter::SetFrame(int slot, const Image& frame) {
                 "the LR shape " + ToString(lr_));
   FftR2CInto(frame, &lr_half_);
   // The full spectrum from the half one (Hermitian symmetry of a real frame), so that (1) reads Y(f mod m) with
-  // no conjugation test in its loop.
-  ComplexImage& full = spectra_[std::size_t(slot)];
+  // no conjugation test in its loop; stored slot-minor (spectra_ below), beside the other slots' values.
   const Index hc = lr_half_.cols();
-  for (Index uy = 0; uy < lr_.rows; ++uy)
+  const std::size_t n = std::size_t(n_);
+  Complex* full = spectra_.data() + std::size_t(slot);
+  for (Index uy = 0; uy < lr_.rows; ++uy) {
+    const Index my = (lr_.rows - uy) % lr_.rows;
+    Complex* row = full + std::size_t(uy) * std::size_t(lr_.cols) * n;
     for (Index ux = 0; ux < lr_.cols; ++ux)
-      full(uy, ux) = ux < hc ? lr_half_(uy, ux) : std::conj(lr_half_((lr_.rows - uy) % lr_.rows, lr_.cols - ux));
+      row[std::size_t(ux) * n] = ux < hc ? lr_half_(uy, ux) : std::conj(lr_half_(my, lr_.cols - ux));
+  }
   set_[std::size_t(slot)] = 1;
 }
 
@@ -120,18 +124,29 @@ void SlotFilter::Output(Image* out) {
     CheckArgument(set_[std::size_t(i)] != 0, "SlotFilter::Output", "slot " + std::to_string(i), "no frame",
                   "a frame for every slot (SetFrame)");
   const std::size_t n = std::size_t(n_);
+  // (1), one HR row per task. Both operands are slot-minor, so the N-term sum reads two contiguous runs; the
+  // complex products are written out in real arithmetic (std::complex's operator* calls __muldc3 for its
+  // C99 Annex G infinity rules, several times slower, and the operands here are finite). The order of the
+  // additions is fixed (slot 0 first), so the bytes do not depend on the thread count.
   ParallelFor(hr_.rows, [&](Index fy) {
     const Index uy = fy % lr_.rows;
-    const Complex* w = weights_.data() + std::size_t(fy) * std::size_t(hr_half_cols_) * n;
+    const double* w = reinterpret_cast<const double*>(weights_.data() + std::size_t(fy) * std::size_t(hr_half_cols_) * n);
+    const double* srow = reinterpret_cast<const double*>(spectra_.data() + std::size_t(uy) * std::size_t(lr_.cols) * n);
     Complex* o = &hr_half_(fy, 0);
-    std::vector<const Complex*> rows(n);
-    for (std::size_t i = 0; i < n; ++i) rows[i] = &spectra_[i](uy, 0);
-    Index ux = 0;
-    for (Index fx = 0; fx < hr_half_cols_; ++fx) {
-      Complex acc = 0;
-      for (std::size_t i = 0; i < n; ++i) acc += w[std::size_t(fx) * n + i] * rows[i][ux];
-      o[fx] = acc;
-      if (++ux == lr_.cols) ux = 0;
+    for (Index fx0 = 0; fx0 < hr_half_cols_; fx0 += lr_.cols) {
+      // HR columns fx0 .. fx0 + run - 1 read LR columns 0 .. run - 1 (f mod m).
+      const Index run = std::min<Index>(lr_.cols, hr_half_cols_ - fx0);
+      const double* wk = w + 2 * std::size_t(fx0) * n;
+      for (Index ux = 0; ux < run; ++ux) {
+        const double* a = wk + 2 * std::size_t(ux) * n;
+        const double* b = srow + 2 * std::size_t(ux) * n;
+        double re = 0, im = 0;
+        for (std::size_t i = 0; i < 2 * n; i += 2) {
+          re += a[i] * b[i] - a[i + 1] * b[i + 1];
+          im += a[i] * b[i + 1] + a[i + 1] * b[i];
+        }
+        o[fx0 + ux] = Complex(re, im);
+      }
     }
   });
   FftC2RInto(hr_half_, hr_.cols, out);
@@ -198,6 +213,9 @@ ReconstructOptions VideoReconstructor::BatchOptions(const ReconstructionProblem&
     o.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
     o.tikhonov.lambda = setup_.lambda_unweighted * VideoMeanPositiveWeight(window);
   }
+  // The linear output's κ as the stream fixed it (the search on the model in slot order): the batch's own search
+  // on the same frames in another order lands up to ~1 % away (video.md), so "the same output" needs it given.
+  if (options_.method == ReconstructionMethod::kLinear && setup_.kappa > 0) o.linear.kappa = setup_.kappa;
   if (options_.method == ReconstructionMethod::kTotalVariation && setup_.mu >= 0) {
     o.auto_regularisation = false;
     o.tv.mu = setup_.mu;
@@ -287,11 +305,13 @@ VideoFrame VideoReconstructor::Compute() {
     out.time_s = std::max(out.time_s, s.time_s);
     out.window_start_s = std::min(out.window_start_s, s.time_s);
   }
-  const ReconstructionProblem window = WindowProblem();
   double w0 = 1.0;
   const bool uniform = WindowUniform(&w0);
 
+  // The window as a batch problem (copies of its frames and weights) only where a batch solver runs: the slot
+  // filter reads the cached spectra alone.
   if (options_.method == ReconstructionMethod::kTotalVariation) {
+    const ReconstructionProblem window = WindowProblem();
     if (setup_.mu < 0) {
       ReconstructOptions o = BatchOptions(window);
       Reconstruction r = Reconstruct(window, o);
@@ -318,9 +338,10 @@ VideoFrame VideoReconstructor::Compute() {
 
   const bool need_lambda = options_.method == ReconstructionMethod::kTikhonov && setup_.lambda_unweighted < 0;
   if (need_lambda && options_.reconstruct.tikhonov.lambda_rule == TikhonovLambdaRule::kFixed)
-    setup_.lambda_unweighted = options_.reconstruct.tikhonov.lambda / VideoMeanPositiveWeight(window);
+    setup_.lambda_unweighted = options_.reconstruct.tikhonov.lambda / VideoMeanPositiveWeight(WindowProblem());
   if ((need_lambda && setup_.lambda_unweighted < 0) || !uniform || !FilterEligible()) {
     // The batch solver: the first window's λ choice, or a window (1) does not hold for.
+    const ReconstructionProblem window = WindowProblem();
     Reconstruction r = Reconstruct(window, BatchOptions(window));
     if (options_.method == ReconstructionMethod::kTikhonov && setup_.lambda_unweighted < 0)
       setup_.lambda_unweighted = r.regularisation / VideoMeanPositiveWeight(window);

@@ -20,7 +20,9 @@
 //   * an N-term complex sum per HR frequency of the half spectrum, (1),
 //   * one HR c2r FFT.
 // Every output equals the batch Reconstruct of the same window to rounding (tested to 1e-10 of the peak:
-// video_stream_test.cpp), and does not depend on the thread count (each HR row of (1) is one task).
+// video_stream_test.cpp), and does not depend on the thread count (each HR row of (1) is one task). The sum
+// reads the weights and the cached spectra slot-minor (both contiguous per bin); at 512², N = 4 it streams 8 MB
+// of weights per output, which bounds its speed (bench/results/video.md).
 //
 // Where (1) does not hold the batch solver runs on the window instead (VideoFrame::path says which):
 //   * weights that are not uniform over the window (a masked pixel, per-frame noise levels that differ,
@@ -33,7 +35,11 @@
 // the filter of the unweighted frames, the same for every window, which is the λ the batch uses for a window of
 // weight w̄ when given λ = λ' w̄ (VideoReconstructor::BatchOptions). A prior fitted to the frames (kFitted) or
 // the Wiener rule would make the filter data-dependent and are refused. The linear output's κ comes from the
-// model alone (target_psf.hpp): every window gets the batch's κ.
+// model alone (target_psf.hpp): it is searched once, on the slot model (frames in slot order), and fixed;
+// BatchOptions gives it to the batch. The batch's own search on a window whose frames come in another order
+// lands up to ~1 % away in κ (~1e-3 of the peak in the image) on the 512² bench: its U_min counts Gram
+// eigenvalues at rounding level as seen directions (target_psf.cpp kNullFloor), so it depends on the order of
+// the frames (docs/video.md).
 //
 // ## TV: warm-started
 //
@@ -123,8 +129,8 @@ class SlotFilter {
   Shape lr_, hr_;
   int r_ = 1, n_ = 0;
   Index hr_half_cols_ = 0;
-  std::vector<Complex> weights_;        // per HR half-spectrum bin, n_ values (bin-major)
-  std::vector<ComplexImage> spectra_;   // per slot, the full LR spectrum
+  std::vector<Complex> weights_;   // per HR half-spectrum bin, n_ values (bin-major, slot-minor)
+  std::vector<Complex> spectra_;   // the slots' full LR spectra: per LR bin (row-major), n_ values (slot-minor)
   std::vector<char> set_;
   ComplexImage lr_half_, hr_half_;
 };
