@@ -28,8 +28,10 @@
 // which must be below 1e-10; for the linear output also against the batch with its own κ search on those frames
 // in time order, which differs (docs/video.md: the search's U_min moves with the order of the frames).
 //
-// Usage: build/bench/video_bench [--frames M] [--check K] [--out FILE]
-//   --out  also write the Markdown report to FILE (bench/results/video.md)
+// Usage: build/bench/video_bench [--frames M] [--check K] [--out FILE] [--keep NEW_DIR]
+//   --out   also write the Markdown report to FILE (bench/results/video.md)
+//   --keep  write the sequence dataset into NEW_DIR (which must not exist) and keep it (seq.json), e.g. to time
+//           `aosr video NEW_DIR/seq.json` on the same data
 #include <fftw3.h>
 #include <unistd.h>
 
@@ -216,19 +218,25 @@ StreamRow RunStream(const aosr::Dataset& d, aosr::ReconstructionMethod method, i
 int main(int argc, char** argv) {
   aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   int frames = 200, check = 25;
-  std::string out;
+  std::string out, keep;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--frames" && i + 1 < argc) frames = std::atoi(argv[++i]);
     else if (a == "--check" && i + 1 < argc) check = std::atoi(argv[++i]);
     else if (a == "--out" && i + 1 < argc) out = argv[++i];
+    else if (a == "--keep" && i + 1 < argc) keep = argv[++i];
     else {
-      std::fprintf(stderr, "usage: video_bench [--frames M] [--check K] [--out FILE]\n");
+      std::fprintf(stderr, "usage: video_bench [--frames M] [--check K] [--out FILE] [--keep NEW_DIR]\n");
       return 2;
     }
   }
   if (frames < 8) frames = 8;
-  const fs::path dir = fs::temp_directory_path() / ("aosr_video_bench_" + std::to_string(::getpid()));
+  if (!keep.empty() && fs::exists(keep)) {
+    std::fprintf(stderr, "--keep %s: the folder exists; give a new one\n", keep.c_str());
+    return 2;
+  }
+  const fs::path dir = keep.empty() ? fs::temp_directory_path() / ("aosr_video_bench_" + std::to_string(::getpid()))
+                                    : fs::path(keep);
   const std::string manifest = MakeSequence(dir, frames);
   const aosr::Dataset d = aosr::LoadDataset(manifest);
   const Index lr = d.frame.rows, hr = d.hr_frame.rows;
@@ -286,7 +294,7 @@ int main(int argc, char** argv) {
       output[t - 1] = BestSeconds([&] { filter.Output(&x); });
     }
   }
-  fs::remove_all(dir);
+  if (keep.empty()) fs::remove_all(dir);
 
   std::ostringstream md;
   md << "# Streaming super-resolution (`aosr video`): outputs per second at 512²\n\n";

@@ -117,7 +117,7 @@ void VideoFileWriter::Write(const Image& image, const std::string& label) {
   gray.create(rows, cols, CV_8UC1);
   // The grey level of a value v is lround(255 S(t)), t = clamp((v − black) / (white − black), 0, 1), S the
   // stretch: read from a table of S on 65536 steps of t, made once per writer (an asinh or a log per pixel cost
-  // ~8 ms per 512² frame; a binary search over the 255 level thresholds, its mispredicted branches as much). A
+  // ~10 ms per 512² frame; a binary search over the 255 level thresholds, its mispredicted branches as much). A
   // value within 1/131070 of a level's threshold in t may show one level off. NaN shows black.
   const std::vector<unsigned char>& lut = impl_->lut;
   const double scale = double(lut.size() - 1) / (o.white - o.black);
