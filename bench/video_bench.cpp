@@ -28,7 +28,10 @@
 // which must be below 1e-10; for the linear output also against the batch with its own κ search on those frames
 // in time order, which differs (docs/video.md: the search's U_min moves with the order of the frames).
 //
-// Usage: build/bench/video_bench [--frames M] [--check K] [--out FILE] [--keep NEW_DIR]
+// TV (--tv OUTPUTS, default 25; 0 skips it): the warm-started stream on 1 thread, 10 ADMM iterations per output
+// (RunTv below), its time per output and its PSNR gap to TV run to convergence on the same windows.
+//
+// Usage: build/bench/video_bench [--frames M] [--check K] [--tv OUTPUTS] [--out FILE] [--keep NEW_DIR]
 //   --out   also write the Markdown report to FILE (bench/results/video.md)
 //   --keep  write the sequence dataset into NEW_DIR (which must not exist) and keep it (seq.json), e.g. to time
 //           `aosr video NEW_DIR/seq.json` on the same data
@@ -53,6 +56,7 @@
 
 #include "aosr/core/fft.hpp"
 #include "aosr/core/memory.hpp"
+#include "aosr/core/metrics.hpp"
 #include "aosr/core/parallel.hpp"
 #include "aosr/io/config.hpp"
 #include "aosr/io/fits.hpp"
@@ -213,20 +217,73 @@ StreamRow RunStream(const aosr::Dataset& d, aosr::ReconstructionMethod method, i
   return row;
 }
 
+// TV warm-started (video_stream.hpp): the first window to convergence (Reconstruct's automatic μ, ADMM to its
+// tolerance), then each output `iterations` ADMM iterations from the previous one. Per warm output: the median time;
+// at a few outputs, PSNR against the truth (cropped by the trustworthy border) of the warm output and of TV run to
+// convergence on the same window (BatchOptions: the same μ; 3000 iterations, relative tolerance 1e-6).
+struct TvRow {
+  int iterations = 0, outputs = 0;
+  double first_s = 0, median_ms = 0, max_gap_db = 0, mean_gap_db = 0;
+  std::vector<std::string> checks;
+};
+
+TvRow RunTv(const aosr::Dataset& d, int iterations, int outputs) {
+  aosr::SetDefaultThreads(1);
+  aosr::VideoOptions vo;
+  vo.method = aosr::ReconstructionMethod::kTotalVariation;
+  vo.tv_iterations = iterations;
+  aosr::DatasetVideo video(d, vo);
+  aosr::MetricOptions m;
+  m.crop_px = int(d.trustworthy_border_px) * d.r;
+  TvRow row;
+  row.iterations = iterations;
+  std::vector<double> per;
+  int checked = 0;
+  while (row.outputs < outputs) {
+    const auto t0 = Clock::now();
+    std::optional<aosr::VideoFrame> f = video.Next();
+    const double s = Since(t0);
+    if (!f) break;
+    ++row.outputs;
+    if (f->index == 0) row.first_s = s;
+    else per.push_back(s);
+    if (f->index > 0 && (f->index % 8 == 0 || row.outputs == outputs)) {
+      const aosr::ReconstructionProblem w = video.engine().WindowProblem();
+      aosr::ReconstructOptions o = video.engine().BatchOptions(w);
+      o.tv.max_iterations = 3000;
+      o.tv.relative_tolerance = 1e-6;
+      const aosr::Reconstruction full = aosr::Reconstruct(w, o);
+      const double warm = aosr::CompareImages(*d.truth, f->image, m).psnr;
+      const double conv = aosr::CompareImages(*d.truth, full.image, m).psnr;
+      row.max_gap_db = std::max(row.max_gap_db, conv - warm);
+      row.mean_gap_db += conv - warm;
+      ++checked;
+      row.checks.push_back("output " + std::to_string(f->index) + ": " + Fmt("%.2f", warm) + " dB warm, " +
+                           Fmt("%.2f", conv) + " dB converged (" + std::to_string(full.summary.iterations) + " it.)");
+    }
+  }
+  if (checked) row.mean_gap_db /= checked;
+  std::sort(per.begin(), per.end());
+  row.median_ms = per.empty() ? 0 : 1e3 * per[per.size() / 2];
+  return row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   aosr::TuneAllocatorForLargeArrays();  // as the CLI does (memory.hpp)
   int frames = 200, check = 25;
   std::string out, keep;
+  int tv_outputs = 25;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--frames" && i + 1 < argc) frames = std::atoi(argv[++i]);
     else if (a == "--check" && i + 1 < argc) check = std::atoi(argv[++i]);
     else if (a == "--out" && i + 1 < argc) out = argv[++i];
     else if (a == "--keep" && i + 1 < argc) keep = argv[++i];
+    else if (a == "--tv" && i + 1 < argc) tv_outputs = std::atoi(argv[++i]);
     else {
-      std::fprintf(stderr, "usage: video_bench [--frames M] [--check K] [--out FILE] [--keep NEW_DIR]\n");
+      std::fprintf(stderr, "usage: video_bench [--frames M] [--check K] [--tv OUTPUTS] [--out FILE] [--keep NEW_DIR]\n");
       return 2;
     }
   }
@@ -248,6 +305,14 @@ int main(int argc, char** argv) {
       const StreamRow& r = rows.back();
       std::fprintf(stderr, "%s, %d thread(s): median %.3f ms, best batch %.3f ms, max dev %.2e\n", r.method.c_str(), t,
                    r.median_ms, r.best_batch_ms, r.max_dev);
+    }
+
+  std::vector<TvRow> tv_rows;
+  if (tv_outputs > 0)
+    for (int it : {10}) {
+      tv_rows.push_back(RunTv(d, it, std::min(tv_outputs, frames - 3)));
+      std::fprintf(stderr, "tv %d iterations: median %.1f ms, max gap %.2f dB\n", it, tv_rows.back().median_ms,
+                   tv_rows.back().max_gap_db);
     }
 
   // ---- The floor and the parts ----
@@ -298,7 +363,7 @@ int main(int argc, char** argv) {
 
   std::ostringstream md;
   md << "# Streaming super-resolution (`aosr video`): outputs per second at 512²\n\n";
-  md << "Command: `build/bench/video_bench --frames " << frames << " --check " << check
+  md << "Command: `build/bench/video_bench --frames " << frames << " --check " << check << " --tv " << tv_outputs
      << (out.empty() ? std::string() : " --out " + out) << "` (Release). Machine: "
      << std::thread::hardware_concurrency() << " hardware threads, shared. Data: data/scenes/demo.json at r = 4 ("
      << lr << "² frames, " << hr << "² outputs, N = 4 phases), a sequence of " << frames
@@ -316,6 +381,21 @@ int main(int argc, char** argv) {
        << Fmt("%.0f", 1e3 / r.median_ms) << " | " << Fmt("%.1e", r.max_dev) << " (" << r.checked << ") | "
        << (r.max_dev_own >= 0 ? Fmt("%.1e", r.max_dev_own) + " (" + Fmt("%.2f", 100 * r.kappa_spread) + " %)" : "-")
        << " |\n";
+  if (!tv_rows.empty()) {
+    md << "\nTV warm-started (`-m tv`), 1 thread: the first window to convergence (automatic μ), then each output "
+          "`tv_iterations` ADMM iterations from the previous one; PSNR against the truth (cropped by the trustworthy "
+          "border) of the warm output and of TV to convergence on the same window (same μ, up to 3000 iterations, "
+          "relative tolerance 1e-6):\n\n";
+    md << "| tv_iterations | outputs | first window | per warm output, median | outputs/s | gap to converged TV, "
+          "mean / max | checked outputs |\n|---|---|---|---|---|---|---|\n";
+    for (const TvRow& r : tv_rows) {
+      std::string checks;
+      for (const std::string& c : r.checks) checks += (checks.empty() ? "" : "; ") + c;
+      md << "| " << r.iterations << " | " << r.outputs << " | " << Fmt("%.2f", r.first_s) << " s | "
+         << Fmt("%.1f", r.median_ms) << " ms | " << Fmt("%.1f", 1e3 / r.median_ms) << " | "
+         << Fmt("%.2f", r.mean_gap_db) << " / " << Fmt("%.2f", r.max_gap_db) << " dB | " << checks << " |\n";
+    }
+  }
   md << "\nThe floor and the parts, one call each (minimum over 15 batches of the batch mean), ms:\n\n";
   md << "| part | 1 thread | 2 threads |\n|---|---|---|\n";
   md << "| FFTW's own r2c " << lr << "² (floor; plan " << (wisdom_lr ? "from the shipped wisdom" : "FFTW_PATIENT")
