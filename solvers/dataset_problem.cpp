@@ -187,6 +187,70 @@ FrameOffset KernelCentroid(const Image& k) {
   return {my / sum, mx / sum};
 }
 
+DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frames_e, const DatasetProblemOptions& options) {
+  const std::size_t n = d.frames.size();
+  CheckArgument(frames_e.size() == n, "WeightsFromDataset", "frames_e", std::to_string(frames_e.size()) + " frames",
+                "the dataset's " + std::to_string(n) + " frames in electrons");
+  DatasetFrameWeights out;
+  DatasetWeights choice = options.weights;
+  if (choice == DatasetWeights::kAuto && options.method) choice = AutoWeights(*options.method);
+  const bool use_dataset = choice == DatasetWeights::kDataset || (choice == DatasetWeights::kAuto && d.weights);
+  bool any_invalid = false;
+  for (const Image& v : d.valid) any_invalid = any_invalid || (v == 0).any();
+  auto use_mask = [&] {
+    if (any_invalid) out.weights = d.valid;
+    out.source = "validity mask";
+  };
+  if (use_dataset) {
+    CheckArgument(bool(d.weights), kDatasetProblemFn, "weights", "dataset", "a dataset whose manifest gives `weights`");
+    const double g2 = d.gain_e_per_adu * d.gain_e_per_adu;
+    for (std::size_t i = 0; i < n; ++i) out.weights.push_back((*d.weights)[i] * d.valid[i] / g2);
+    out.source = "dataset inverse variances (e-^-2)";
+    if (options.method && IsLinearMethod(*options.method))
+      out.warning = std::string("the dataset's inverse variances (source photon noise included) with ") +
+                    ToString(*options.method) +
+                    ": source-dependent weights make the output flux-dependent and bias bright sources low "
+                    "(bench/results/science.md: -11 % for linear, -16 % for tikhonov, -42 % for drizzle at K 14-15 on "
+                    "crowded-stars); "
+                    "weights 'auto' or 'background' do not depend on the sources";
+  } else if (choice == DatasetWeights::kBackground) {
+    std::vector<double> var(n, 0.0);
+    const std::optional<double> model = DetectorModelVariance(d);
+    if (model) {
+      var.assign(n, *model);
+      out.source = "background variances from the detector model (e-^-2)";
+    } else {
+      std::vector<double> se(n, 0.0);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double sigma = EstimateBackgroundSigma(frames_e[i], d.valid[i], &se[i]);
+        var[i] = sigma * sigma;
+      }
+      // Pool the frames' estimates when they agree within 5 standard errors: one exposure sequence, one
+      // noise level, and uniform weights keep the problem Fourier-exact.
+      const double lo = *std::min_element(var.begin(), var.end()), hi = *std::max_element(var.begin(), var.end());
+      const double se_max = *std::max_element(se.begin(), se.end());
+      if (lo > 0 && hi - lo <= 5.0 * se_max * lo) {
+        double mean = 0;
+        for (double v : var) mean += v / double(n);
+        var.assign(n, mean);
+      }
+      out.source = "background variances estimated from the frames (e-^-2)";
+    }
+    const bool none = std::any_of(var.begin(), var.end(), [](double v) { return !(v > 0) || !std::isfinite(v); });
+    if (none) {
+      use_mask();  // no noise model (or a frame without a usable background): uniform on the valid pixels
+    } else {
+      for (std::size_t i = 0; i < n; ++i) {
+        out.weights.push_back(d.valid[i] / var[i]);
+        out.background_sigma_e.push_back(std::sqrt(var[i]));
+      }
+    }
+  } else {
+    use_mask();
+  }
+  return out;
+}
+
 DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions& options) {
   const std::size_t n = d.frames.size();
   CheckArgument(n > 0, kDatasetProblemFn, "dataset frames", 0, "at least one frame");
@@ -313,61 +377,12 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
 
   // ---- Frames (e⁻) and weights. ---------------------------------------------------------------------------
   out.problem.frames = d.FramesElectrons();
-  DatasetWeights choice = options.weights;
-  if (choice == DatasetWeights::kAuto && options.method) choice = AutoWeights(*options.method);
-  const bool use_dataset = choice == DatasetWeights::kDataset || (choice == DatasetWeights::kAuto && d.weights);
-  bool any_invalid = false;
-  for (const Image& v : d.valid) any_invalid = any_invalid || (v == 0).any();
-  auto use_mask = [&] {
-    if (any_invalid) out.problem.weights = d.valid;
-    out.weights_source = "validity mask";
-  };
-  if (use_dataset) {
-    CheckArgument(bool(d.weights), kDatasetProblemFn, "weights", "dataset", "a dataset whose manifest gives `weights`");
-    const double g2 = d.gain_e_per_adu * d.gain_e_per_adu;
-    for (std::size_t i = 0; i < n; ++i) out.problem.weights.push_back((*d.weights)[i] * d.valid[i] / g2);
-    out.weights_source = "dataset inverse variances (e-^-2)";
-    if (options.method && IsLinearMethod(*options.method))
-      out.warning = std::string("the dataset's inverse variances (source photon noise included) with ") +
-                    ToString(*options.method) +
-                    ": source-dependent weights make the output flux-dependent and bias bright sources low "
-                    "(bench/results/science.md: -11 % for linear, -16 % for tikhonov, -42 % for drizzle at K 14-15 on "
-                    "crowded-stars); "
-                    "weights 'auto' or 'background' do not depend on the sources";
-  } else if (choice == DatasetWeights::kBackground) {
-    std::vector<double> var(n, 0.0);
-    const std::optional<double> model = DetectorModelVariance(d);
-    if (model) {
-      var.assign(n, *model);
-      out.weights_source = "background variances from the detector model (e-^-2)";
-    } else {
-      std::vector<double> se(n, 0.0);
-      for (std::size_t i = 0; i < n; ++i) {
-        const double sigma = EstimateBackgroundSigma(out.problem.frames[i], d.valid[i], &se[i]);
-        var[i] = sigma * sigma;
-      }
-      // Pool the frames' estimates when they agree within 5 standard errors: one exposure sequence, one
-      // noise level, and uniform weights keep the problem Fourier-exact.
-      const double lo = *std::min_element(var.begin(), var.end()), hi = *std::max_element(var.begin(), var.end());
-      const double se_max = *std::max_element(se.begin(), se.end());
-      if (lo > 0 && hi - lo <= 5.0 * se_max * lo) {
-        double mean = 0;
-        for (double v : var) mean += v / double(n);
-        var.assign(n, mean);
-      }
-      out.weights_source = "background variances estimated from the frames (e-^-2)";
-    }
-    const bool none = std::any_of(var.begin(), var.end(), [](double v) { return !(v > 0) || !std::isfinite(v); });
-    if (none) {
-      use_mask();  // no noise model (or a frame without a usable background): uniform on the valid pixels
-    } else {
-      for (std::size_t i = 0; i < n; ++i) {
-        out.problem.weights.push_back(d.valid[i] / var[i]);
-        out.background_sigma_e.push_back(std::sqrt(var[i]));
-      }
-    }
-  } else {
-    use_mask();
+  {
+    DatasetFrameWeights fw = WeightsFromDataset(d, out.problem.frames, options);
+    out.problem.weights = std::move(fw.weights);
+    out.weights_source = std::move(fw.source);
+    out.background_sigma_e = std::move(fw.background_sigma_e);
+    out.warning = std::move(fw.warning);
   }
   for (std::size_t i = 0; i < n; ++i) {
     const Image w = out.problem.weights.empty() ? d.valid[i] : out.problem.weights[i];

@@ -16,6 +16,7 @@
 #include "aosr/solvers/target_psf.hpp"
 #include "aosr/solvers/psf_field_model.hpp"
 #include "aosr/solvers/tiling.hpp"
+#include "aosr/solvers/video_stream.hpp"
 #include "bindings.hpp"
 #include "common.hpp"
 
@@ -393,6 +394,54 @@ MtfSubject MtfSubjectFrom(py::handle item, std::size_t i) {
 }
 
 py::array_t<double> MtfArray(const std::vector<double>& v) { return py::array_t<double>(py::ssize_t(v.size()), v.data()); }
+
+// aosr.video's iterator: the library's DatasetVideo (solvers/video_stream.hpp), one output per __next__.
+struct PyVideoStream {
+  std::unique_ptr<DatasetVideo> video;
+  std::string method, window;
+  int phases = 0;
+  bool info = false;
+  int limit = 0;     // 0: every output
+  int produced = 0;
+  bool done = false;
+};
+
+py::dict VideoSetupDict(const VideoSetup& s) {
+  py::dict d;
+  d["lambda_unweighted"] = s.lambda_unweighted >= 0 ? py::object(py::float_(s.lambda_unweighted)) : py::object(py::none());
+  d["kappa"] = s.kappa > 0 ? py::object(py::float_(s.kappa)) : py::object(py::none());
+  d["mu"] = s.mu >= 0 ? py::object(py::float_(s.mu)) : py::object(py::none());
+  d["filter_built"] = s.filter_built;
+  d["filter_seconds"] = s.filter_seconds;
+  d["filter_outputs"] = s.filter_outputs;
+  d["batch_outputs"] = s.batch_outputs;
+  return d;
+}
+
+py::object VideoNext(PyVideoStream& v) {
+  if (v.done || (v.limit > 0 && v.produced >= v.limit)) {
+    v.done = true;
+    throw py::stop_iteration();
+  }
+  std::optional<VideoFrame> f = WithoutGil([&] { return v.video->Next(); });
+  if (!f) {
+    v.done = true;
+    throw py::stop_iteration();
+  }
+  ++v.produced;
+  const double t = f->time_s;
+  if (!v.info) return py::make_tuple(t, MoveImage(std::move(f->image)));
+  py::dict info;
+  info["index"] = f->index;
+  info["time_s"] = f->time_s;
+  info["window_start_s"] = f->window_start_s;
+  info["frames"] = f->frames;
+  info["path"] = f->path;
+  info["iterations"] = f->iterations;
+  info["seconds"] = f->seconds;
+  info["summary"] = SummaryDict(f->summary);
+  return py::make_tuple(t, MoveImage(std::move(f->image)), info);
+}
 }  // namespace
 
 py::dict ReconstructOptionsHelp() { return ReconstructTable().Describe(CliDefaults()); }
@@ -1001,6 +1050,99 @@ Returns one dict per image: label, method, measured, refusal (why its edge was r
 mtf50, nyquist, edge_angle_deg, contrast_to_noise (when measured), exact_status ('exact' | 'approximate: ...' |
 'signal-dependent' (tv, map) | 'measured only' | 'unavailable: ...' | 'off') and exact ({frequency, mtf, alias,
 direction} or None). Raises aosr.InvalidArgument when no image has a usable edge.)doc");
+
+  py::class_<PyVideoStream, std::shared_ptr<PyVideoStream>>(
+      m, "VideoStream",
+      "What aosr.video returns: an iterator of the super-resolved outputs of a frame sequence, computed one per\n"
+      "next() (the library's DatasetVideo, include/aosr/solvers/video_stream.hpp).")
+      .def("__iter__", [](py::object self) { return self; })
+      .def("__next__", &VideoNext,
+           "The next output: (time_s, image) or, with info=True, (time_s, image, info); StopIteration at the end.")
+      .def_property_readonly("setup", [](const PyVideoStream& v) { return VideoSetupDict(v.video->engine().setup()); },
+                             "what was chosen once: {'lambda_unweighted' (tikhonov: lambda of unit-weight frames), "
+                             "'kappa' (linear), 'mu' (tv): None until chosen, 'filter_built', 'filter_seconds', "
+                             "'filter_outputs', 'batch_outputs'}")
+      .def_property_readonly("frames_total", [](const PyVideoStream& v) { return v.video->frames_total(); })
+      .def_property_readonly("frames_read", [](const PyVideoStream& v) { return v.video->frames_read(); })
+      .def_property_readonly("phases", [](const PyVideoStream& v) { return v.phases; }, "N: the DM phases (slots)")
+      .def_property_readonly("weights_source", [](const PyVideoStream& v) { return v.video->weights_source(); })
+      .def("__repr__", [](const PyVideoStream& v) {
+        return "<aosr.VideoStream " + v.method + ", " + v.window + " window, " + std::to_string(v.phases) + " phases: " +
+               std::to_string(v.video->frames_read()) + " of " + std::to_string(v.video->frames_total()) +
+               " frames read, " + std::to_string(v.produced) + " outputs>";
+      });
+
+  m.def(
+      "video",
+      [](py::object dataset, const std::string& method, const std::string& window, const std::string& weights,
+         py::object model_psfs, double frame_rate, int tv_iterations, bool slot_filter, bool info, int limit,
+         py::kwargs kwargs) {
+        constexpr const char* kFn = "aosr.video";
+        // Everything is parsed and checked before any work (as `aosr video` does).
+        VideoOptions vo;
+        vo.reconstruct = CliDefaults();
+        ReconstructTable().Apply(vo.reconstruct, kwargs);
+        vo.method = ParseReconstructionMethod(method);
+        vo.reconstruct.method = vo.method;
+        vo.window = ParseVideoWindow(window);
+        vo.tv_iterations = tv_iterations;
+        vo.slot_filter = slot_filter;
+        std::string why;
+        if (!vo.IsValid(&why)) throw InvalidArgument(std::string(kFn) + ": " + why);
+        if (limit < 0) throw InvalidArgument(kFn, "limit", std::to_string(limit), ">= 0 (0: every output)");
+        DatasetProblemOptions dpo;
+        dpo.weights = ParseDatasetWeights(weights);
+        if (py::isinstance<py::str>(model_psfs) && model_psfs.cast<std::string>() == "nominal")
+          dpo.nominal_psfs = true;
+        else if (py::isinstance<py::str>(model_psfs))
+          throw InvalidArgument(kFn, "model_psfs", model_psfs.cast<std::string>(),
+                                "'nominal' | an (N, K, K) array (one per phase, or one shared)");
+        else if (!model_psfs.is_none())
+          dpo.model_psfs = StackFromArray(model_psfs, "model_psfs");
+        const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, kFn);
+        auto out = std::make_shared<PyVideoStream>();
+        out->method = ToString(vo.method);
+        out->window = ToString(vo.window);
+        out->info = info;
+        out->limit = limit;
+        out->phases = d->slot_count > 0 ? d->slot_count : d->size();
+        WithoutGil([&] { out->video = std::make_unique<DatasetVideo>(*d, vo, dpo, frame_rate); });
+        if (!out->video->warning().empty() &&
+            PyErr_WarnEx(PyExc_UserWarning, (std::string(kFn) + ": " + out->video->warning()).c_str(), 1) != 0)
+          throw py::error_already_set();
+        return out;
+      },
+      py::arg("dataset"), py::arg("method") = "tikhonov", py::arg("window") = "sliding", py::kw_only(),
+      py::arg("weights") = "auto", py::arg("model_psfs") = py::none(), py::arg("frame_rate") = 1.0,
+      py::arg("tv_iterations") = 10, py::arg("slot_filter") = true, py::arg("info") = false, py::arg("limit") = 0,
+      R"doc(A super-resolved movie of a frame sequence, one output at a time: the library's streaming engine
+(include/aosr/solvers/video_stream.hpp), what `aosr video DATASET -o DIR` runs, with the same defaults and bits.
+
+    for t, image in aosr.video("seq/", "linear"):          # image: (r*rows, r*cols) float64, e- per HR pixel
+        ...
+
+dataset   an aosr.Dataset or a dataset folder / manifest path: a manifest `sequence` ({"slots": the DM phase of
+          each frame, "times_s": their times}; include/aosr/scene/dataset.hpp), or any dataset as one cycle
+method    'tikhonov' (lambda given, else chosen once by lambda_rule on the first window, then fixed) | 'linear'
+          (the target-PSF output) | 'tv' (warm-started from the previous output, tv_iterations ADMM iterations each)
+window    'sliding': an output after every frame once each phase has one, from the latest frame of each phase;
+          'cycle': one output per full cycle (each phase with a new frame)
+weights, model_psfs   as aosr.reconstruct (weights resolved once over the whole sequence); model_psfs 'nominal'
+          or an array (one per phase, or one shared)
+frame_rate  frames per second, for times index / rate when the dataset has none
+slot_filter False: the batch solver on every window (to compare); the filter applies where it is exact
+info      True: yield (time_s, image, info) with info = {'index', 'time_s', 'window_start_s', 'frames' (the input
+          frame of each phase), 'path' ('slot-filter' | 'batch' | 'tv' | 'tv-warm'), 'iterations', 'seconds',
+          'summary'}; False: (time_s, image)
+limit     stop after this many outputs (0: all)
+**options aosr.reconstruct's options (lambda_, lambda_rule, prior, target_psf, leakage, mu, iterations: the first
+          tv window's limit, tikhonov_*, linear_*, tv_*, ...)
+
+Linear outputs equal aosr.reconstruct of the same window (frames in time order) to rounding: per-phase Fourier
+weights are made once, then each output costs one FFT of the new frame, an N-term sum per frequency and one HR
+inverse FFT. Windows with non-uniform weights fall back to the batch solver. Returns an aosr.VideoStream
+(iterator; its setup, frames_read, frames_total, phases, weights_source describe the run). Everything is checked
+when called: InvalidArgument (a ValueError) naming the argument, IoError for an unreadable dataset.)doc");
 
   m.def(
       "bicubic",

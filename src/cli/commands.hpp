@@ -15,5 +15,6 @@ void RegisterCalibrate(CLI::App& app);
 void RegisterReconstruct(CLI::App& app);
 void RegisterTradeoff(CLI::App& app);
 void RegisterMtf(CLI::App& app);
+void RegisterVideo(CLI::App& app);
 
 }  // namespace aosr::cli

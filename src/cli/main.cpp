@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   aosr::cli::RegisterReconstruct(app);
   aosr::cli::RegisterTradeoff(app);
   aosr::cli::RegisterMtf(app);
+  aosr::cli::RegisterVideo(app);
   aosr::cli::SetCommandLine(argc, argv);
   try {
     app.parse(argc, argv);

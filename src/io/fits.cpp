@@ -545,8 +545,13 @@ FitsData ReadFitsExtension(const std::string& path, const std::string& name) {
 
 void WriteFitsWithExtensions(const std::string& path, const Image& primary, const FitsHeader& header,
                              const std::vector<FitsExtension>& extensions, FitsType type) {
-  const char* fn = "WriteFitsWithExtensions";
-  CheckPlanes(fn, "primary", ImageStack{primary}, type);
+  WriteFitsCubeWithExtensions(path, ImageStack{primary}, header, extensions, type);
+}
+
+void WriteFitsCubeWithExtensions(const std::string& path, const ImageStack& primary, const FitsHeader& header,
+                                 const std::vector<FitsExtension>& extensions, FitsType type) {
+  const char* fn = primary.size() == 1 ? "WriteFitsWithExtensions" : "WriteFitsCubeWithExtensions";
+  CheckPlanes(fn, "primary", primary, type);
   std::vector<std::string> seen;
   for (size_t e = 0; e < extensions.size(); ++e) {
     const FitsExtension& x = extensions[e];
@@ -570,7 +575,7 @@ void WriteFitsWithExtensions(const std::string& path, const Image& primary, cons
     FitsFile file;
     int status = 0;
     if (fits_create_diskfile(file.out(), tmp.c_str(), &status)) ThrowFits(path, status, "cannot create");
-    WriteHdu(file.get(), path, ImageStack{primary}, header, type, 2);
+    WriteHdu(file.get(), path, primary, header, type, primary.size() == 1 ? 2 : 3);
     for (const FitsExtension& x : extensions) {
       FitsHeader h;
       for (const FitsKeyword& k : x.header.keywords())
@@ -652,6 +657,107 @@ void FitsRowWriter::Finish(const FitsHeader& header, const std::vector<FitsExten
   for (const FitsKeyword& k : header.keywords()) WriteKeyword(f, k, path_);
   for (const FitsExtension& x : extensions) {
     CheckPlanes("FitsRowWriter::Finish", "extension " + x.name, x.planes, x.type);
+    FitsHeader h;
+    for (const FitsKeyword& k : x.header.keywords())
+      if (k.name != "EXTNAME") h.Set(k.name, k.value, k.comment);
+    WriteHdu(f, path_, x.planes, h, x.type, x.planes.size() == 1 ? 2 : 3, x.name);
+  }
+  int status = 0;
+  file_ = nullptr;
+  if (fits_close_file(f, &status)) ThrowFits(path_, status, "cannot close (flush) the file");
+  ClearFitsMessages();
+  std::error_code ec;
+  std::filesystem::rename(tmp_, path_, ec);
+  if (ec) throw IoError(path_, "cannot rename " + tmp_ + " onto it: " + ec.message());
+  tmp_.clear();
+}
+
+FitsCubeWriter::FitsCubeWriter(const std::string& path, Shape plane, Index reserve_planes, FitsType type)
+    : path_(path), plane_(plane), type_(type) {
+  CheckArgument(plane.rows > 0 && plane.cols > 0, "FitsCubeWriter", "plane", ToString(plane), "non-empty");
+  CheckArgument(reserve_planes >= 0, "FitsCubeWriter", "reserve_planes", reserve_planes, ">= 0");
+  const std::filesystem::path p(path);
+  const std::filesystem::path dir = p.parent_path().empty() ? std::filesystem::path(".") : p.parent_path();
+  if (!std::filesystem::is_directory(dir)) throw IoError(path, "its folder does not exist");
+  static std::atomic<unsigned> counter{0};
+  tmp_ = path + ".tmp-" + std::to_string(::getpid()) + "-cube" + std::to_string(counter++);
+  ClearFitsMessages();
+  fitsfile* f = nullptr;
+  int status = 0;
+  if (fits_create_diskfile(&f, tmp_.c_str(), &status)) ThrowFits(path, status, "cannot create");
+  file_ = f;
+  capacity_ = std::max<Index>(1, reserve_planes);
+  LONGLONG axes[3] = {plane.cols, plane.rows, LONGLONG(capacity_)};
+  const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
+  if (fits_create_imgll(f, bitpix, 3, axes, &status)) ThrowFits(path, status, "cannot create the image HDU");
+  if (fits_set_hdrsize(f, kFitsRowWriterHeaderKeywords, &status))
+    ThrowFits(path, status, "cannot reserve header space");
+  ClearFitsMessages();
+}
+
+FitsCubeWriter::~FitsCubeWriter() {
+  if (file_ != nullptr) {
+    int status = 0;
+    fits_close_file(static_cast<fitsfile*>(file_), &status);
+    ClearFitsMessages();
+  }
+  if (!tmp_.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(tmp_, ec);
+  }
+}
+
+// The primary HDU is the file's only one until Finish: resizing it moves nothing (growing pads with zeros
+// that the next planes overwrite; cutting truncates).
+void FitsCubeWriter::Resize(Index planes, int naxis) {
+  LONGLONG axes[3] = {plane_.cols, plane_.rows, LONGLONG(planes)};
+  int status = 0;
+  const int bitpix = type_ == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
+  if (fits_resize_imgll(static_cast<fitsfile*>(file_), bitpix, naxis, axes, &status))
+    ThrowFits(path_, status, "cannot resize the cube to " + std::to_string(planes) + " planes");
+}
+
+void FitsCubeWriter::Append(const Image& plane) {
+  constexpr const char* kFn = "FitsCubeWriter::Append";
+  CheckArgument(file_ != nullptr, kFn, "state", "finished", "a writer not yet finished");
+  CheckArgument(ShapeOf(plane) == plane_, kFn, "plane " + std::to_string(planes_) + " shape", ToString(ShapeOf(plane)),
+                "the cube's plane shape " + ToString(plane_));
+  ClearFitsMessages();
+  if (planes_ == capacity_) {
+    capacity_ = std::max(2 * capacity_, planes_ + 1);
+    Resize(capacity_, 3);
+  }
+  LONGLONG first[3] = {1, 1, LONGLONG(planes_) + 1};
+  const LONGLONG n = LONGLONG(plane.size());
+  int status = 0;
+  if (type_ == FitsType::kFloat32) {
+    buffer_.resize(std::size_t(n));
+    for (Index i = 0; i < plane.size(); ++i) {
+      const double v = plane.data()[i];
+      if (std::isfinite(v) && std::abs(v) > FLT_MAX)
+        throw InvalidArgument(kFn, "plane " + std::to_string(planes_) + " pixel value", ToString(v),
+                              "|v| <= 3.4e38 for float32 (write with FitsType::kFloat64)");
+      buffer_[std::size_t(i)] = static_cast<float>(v);
+    }
+    fits_write_pixll(static_cast<fitsfile*>(file_), TFLOAT, first, n, buffer_.data(), &status);
+  } else {
+    fits_write_pixll(static_cast<fitsfile*>(file_), TDOUBLE, first, n, const_cast<double*>(plane.data()), &status);
+  }
+  if (status) ThrowFits(path_, status, "cannot write plane " + std::to_string(planes_));
+  ++planes_;
+  ClearFitsMessages();
+}
+
+void FitsCubeWriter::Finish(const FitsHeader& header, const std::vector<FitsExtension>& extensions) {
+  constexpr const char* kFn = "FitsCubeWriter::Finish";
+  CheckArgument(file_ != nullptr, kFn, "state", "finished", "a writer not yet finished");
+  CheckArgument(planes_ > 0, kFn, "planes", 0, "at least one plane appended");
+  fitsfile* f = static_cast<fitsfile*>(file_);
+  ClearFitsMessages();
+  if (planes_ != capacity_ || planes_ == 1) Resize(planes_, planes_ == 1 ? 2 : 3);
+  for (const FitsKeyword& k : header.keywords()) WriteKeyword(f, k, path_);
+  for (const FitsExtension& x : extensions) {
+    CheckPlanes(kFn, "extension " + x.name, x.planes, x.type);
     FitsHeader h;
     for (const FitsKeyword& k : x.header.keywords())
       if (k.name != "EXTNAME") h.Set(k.name, k.value, k.comment);

@@ -65,7 +65,8 @@ struct OiioPlugin {
   AosrOiioOpenFn open = nullptr;
   AosrOiioReadFn read = nullptr;
   AosrOiioCloseFn close = nullptr;
-  std::string error;  // why it could not be loaded
+  void* handle = nullptr;  // the dlopen handle (for the video entry points, video_file.cpp)
+  std::string error;       // why it could not be loaded
 };
 
 std::string FolderOf(const std::string& file) {
@@ -110,6 +111,7 @@ const OiioPlugin& Oiio() {
         plugin.error = "cannot load " + c + ": " + (e ? e : "dlopen failed");
         return;
       }
+      plugin.handle = handle;
       plugin.write = reinterpret_cast<AosrOiioWriteFn>(dlsym(handle, "aosr_oiio_write"));
       plugin.open = reinterpret_cast<AosrOiioOpenFn>(dlsym(handle, "aosr_oiio_open"));
       plugin.read = reinterpret_cast<AosrOiioReadFn>(dlsym(handle, "aosr_oiio_read"));
@@ -125,6 +127,22 @@ const OiioPlugin& Oiio() {
   });
   return plugin;
 }
+
+}  // namespace
+
+// The plugin's entry point `name` (video_file.cpp), or null with the reason in *error.
+void* MediaPluginSymbol(const char* name, std::string* error) {
+  const OiioPlugin& p = Oiio();
+  if (!p.handle) {
+    *error = p.error;
+    return nullptr;
+  }
+  void* f = dlsym(p.handle, name);
+  if (!f) *error = std::string("the media plugin lacks ") + name + " (a stale build?)";
+  return f;
+}
+
+namespace {
 
 // The plugin, or IoError naming `path` and why PNG/TIFF I/O is unavailable.
 const OiioPlugin& OiioFor(const std::string& path) {

@@ -606,6 +606,34 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
     }
     f.CheckNoOtherFields();
   }
+  // A video's sequence (dataset.hpp): slots and times per frame, checked against the frame count below.
+  std::vector<long long> seq_slots;
+  std::vector<double> seq_times;
+  bool has_slots = false;
+  std::optional<ConfigNode> seq_node;
+  if (root.Has("sequence")) {
+    seq_node.emplace(root.Child("sequence"));
+    const ConfigNode& q = *seq_node;
+    if (q.Has("slots")) {
+      has_slots = true;
+      const nlohmann::json& a = q.json().at("slots");
+      if (!a.is_array() || a.empty()) q.Fail("slots", a.dump(), "an array of one slot per frame");
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        if (!a[i].is_number_integer() || a[i].get<long long>() < 0 || a[i].get<long long>() > (1 << 20))
+          q.Fail("slots", "[" + std::to_string(i) + "] = " + a[i].dump(), "integers >= 0 (the DM phase of each frame)");
+        seq_slots.push_back(a[i].get<long long>());
+      }
+      q.Numbers("slots", 0, double(1 << 20), 1, a.size());  // marks the field read
+    }
+    if (q.Has("times_s")) {
+      seq_times = q.Numbers("times_s", -1e15, 1e15, 1, std::size_t(1) << 40);
+      for (std::size_t i = 1; i < seq_times.size(); ++i)
+        if (!(seq_times[i] >= seq_times[i - 1]))
+          q.Fail("times_s", "[" + std::to_string(i) + "] = " + ToString(seq_times[i]) + " after " + ToString(seq_times[i - 1]),
+                 "non-decreasing times (s), one per frame");
+    }
+    q.CheckNoOtherFields();
+  }
   root.CheckNoOtherFields();
 
   // ---- The frames and the PSFs. --------------------------------------------------------------------------
@@ -624,13 +652,25 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   ds.frame = ShapeOf(ds.frames.front());
   ds.hr_frame = {ds.frame.rows * ds.r, ds.frame.cols * ds.r};
   const std::size_t n = ds.frames.size();
+  // np: the per-phase inputs' count (the slots' range with a sequence's slots, else one per frame).
+  std::size_t np = n;
+  if (has_slots) {
+    if (seq_slots.size() != n)
+      seq_node->Fail("slots", std::to_string(seq_slots.size()) + " entries",
+                     "one per frame (" + std::to_string(n) + " in " + frames_path + ")");
+    np = std::size_t(*std::max_element(seq_slots.begin(), seq_slots.end())) + 1;
+    if (scene) np = std::size_t(scene->frames);
+  }
+  if (!seq_times.empty() && seq_times.size() != n)
+    seq_node->Fail("times_s", std::to_string(seq_times.size()) + " entries",
+                   "one per frame (" + std::to_string(n) + " in " + frames_path + ")");
   if (frame_shape && *frame_shape != ds.frame)
     root.Fail("frame_shape", ToString(*frame_shape), "the frames' shape " + ToString(ds.frame) + " (" + frames_path + ")");
   if (hr_shape && *hr_shape != ds.hr_frame)
     root.Fail("hr_shape", ToString(*hr_shape), "r x the frames' shape = " + ToString(ds.hr_frame));
 
   if (scene) {
-    if (scene->frames != int(n) || scene->frame != ds.frame)
+    if ((!has_slots && scene->frames != int(n)) || scene->frame != ds.frame)
       root.Fail("frames", std::to_string(n) + " x " + ToString(ds.frame) + " (" + frames_path + ")",
                 "the scene's frames x frame_px = " + std::to_string(scene->frames) + " x " + ToString(scene->frame) + " (" +
                     scene_path + ")");
@@ -653,19 +693,23 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   } else {
     ImageStack psfs = ReadFits(psfs_path).planes;
     const Shape k = ShapeOf(psfs.front());
-    if ((psfs.size() != n && psfs.size() != 1) || k.rows != k.cols || k.rows % 2)
+    // With a sequence's slots a shared plane serves every slot; the slots may not exceed the planes given.
+    if (has_slots && psfs.size() > 1) np = std::max(np, psfs.size());
+    if ((psfs.size() != np && psfs.size() != 1) || k.rows != k.cols || k.rows % 2)
       root.Fail("psfs", std::to_string(psfs.size()) + " x " + ToString(k) + " (" + psfs_path + ")",
-                std::to_string(n) + " (one per frame) or 1 (shared) square planes K x K with K even");
-    if (psfs.size() == 1) psfs.assign(n, psfs.front());
+                std::to_string(np) + (has_slots ? " (one per slot)" : " (one per frame)") +
+                    " or 1 (shared) square planes K x K with K even");
+    if (psfs.size() == 1) psfs.assign(np, psfs.front());
     ds.psfs = std::move(psfs);
-    if (root.Has("offsets") && ds.offsets.size() != n)
-      root.Fail("offsets", std::to_string(ds.offsets.size()) + " entries", "one per frame (" + std::to_string(n) + ")");
-    if (!root.Has("offsets")) ds.offsets.assign(n, DmOffset{});
+    if (root.Has("offsets") && ds.offsets.size() != np)
+      root.Fail("offsets", std::to_string(ds.offsets.size()) + " entries",
+                std::string(has_slots ? "one per slot (" : "one per frame (") + std::to_string(np) + ")");
+    if (!root.Has("offsets")) ds.offsets.assign(np, DmOffset{});
     ds.trustworthy_border_px = (ds.psf_size() / 2 + ds.r - 1) / ds.r;
   }
   // Unit sum: the forward model conserves flux only with normalised kernels. Negative values (noise in a
   // measured PSF) are kept; a kernel without positive total light is meaningless.
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < np; ++i) {
     const double sum = ds.psfs[i].sum();
     if (!AllFinite(ds.psfs[i]) || !(sum > 0))
       root.Fail(has_scene ? "scene" : "psfs", "plane " + std::to_string(i) + " with sum " + ToString(sum),
@@ -674,10 +718,10 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   }
   if (!nominal_path.empty()) {
     ImageStack nominal = ReadFits(nominal_path).planes;
-    if (nominal.size() != n || ShapeOf(nominal.front()) != ShapeOf(ds.psfs.front()))
+    if (nominal.size() != np || ShapeOf(nominal.front()) != ShapeOf(ds.psfs.front()))
       root.Fail("nominal_psfs", std::to_string(nominal.size()) + " x " + ToString(ShapeOf(nominal.front())) + " (" + nominal_path + ")",
-                std::to_string(n) + " planes of the PSFs' shape " + ToString(ShapeOf(ds.psfs.front())));
-    for (std::size_t i = 0; i < n; ++i) {
+                std::to_string(np) + " planes of the PSFs' shape " + ToString(ShapeOf(ds.psfs.front())));
+    for (std::size_t i = 0; i < np; ++i) {
       const double sum = nominal[i].sum();
       if (!AllFinite(nominal[i]) || !(sum > 0))
         root.Fail("nominal_psfs", "plane " + std::to_string(i) + " with sum " + ToString(sum), "PSFs with finite values and a sum > 0");
@@ -692,22 +736,48 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
     const std::size_t nodes = std::size_t(ds.psf_field->grid.nodes());
     auto read = [&](const char* key, const std::string& path) {
       const ImageStack planes = ReadFits(path).planes;
-      if (planes.size() != nodes * n || ShapeOf(planes.front()) != ShapeOf(ds.psfs.front()))
+      if (planes.size() != nodes * np || ShapeOf(planes.front()) != ShapeOf(ds.psfs.front()))
         f.Fail(key, std::to_string(planes.size()) + " x " + ToString(ShapeOf(planes.front())) + " (" + path + ")",
-               std::to_string(nodes * n) + " planes (" + std::to_string(nodes) + " nodes x " + std::to_string(n) +
-                   " frames, node-major) of the PSFs' shape " + ToString(ShapeOf(ds.psfs.front())));
+               std::to_string(nodes * np) + " planes (" + std::to_string(nodes) + " nodes x " + std::to_string(np) +
+                   (has_slots ? " slots" : " frames") + ", node-major) of the PSFs' shape " + ToString(ShapeOf(ds.psfs.front())));
       std::vector<ImageStack> out(nodes);
       for (std::size_t p = 0; p < planes.size(); ++p) {
         const double sum = planes[p].sum();
         if (!AllFinite(planes[p]) || !(sum > 0))
           f.Fail(key, "plane " + std::to_string(p) + " with sum " + ToString(sum), "PSFs with finite values and a sum > 0");
-        out[p / n].push_back(planes[p] / sum);
+        out[p / np].push_back(planes[p] / sum);
       }
       return out;
     };
     ds.psf_field->psfs = read("psfs", field_psfs_path);
     if (!field_nominal_path.empty()) ds.psf_field->nominal_psfs = read("nominal_psfs", field_nominal_path);
   }
+  // Slots and times; with a sequence's slots the per-slot inputs become per-frame (frame i gets slot i's).
+  if (has_slots) {
+    for (std::size_t i = 0; i < n; ++i)
+      if (std::size_t(seq_slots[i]) >= np)
+        seq_node->Fail("slots", "[" + std::to_string(i) + "] = " + std::to_string(seq_slots[i]),
+                       "a slot below the " + std::to_string(np) + " phases " +
+                           (scene ? "of the scene (" + scene_path + ")" : "of the psfs (" + psfs_path + ")"));
+    ds.slots.assign(seq_slots.begin(), seq_slots.end());
+    ds.slot_count = int(np);
+    auto expand = [&](auto& v) {
+      auto per_slot = v;
+      v.clear();
+      for (std::size_t i = 0; i < n; ++i) v.push_back(per_slot[std::size_t(ds.slots[i])]);
+    };
+    expand(ds.psfs);
+    expand(ds.offsets);
+    if (!ds.nominal_psfs.empty()) expand(ds.nominal_psfs);
+    if (ds.psf_field) {
+      for (ImageStack& node : ds.psf_field->psfs) expand(node);
+      for (ImageStack& node : ds.psf_field->nominal_psfs) expand(node);
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) ds.slots.push_back(int(i));
+    ds.slot_count = int(n);
+  }
+  ds.times_s = seq_times;
   if (psf_size && psf_size != ds.psf_size())
     root.Fail("psf_size_px", std::to_string(psf_size), "the PSFs' side " + std::to_string(ds.psf_size()));
   if (border >= 0) ds.trustworthy_border_px = border;
@@ -739,6 +809,66 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   if (!truth_path.empty()) ds.truth = ReadCube(root, "truth", truth_path, 1, ds.hr_frame, "one HR image").front();
   if (ds.camera_pixel_rad == 0.0 && scene) ds.camera_pixel_rad = scene->CameraPixelRad();
   return ds;
+}
+
+}  // namespace aosr
+
+namespace aosr {
+
+Dataset SelectFrames(const Dataset& d, const std::vector<int>& frames) {
+  constexpr const char* kFn = "SelectFrames";
+  CheckArgument(!frames.empty(), kFn, "frames", "[]", "at least one frame index");
+  std::vector<char> seen(d.frames.size(), 0);
+  for (int f : frames) {
+    CheckArgument(f >= 0 && std::size_t(f) < d.frames.size(), kFn, "frames", f,
+                  "an index below the dataset's " + std::to_string(d.frames.size()) + " frames");
+    CheckArgument(!seen[std::size_t(f)], kFn, "frames", f, "each frame once");
+    seen[std::size_t(f)] = 1;
+  }
+  Dataset w;
+  w.manifest_path = d.manifest_path;
+  w.manifest = d.manifest;
+  w.r = d.r;
+  w.frame = d.frame;
+  w.hr_frame = d.hr_frame;
+  w.gain_e_per_adu = d.gain_e_per_adu;
+  w.bias_adu = d.bias_adu;
+  w.truth = d.truth;
+  w.expected_file = d.expected_file;
+  w.stars = d.stars;
+  w.trustworthy_border_px = d.trustworthy_border_px;
+  w.camera_pixel_rad = d.camera_pixel_rad;
+  w.wavelength_m = d.wavelength_m;
+  if (d.weights) w.weights.emplace();
+  if (d.psf_field) {
+    w.psf_field.emplace(*d.psf_field);
+    for (ImageStack& node : w.psf_field->psfs) node.clear();
+    for (ImageStack& node : w.psf_field->nominal_psfs) node.clear();
+  }
+  for (int f : frames) {
+    const std::size_t i = std::size_t(f);
+    w.frames.push_back(d.frames[i]);
+    w.valid.push_back(d.valid[i]);
+    if (d.weights) w.weights->push_back((*d.weights)[i]);
+    w.psfs.push_back(d.psfs[i]);
+    if (!d.nominal_psfs.empty()) w.nominal_psfs.push_back(d.nominal_psfs[i]);
+    w.offsets.push_back(i < d.offsets.size() ? d.offsets[i] : DmOffset{});
+    if (d.psf_field) {
+      for (std::size_t k = 0; k < d.psf_field->psfs.size(); ++k) w.psf_field->psfs[k].push_back(d.psf_field->psfs[k][i]);
+      for (std::size_t k = 0; k < d.psf_field->nominal_psfs.size(); ++k)
+        w.psf_field->nominal_psfs[k].push_back(d.psf_field->nominal_psfs[k][i]);
+    }
+    if (!d.times_s.empty()) w.times_s.push_back(d.times_s[i]);
+    w.slots.push_back(int(w.slots.size()));
+  }
+  w.slot_count = int(frames.size());
+  // The HR grid stays the dataset's: the camera WCS is re-anchored on the window's first frame, whose DM shift
+  // HrWcs takes out again.
+  if (const std::optional<Wcs> hr = d.HrWcs()) {
+    const DmOffset first = w.offsets.front();
+    w.wcs = LrWcs(*hr, d.r, ShiftHrY(first, d.r), ShiftHrX(first, d.r));
+  }
+  return w;
 }
 
 }  // namespace aosr

@@ -373,5 +373,67 @@ TEST(FitsTest, RowWriterWritesRowsInAnyOrderAndAppearsOnlyWhenFinished) {
   EXPECT_THROW(w.WriteRows(8, img.middleRows(0, 2)), InvalidArgument);  // past the last row
 }
 
+// FitsCubeWriter: planes appended past the reserved count (the cube grows) or fewer (it is cut), the same values
+// as WriteFitsCubeWithExtensions writes, header and extensions at the end, one plane as a 2-D image, the file only
+// after Finish, and no file or temporary without it.
+TEST(FitsTest, CubeWriterAppendsPlanesGrowsAndCutsAndAppearsOnlyWhenFinished) {
+  TempDir dir;
+  ImageStack planes;
+  for (int k = 0; k < 5; ++k) planes.push_back(Coded(9, 7, 0.1 * k, 0.123456789));
+  FitsHeader h;
+  h.Set("METHOD", std::string("linear"), "written at the end");
+  for (int k = 0; k < 60; ++k) h.Set("KEY" + std::to_string(k), double(k), "a movie's worth of keywords");
+  FitsExtension times;
+  times.name = "TIMES";
+  times.planes = {Coded(5, 4, 2.0, 0.25)};
+  times.type = FitsType::kFloat64;
+  WriteFitsCubeWithExtensions(dir.File("whole.fits"), planes, h, {times});
+  for (Index reserve : {0, 2, 5, 9}) {
+    const std::string path = dir.File("cube" + std::to_string(reserve) + ".fits");
+    {
+      FitsCubeWriter w(path, {9, 7}, reserve);
+      for (const Image& p : planes) w.Append(p);
+      EXPECT_EQ(w.planes(), 5);
+      EXPECT_FALSE(std::filesystem::exists(path)) << "not before Finish";
+      w.Finish(h, {times});
+    }
+    const FitsData back = ReadFits(path), whole = ReadFits(dir.File("whole.fits"));
+    ASSERT_EQ(back.planes.size(), 5u) << "reserve " << reserve;
+    for (std::size_t k = 0; k < 5; ++k) EXPECT_TRUE((back.planes[k] == whole.planes[k]).all()) << k;
+    EXPECT_EQ(back.header.GetString("METHOD"), "linear");
+    EXPECT_EQ(back.header.GetDouble("KEY59"), 59.0);
+    EXPECT_TRUE((ReadFitsExtension(path, "TIMES").planes.at(0) == times.planes[0]).all());
+  }
+  // One plane: a 2-D image (ReadFitsImage refuses cubes), in double precision when asked.
+  {
+    FitsCubeWriter w(dir.File("one.fits"), {9, 7}, 4, FitsType::kFloat64);
+    w.Append(planes[3]);
+    w.Finish({});
+  }
+  EXPECT_TRUE((ReadFitsImage(dir.File("one.fits")) == planes[3]).all());
+  // Abandoned, refused planes, finishing twice or empty, a missing folder.
+  {
+    FitsCubeWriter w(dir.File("gone.fits"), {9, 7});
+    w.Append(planes[0]);
+    EXPECT_THROW(w.Append(Image::Zero(7, 9)), InvalidArgument);
+    EXPECT_THROW(w.Append(Image::Constant(9, 7, 1e39)), InvalidArgument);  // beyond float32
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.File("gone.fits")));
+  {
+    FitsCubeWriter w(dir.File("empty.fits"), {9, 7});
+    EXPECT_THROW(w.Finish({}), InvalidArgument);
+  }
+  {
+    FitsCubeWriter w(dir.File("twice.fits"), {9, 7});
+    w.Append(planes[0]);
+    w.Finish({});
+    EXPECT_THROW(w.Append(planes[1]), InvalidArgument);
+    EXPECT_THROW(w.Finish({}), InvalidArgument);
+  }
+  EXPECT_THROW(FitsCubeWriter(dir.File("no/such/folder.fits"), {9, 7}), IoError);
+  EXPECT_EQ(dir.List(), (std::vector<std::string>{"cube0.fits", "cube2.fits", "cube5.fits", "cube9.fits", "one.fits",
+                                                  "twice.fits", "whole.fits"}));
+}
+
 }  // namespace
 }  // namespace aosr

@@ -120,6 +120,10 @@ struct FitsExtension {
 void WriteFitsWithExtensions(const std::string& path, const Image& primary, const FitsHeader& header,
                              const std::vector<FitsExtension>& extensions, FitsType type = FitsType::kFloat32);
 
+// The same with a primary cube (NAXIS = 3 for more than one plane): e.g. a movie with its times in an extension.
+void WriteFitsCubeWithExtensions(const std::string& path, const ImageStack& primary, const FitsHeader& header,
+                                 const std::vector<FitsExtension>& extensions, FitsType type = FitsType::kFloat32);
+
 // A 2-D image written by rows, for an image that is never held whole (a tiled reconstruction of a whole
 // detector, solvers/tiling.hpp). The primary HDU is created with its full shape in a temporary file beside
 // `path` (as AtomicWrite names it); rows are written in any order (rows never written read as 0); Finish adds
@@ -144,6 +148,37 @@ class FitsRowWriter {
   Shape shape_;
   FitsType type_;
   void* file_ = nullptr;  // fitsfile*
+};
+
+// A cube written plane by plane, for planes that are never held together (a movie: solvers/video_stream.hpp;
+// holding them costs memory and, on a fresh page, a page fault per 4 KB). The rules of FitsRowWriter: a temporary
+// file beside `path`, header space reserved up front, Finish writes the header's keywords and the extensions
+// and renames the file onto `path`; destroyed without Finish, it removes the temporary file. `reserve_planes`
+// (>= 0) sizes the cube at the start (NAXIS3), grown when more planes come and cut to the planes written at
+// Finish; one plane is written as a 2-D image (NAXIS = 2), as WriteFitsCubeWithExtensions does.
+// IoError naming `path` for a missing folder or a failed write; InvalidArgument for a plane of another shape, a
+// value beyond float32's range (kFloat32), Finish with no plane, or use after Finish.
+class FitsCubeWriter {
+ public:
+  FitsCubeWriter(const std::string& path, Shape plane, Index reserve_planes = 0, FitsType type = FitsType::kFloat32);
+  ~FitsCubeWriter();
+  FitsCubeWriter(const FitsCubeWriter&) = delete;
+  FitsCubeWriter& operator=(const FitsCubeWriter&) = delete;
+
+  // Writes `plane` as plane planes() (0-based) of the cube.
+  void Append(const Image& plane);
+  Index planes() const { return planes_; }
+  // Ends the file (see above). Extensions follow WriteFitsWithExtensions's rules.
+  void Finish(const FitsHeader& header, const std::vector<FitsExtension>& extensions = {});
+
+ private:
+  void Resize(Index planes, int naxis);
+  std::string path_, tmp_;
+  Shape plane_;
+  FitsType type_;
+  Index planes_ = 0, capacity_ = 0;
+  std::vector<float> buffer_;  // the float32 conversion of a plane, reused
+  void* file_ = nullptr;       // fitsfile*
 };
 
 // Reads the image extension whose EXTNAME is `name` (case-insensitive, as cfitsio matches it); its header

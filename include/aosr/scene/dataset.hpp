@@ -65,6 +65,14 @@
 //                                               "CD1_2": 0, "CD2_1": 0, "CD2_2": 1e-5} (or PCi_j + CDELTi, or
 //                                               CDELTi with CROTA2); it replaces the frames file's own WCS; null:
 //                                               none. Absent: the frames file's header WCS, when it has one
+//   sequence               no                   a video: M frames taken while the DM cycles through P phases
+//                                               (solvers/video_stream.hpp), {"slots": [M integers in 0..P-1]: the
+//                                               phase (slot) of each frame, "times_s": [M non-decreasing times, s]},
+//                                               either key optional. With slots, the per-phase inputs (psfs, the
+//                                               scene's frames and offsets, offsets, nominal_psfs, psf_field planes)
+//                                               have P entries and are expanded on reading to one per frame (frame i
+//                                               gets slot i's); valid and weights stay per frame (M). Without slots
+//                                               frame i is slot i (M = P, as without the section)
 //   software, noise,       no                   provenance written by WriteSimulation (the software version; the
 //   simulation                                  detector model; the scene as read, seeds, the compiled plan,
 //                                               per-exposure Strehl, PSF window fraction and the closed loop's WFS tilt gain, stage timings); not
@@ -164,6 +172,12 @@ struct Dataset {
   };
   std::optional<PsfField> psf_field;
   std::vector<DmOffset> offsets;  // N DM offsets (all zero when unknown)
+  // The phase (slot) of each frame, 0..slot_count-1 (the manifest's sequence.slots; else slots[i] = i and
+  // slot_count = N), and the frames' times in seconds (sequence.times_s; empty when the manifest has none).
+  // The per-frame PSFs, offsets and nominal PSFs above are those of the frame's slot.
+  std::vector<int> slots;
+  int slot_count = 0;
+  std::vector<double> times_s;
   std::optional<Image> truth;     // the HR object, e⁻ per frame per HR pixel, when given
   std::string expected_file;      // resolved path of the noiseless frames, empty when absent
   std::vector<PointSource> stars;  // HR-frame coordinates, e⁻ per frame
@@ -193,6 +207,12 @@ struct Dataset {
 // <rule>" for everything else, including a file the manifest names that does not exist (the value shows the
 // resolved path). With "scene", the scene's own errors name the scene file.
 Dataset LoadDataset(const std::string& manifest_or_dir);
+
+// The dataset of frames `frames` (indices into d's frames, each once, in the order given) of `d`: an ordinary
+// dataset (slots 0..K-1 in that order, slot_count K) whose PSFs, offsets, masks, weights and times are those
+// frames'; the rest (manifest, truth, WCS, stars, ...) is d's. What a video's window is reconstructed from in
+// batch (solvers/video_stream.hpp). InvalidArgument for an empty list, an index out of range or a repeat.
+Dataset SelectFrames(const Dataset& d, const std::vector<int>& frames);
 
 // What every image on a dataset's HR grid written to FITS carries (reconstructions and their maps): the
 // dataset's HR WCS when it has one (Dataset::HrWcs) and BUNIT = `bunit` when not empty. The one place the

@@ -158,6 +158,18 @@ bool WholeGridFits(const Dataset& dataset, ReconstructionMethod method, double l
 // stack of the wrong count or with a non-positive sum).
 DatasetProblem ProblemFromDataset(const Dataset& dataset, const DatasetProblemOptions& options = {});
 
+// The weights ProblemFromDataset gives the dataset's frames (the Weights rules at the top of the file), from the
+// frames in electrons (d.FramesElectrons()): what a caller that does not need the model (solvers/video_stream.hpp,
+// which makes the model of the N phases once for M frames) uses. `weights` is empty for uniform weights of 1.
+struct DatasetFrameWeights {
+  ImageStack weights;
+  std::string source;                      // as DatasetProblem::weights_source
+  std::vector<double> background_sigma_e;  // as DatasetProblem::background_sigma_e
+  std::string warning;                     // as DatasetProblem::warning (source-dependent weights)
+};
+DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frames_e,
+                                       const DatasetProblemOptions& options = {});
+
 // The first moments of a centred kernel about its centre pixel (K/2, K/2), in its pixels. The kernel must
 // have a positive sum.
 FrameOffset KernelCentroid(const Image& centred_kernel);

@@ -4,6 +4,9 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <opencv2/core.hpp>
+#include <opencv2/videoio.hpp>
+
 #include <cstring>
 #include <memory>
 #include <string>
@@ -98,6 +101,69 @@ __attribute__((visibility("default"))) void aosr_oiio_close(void* handle) {
   std::unique_ptr<OIIO::ImageInput> in(static_cast<OIIO::ImageInput*>(handle));
   try {
     in->close();
+  } catch (...) {
+  }
+}
+
+}  // extern "C"
+
+namespace {
+struct AosrVideo {
+  cv::VideoWriter writer;
+  int width = 0, height = 0;
+};
+}  // namespace
+
+extern "C" {
+
+__attribute__((visibility("default"))) void* aosr_video_open(const char* path, const char* fourcc, double fps, int width,
+                                                             int height, char* error, std::size_t error_size) {
+  try {
+    if (!fourcc || std::strlen(fourcc) != 4) {
+      SetError(error, error_size, "the codec must be four characters (e.g. MJPG)");
+      return nullptr;
+    }
+    auto v = std::make_unique<AosrVideo>();
+    v->width = width;
+    v->height = height;
+    const int code = cv::VideoWriter::fourcc(fourcc[0], fourcc[1], fourcc[2], fourcc[3]);
+    if (!v->writer.open(path, code, fps, cv::Size(width, height), true) || !v->writer.isOpened()) {
+      SetError(error, error_size, std::string("OpenCV's VideoWriter cannot write codec ") + fourcc +
+                                      " to this file (its extension chooses the container; MJPG in .avi is built in)");
+      return nullptr;
+    }
+    return v.release();
+  } catch (const std::exception& e) {
+    SetError(error, error_size, e.what());
+  } catch (...) {
+    SetError(error, error_size, "unknown error opening the video");
+  }
+  return nullptr;
+}
+
+__attribute__((visibility("default"))) int aosr_video_write(void* handle, const unsigned char* bgr, char* error,
+                                                            std::size_t error_size) {
+  try {
+    auto* v = static_cast<AosrVideo*>(handle);
+    if (!v || !bgr) {
+      SetError(error, error_size, "no video or no frame");
+      return 0;
+    }
+    const cv::Mat frame(v->height, v->width, CV_8UC3, const_cast<unsigned char*>(bgr));
+    v->writer.write(frame);
+    return 1;
+  } catch (const std::exception& e) {
+    SetError(error, error_size, e.what());
+  } catch (...) {
+    SetError(error, error_size, "unknown error writing a video frame");
+  }
+  return 0;
+}
+
+__attribute__((visibility("default"))) void aosr_video_close(void* handle) {
+  std::unique_ptr<AosrVideo> v(static_cast<AosrVideo*>(handle));
+  try {
+    if (v) v->writer.release();
   } catch (...) {
   }
 }

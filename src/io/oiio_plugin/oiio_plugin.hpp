@@ -39,4 +39,14 @@ typedef int (*AosrOiioReadFn)(void* handle, int type, void* buffer, char* error,
 // Closes and frees a handle (null is allowed).
 typedef void (*AosrOiioCloseFn)(void* handle);
 
+// Video files through OpenCV's VideoWriter (io/video_file.hpp), in this plugin for the same reason: OpenCV's
+// videoio pulls in FFmpeg. Opens `path` (the container from its extension) for width x height colour frames at
+// `fps` with the four-character codec `fourcc`; returns a handle, or null with a message in error.
+typedef void* (*AosrVideoOpenFn)(const char* path, const char* fourcc, double fps, int width, int height, char* error,
+                                 std::size_t error_size);
+// Appends one frame of width x height x 3 bytes (B, G, R interleaved, rows top to bottom). 1 on success.
+typedef int (*AosrVideoWriteFn)(void* handle, const unsigned char* bgr, char* error, std::size_t error_size);
+// Finishes the file and frees the handle (null is allowed).
+typedef void (*AosrVideoCloseFn)(void* handle);
+
 }  // extern "C"

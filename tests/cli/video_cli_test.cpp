@@ -1,0 +1,300 @@
+// End-to-end checks of `aosr video` through the real executable: a small sequence dataset (10 frames cycling
+// through 4 phases, a blob moving one HR pixel per frame) written by the test, the cube's shape, its TIMES
+// extension and WCS, every plane against the batch reconstruction of its window (the library's and, for two
+// windows, `aosr reconstruct` of a window dataset written independently), the video file read back through
+// OpenCV, bad options and inputs refused before anything is written, and --force.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/videoio.hpp>
+#include <string>
+#include <vector>
+
+#include "aosr/core/forward_model.hpp"
+#include "aosr/io/fits.hpp"
+#include "aosr/scene/dataset.hpp"
+#include "aosr/solvers/dataset_problem.hpp"
+#include "aosr/solvers/reconstruct.hpp"
+#include "support/testing.hpp"
+
+namespace AOSR_TEST_NS {
+
+namespace fs = std::filesystem;
+using aosr::Image;
+using aosr::ImageStack;
+using aosr::Index;
+using aosr::test::CliRun;
+using aosr::test::RunCli;
+using ::testing::HasSubstr;
+
+constexpr aosr::Shape kVideoHr{48, 40};
+constexpr int kVideoR = 2;
+constexpr int kVideoFrames = 10;
+constexpr double kVideoGain = 2.0, kVideoBias = 100.0, kVideoDt = 0.05;
+const std::vector<std::pair<double, double>> kVideoShifts = {{0, 0}, {0, 1}, {1, 0}, {1, 1.5}};  // HR px
+
+// The phases' PSFs: Gaussians of σ 1.1 HR px shifted by the raster above, 16 x 16, unit sum.
+ImageStack VideoPsfs() {
+  ImageStack psfs;
+  for (auto [dy, dx] : kVideoShifts) {
+    Image k(16, 16);
+    for (Index y = 0; y < 16; ++y)
+      for (Index x = 0; x < 16; ++x) {
+        const double a = double(y) - 8 - dy, b = double(x) - 8 - dx;
+        k(y, x) = std::exp(-(a * a + b * b) / (2 * 1.1 * 1.1));
+      }
+    psfs.push_back(k / k.sum());
+  }
+  return psfs;
+}
+
+// Frame j in e-: phase j mod 4 of a background plus a blob at x = 10 + j HR px, with noise of σ 0.01.
+Image VideoFrameE(int j) {
+  const auto model = aosr::MultiFrameModel::FromKernels(kVideoHr, kVideoR, VideoPsfs());
+  Image x = 0.1 * aosr::test::RandomImage(kVideoHr, 11, false);
+  for (Index y = 0; y < kVideoHr.rows; ++y)
+    for (Index c = 0; c < kVideoHr.cols; ++c) {
+      const double dy = double(y) - 20.0, dx = double(c) - 10.0 - j;
+      x(y, c) += 3.0 * std::exp(-(dy * dy + dx * dx) / 8.0);
+    }
+  return model.Render(x)[std::size_t(j % 4)] + 0.01 * aosr::test::RandomImage(model.lr_shape(), 700 + std::uint64_t(j));
+}
+
+// A manifest of frames `frames` (ADU, gain 2, bias 100) with PSFs `psfs`, the detector model's noise (uniform
+// background weights 1/σ²) and a WCS; `sequence` adds slots and times.
+nlohmann::json VideoManifest(const nlohmann::json& sequence) {
+  nlohmann::json m = {{"format", "aosr-manifest"}, {"version", 1}, {"frames", "frames.fits"}, {"psfs", "psfs.fits"},
+                      {"r", kVideoR}, {"gain_e_per_adu", kVideoGain}, {"bias_adu", kVideoBias}};
+  m["noise"] = {{"model", "peak-fraction"}, {"sigma_e", 0.01}};
+  m["wcs"] = {{"CTYPE1", "RA---TAN"}, {"CTYPE2", "DEC--TAN"}, {"CRPIX1", 10.5}, {"CRPIX2", 12.5},
+              {"CRVAL1", 150.1},      {"CRVAL2", 2.2},        {"CD1_1", -1e-5},  {"CD1_2", 0.0},
+              {"CD2_1", 0.0},         {"CD2_2", 1e-5}};
+  if (!sequence.is_null()) m["sequence"] = sequence;
+  return m;
+}
+
+void WriteVideoDataset(const fs::path& dir, const std::vector<int>& frames, const ImageStack& psfs,
+                       const nlohmann::json& sequence) {
+  fs::create_directories(dir);
+  ImageStack adu;
+  for (int j : frames) adu.push_back(VideoFrameE(j) / kVideoGain + kVideoBias);
+  aosr::WriteFitsCube((dir / "frames.fits").string(), adu, {}, aosr::FitsType::kFloat64);
+  aosr::WriteFitsCube((dir / "psfs.fits").string(), psfs, {}, aosr::FitsType::kFloat64);
+  std::ofstream(dir / "manifest.json") << VideoManifest(sequence).dump(1);
+}
+
+// The number of frames OpenCV reads back from a video file, and their size; -1 when it cannot open it.
+int VideoFramesReadBack(const std::string& path, int* rows, int* cols) {
+  cv::VideoCapture cap(path);
+  if (!cap.isOpened()) return -1;
+  int n = 0;
+  cv::Mat f;
+  while (cap.read(f) && !f.empty()) {
+    *rows = f.rows;
+    *cols = f.cols;
+    ++n;
+  }
+  return n;
+}
+
+class VideoCliTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("aosr_video_cli_" + std::to_string(getpid()));
+    fs::remove_all(dir_);
+    std::vector<int> all;
+    nlohmann::json slots = nlohmann::json::array(), times = nlohmann::json::array();
+    for (int j = 0; j < kVideoFrames; ++j) {
+      all.push_back(j);
+      slots.push_back(j % 4);
+      times.push_back(kVideoDt * j);
+    }
+    WriteVideoDataset(dir_ / "seq", all, VideoPsfs(), {{"slots", slots}, {"times_s", times}});
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+
+  static std::string Seq() { return (dir_ / "seq").string(); }
+  static std::string Out(const std::string& name) { return (dir_ / name).string(); }
+  // The run's --json summary (stderr may precede it).
+  static nlohmann::json Json(const CliRun& r) {
+    const std::size_t brace = r.out.find('{');
+    return brace == std::string::npos ? nlohmann::json() : nlohmann::json::parse(r.out.substr(brace));
+  }
+
+  // The batch reconstruction of frames `window` (time order) of the sequence, as `aosr reconstruct` makes it
+  // from a dataset of those frames.
+  static Image Batch(const std::vector<int>& window, aosr::ReconstructionMethod method, double lambda) {
+    aosr::DatasetProblemOptions po;
+    po.method = method;
+    const aosr::DatasetProblem dp = aosr::ProblemFromDataset(aosr::SelectFrames(aosr::LoadDataset(Seq()), window), po);
+    aosr::ReconstructOptions ro;
+    ro.method = method;
+    if (lambda >= 0) {
+      ro.tikhonov.lambda_rule = aosr::TikhonovLambdaRule::kFixed;
+      ro.tikhonov.lambda = lambda;
+    }
+    return aosr::Reconstruct(dp.problem, ro).image;
+  }
+
+  static fs::path dir_;
+};
+fs::path VideoCliTest::dir_;
+
+TEST_F(VideoCliTest, SlidingTikhonovCubeTimesWcsAndEveryPlaneEqualTheBatch) {
+  const CliRun r = RunCli("video " + Seq() + " -o " + Out("tik") + " -m tikhonov --lambda 3e-3 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = Json(r);
+  const int outputs = kVideoFrames - 4 + 1;  // one per frame once each phase has one
+  EXPECT_EQ(j["outputs"], outputs) << r.out;
+  EXPECT_EQ(j["frames_read"], kVideoFrames);
+  EXPECT_EQ(j["paths"]["slot-filter"], outputs) << r.out;
+
+  const aosr::FitsData cube = aosr::ReadFits(Out("tik") + "/video.fits");
+  ASSERT_EQ(cube.planes.size(), std::size_t(outputs));
+  for (const Image& p : cube.planes) {
+    ASSERT_EQ(p.rows(), kVideoHr.rows);
+    ASSERT_EQ(p.cols(), kVideoHr.cols);
+  }
+  const aosr::FitsHeader& h = cube.header;
+  EXPECT_EQ(h.GetString("METHOD"), "tikhonov");
+  EXPECT_EQ(h.GetString("WINDOW"), "sliding");
+  EXPECT_EQ(h.GetInt("NPHASES"), 4);
+  EXPECT_EQ(h.GetInt("NOUTPUT"), outputs);
+  EXPECT_EQ(h.GetString("BUNIT"), "electron");
+  // The HR grid's WCS: CD / r, CRPIX through the pixel-centre rule ((CRPIX - 1/2) r + 1/2; no DM shift here).
+  EXPECT_EQ(h.GetString("CTYPE1"), "RA---TAN");
+  EXPECT_NEAR(h.GetDouble("CD1_1"), -1e-5 / kVideoR, 1e-15);
+  EXPECT_NEAR(h.GetDouble("CD2_2"), 1e-5 / kVideoR, 1e-15);
+  EXPECT_NEAR(h.GetDouble("CRPIX1"), (10.5 - 0.5) * kVideoR + 0.5, 1e-9);
+  EXPECT_NEAR(h.GetDouble("CRPIX2"), (12.5 - 0.5) * kVideoR + 0.5, 1e-9);
+  EXPECT_NEAR(h.GetDouble("CRVAL1"), 150.1, 1e-9);
+  EXPECT_NEAR(h.GetDouble("CRVAL2"), 2.2, 1e-9);
+
+  // TIMES: row k = output k: time of its newest frame, of its oldest, first and last input frame.
+  const aosr::FitsData t = aosr::ReadFitsExtension(Out("tik") + "/video.fits", "TIMES");
+  ASSERT_EQ(t.planes.size(), 1u);
+  ASSERT_EQ(t.planes[0].rows(), outputs);
+  ASSERT_EQ(t.planes[0].cols(), 4);
+  for (int k = 0; k < outputs; ++k) {
+    EXPECT_NEAR(t.planes[0](k, 0), kVideoDt * (k + 3), 1e-12) << k;
+    EXPECT_NEAR(t.planes[0](k, 1), kVideoDt * k, 1e-12) << k;
+    EXPECT_EQ(t.planes[0](k, 2), k);
+    EXPECT_EQ(t.planes[0](k, 3), k + 3);
+  }
+  EXPECT_NEAR(h.GetDouble("TSTART"), kVideoDt * 3, 1e-12);
+  EXPECT_NEAR(h.GetDouble("TSTOP"), kVideoDt * (kVideoFrames - 1), 1e-12);
+
+  // Every plane is the batch Tikhonov of its window (float32 in the file: 1e-6 of the peak).
+  for (int k = 0; k < outputs; ++k) {
+    const Image ref = Batch({k, k + 1, k + 2, k + 3}, aosr::ReconstructionMethod::kTikhonov, 3e-3);
+    EXPECT_LT((cube.planes[std::size_t(k)] - ref).abs().maxCoeff(), 1e-6 * ref.abs().maxCoeff()) << "output " << k;
+  }
+  // The moving blob moves the outputs: consecutive planes differ (the test would pass a constant cube otherwise).
+  EXPECT_GT((cube.planes[1] - cube.planes[0]).abs().maxCoeff(), 0.05 * cube.planes[0].abs().maxCoeff());
+
+  // Two windows through `aosr reconstruct` on a dataset of their frames written independently (frames in time
+  // order, each with its phase's PSF): the same image and the same WCS.
+  const ImageStack psfs = VideoPsfs();
+  for (int k : {0, outputs - 1}) {
+    const std::vector<int> w = {k, k + 1, k + 2, k + 3};
+    ImageStack wp;
+    for (int f : w) wp.push_back(psfs[std::size_t(f % 4)]);
+    const fs::path wd = dir_ / ("window" + std::to_string(k));
+    WriteVideoDataset(wd, w, wp, nullptr);
+    const std::string rec = (dir_ / ("window" + std::to_string(k) + ".fits")).string();
+    const CliRun b = RunCli("reconstruct " + wd.string() + " -m tikhonov --lambda 3e-3 -o " + rec);
+    ASSERT_EQ(b.status, 0) << b.out;
+    const aosr::FitsData ref = aosr::ReadFits(rec);
+    EXPECT_LT((cube.planes[std::size_t(k)] - ref.planes[0]).abs().maxCoeff(), 1e-6 * ref.planes[0].abs().maxCoeff())
+        << "window " << k;
+    for (const char* key : {"CRPIX1", "CRPIX2", "CRVAL1", "CRVAL2", "CD1_1", "CD2_2"})
+      EXPECT_DOUBLE_EQ(h.GetDouble(key), ref.header.GetDouble(key)) << key;
+  }
+
+  // The video file: one frame per output, of the HR size.
+  int rows = 0, cols = 0;
+  const int n = VideoFramesReadBack(Out("tik") + "/video.avi", &rows, &cols);
+  ASSERT_GE(n, 0) << "OpenCV cannot open " << Out("tik") << "/video.avi";
+  EXPECT_EQ(n, outputs);
+  EXPECT_EQ(rows, kVideoHr.rows);
+  EXPECT_EQ(cols, kVideoHr.cols);
+}
+
+TEST_F(VideoCliTest, CycleWindowLinearOnePlanePerCycleEqualsTheBatch) {
+  const CliRun r = RunCli("video " + Seq() + " -o " + Out("lin") + " -m linear --window cycle --zoom 2 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  EXPECT_EQ(Json(r)["outputs"], 2) << r.out;  // frames 0-3 and 4-7; 8 and 9 complete no cycle
+  const aosr::FitsData cube = aosr::ReadFits(Out("lin") + "/video.fits");
+  ASSERT_EQ(cube.planes.size(), 2u);
+  EXPECT_EQ(cube.header.GetString("WINDOW"), "cycle");
+  EXPECT_GT(cube.header.GetDouble("KAPPA"), 0.0);
+  const aosr::FitsData t = aosr::ReadFitsExtension(Out("lin") + "/video.fits", "TIMES");
+  EXPECT_EQ(t.planes[0](1, 2), 4);
+  EXPECT_EQ(t.planes[0](1, 3), 7);
+  for (int k = 0; k < 2; ++k) {
+    const Image ref = Batch({4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3}, aosr::ReconstructionMethod::kLinear, -1);
+    EXPECT_LT((cube.planes[std::size_t(k)] - ref).abs().maxCoeff(), 1e-6 * ref.abs().maxCoeff()) << "output " << k;
+  }
+  int rows = 0, cols = 0;
+  EXPECT_EQ(VideoFramesReadBack(Out("lin") + "/video.avi", &rows, &cols), 2);
+  EXPECT_EQ(rows, 2 * kVideoHr.rows);  // --zoom 2
+  EXPECT_EQ(cols, 2 * kVideoHr.cols);
+}
+
+TEST_F(VideoCliTest, BadOptionsAndInputsAreRefusedBeforeAnythingIsWritten) {
+  struct Case {
+    std::string args, expect;
+  };
+  // A sequence whose slots do not match its frames.
+  const fs::path bad = dir_ / "bad_slots";
+  WriteVideoDataset(bad, {0, 1, 2, 3, 4}, VideoPsfs(), {{"slots", {0, 1, 2, 3}}});
+  const std::vector<Case> cases = {
+      {"-m drizzle", "tikhonov"},                           // not a streaming method (CLI11 names the choices)
+      {"--window sometimes", "cycle"},                      // CLI11
+      {"--lambda-rule wiener", "lambda_rule"},              // data-dependent filter, refused by the options
+      {"--prior fitted", "fitted"},
+      {"--target-psf moffat -m linear", "gaussian:"},
+      {"--codec MJPEG", "four characters"},                 // VideoFileOptions
+      {"--weights everything", "weights"},
+  };
+  for (const Case& c : cases) {
+    const std::string out = Out("bad_out");
+    const CliRun r = RunCli("video " + Seq() + " -o " + out + " " + c.args);
+    EXPECT_NE(r.status, 0) << c.args;
+    EXPECT_THAT(r.out, HasSubstr(c.expect)) << c.args;
+    EXPECT_FALSE(fs::exists(out)) << c.args << ": the output folder was made";
+  }
+  const CliRun r = RunCli("video " + bad.string() + " -o " + Out("bad_out"));
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("slots"));
+  EXPECT_THAT(r.out, HasSubstr("one per frame"));
+  EXPECT_FALSE(fs::exists(Out("bad_out")));
+  const CliRun missing = RunCli("video " + Out("no_such_dataset") + " -o " + Out("bad_out"));
+  EXPECT_EQ(missing.status, 1) << missing.out;
+  EXPECT_THAT(missing.out, HasSubstr("no_such_dataset"));
+  EXPECT_FALSE(fs::exists(Out("bad_out")));
+}
+
+TEST_F(VideoCliTest, ExistingOutputsAreKeptWithoutForce) {
+  const std::string out = Out("again");
+  ASSERT_EQ(RunCli("video " + Seq() + " -o " + out + " --lambda 1e-2 --no-video").status, 0);
+  const auto before = fs::last_write_time(out + "/video.fits");
+  const Image first = aosr::ReadFits(out + "/video.fits").planes[0];
+  const CliRun r = RunCli("video " + Seq() + " -o " + out + " --lambda 1e-1 --no-video");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("exists; pass --force"));
+  EXPECT_EQ(fs::last_write_time(out + "/video.fits"), before);
+  EXPECT_TRUE((aosr::ReadFits(out + "/video.fits").planes[0] == first).all());
+  const CliRun f = RunCli("video " + Seq() + " -o " + out + " --lambda 1e-1 --no-video --force");
+  ASSERT_EQ(f.status, 0) << f.out;
+  // A larger λ: a different (smoother) image replaced the first.
+  EXPECT_GT((aosr::ReadFits(out + "/video.fits").planes[0] - first).abs().maxCoeff(), 1e-3 * first.abs().maxCoeff());
+  EXPECT_FALSE(fs::exists(out + "/video.avi"));  // --no-video
+}
+
+}  // namespace AOSR_TEST_NS
