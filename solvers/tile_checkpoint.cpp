@@ -178,7 +178,8 @@ std::string TilePath(const std::string& dir, int index) {
   return dir + "/tile_" + std::to_string(index) + ".bin";
 }
 
-void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& r) {
+void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& r,
+               const std::vector<double>& misfit) {
   TileWriter w;
   w.Bytes(kTileMagic, sizeof kTileMagic);
   w.Value(fingerprint);
@@ -206,6 +207,9 @@ void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, co
     w.Value(char(s.leakage_met)), w.Value(std::int64_t(s.unreachable_frequencies));
     w.Value(std::int32_t(s.noise_probes)), w.Value(char(s.fourier_exact));
   }
+  // Appended last: files written before it was added end above and are read without it.
+  w.Value(std::uint64_t(misfit.size()));
+  for (double v : misfit) w.Value(v);
   AtomicWrite(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary);
     out.write(w.buf.data(), std::streamsize(w.buf.size()));
@@ -213,7 +217,8 @@ void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, co
   });
 }
 
-bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Reconstruction* r) {
+bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Reconstruction* r,
+              std::vector<double>* misfit) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return false;
   const std::vector<char> buf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -252,7 +257,16 @@ bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Rec
     s.fourier_exact = rd.Value<char>() != 0;
     t.linear = s;
   }
+  std::vector<double> m;
+  if (rd.ok && rd.at < buf.size()) {
+    const std::uint64_t n = rd.Value<std::uint64_t>();
+    if (rd.ok && n <= (buf.size() - rd.at) / sizeof(double))
+      for (std::uint64_t i = 0; i < n; ++i) m.push_back(rd.Value<double>());
+    else
+      rd.ok = false;
+  }
   if (!rd.ok || rd.at != buf.size()) RefuseTile(path, "a truncated or damaged tile file");
+  if (misfit) *misfit = std::move(m);
   *r = std::move(t);
   return true;
 }

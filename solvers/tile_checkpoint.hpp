@@ -24,10 +24,14 @@ std::uint64_t RunFingerprint(const FieldData& field, const ReconstructOptions& f
 std::string TilePath(const std::string& dir, int index);
 
 // Writes the tile atomically (write then rename: a kill leaves either no file or a whole one).
-void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& tile);
+// `misfit` (optional): what the engine measured of the tile's residual over its core (per frame Σ r², then per
+// frame the pixel count), kept so that a resumed tile need not render its frames again.
+void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& tile,
+               const std::vector<double>& misfit = {});
 
 // Reads a tile written by WriteTile: false if there is no file; InvalidArgument (naming ReconstructTiled and
 // tiling.checkpoint_dir) if it is another run's or not a tile file.
-bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Reconstruction* tile);
+bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Reconstruction* tile,
+              std::vector<double>* misfit = nullptr);
 
 }  // namespace aosr::tiling_internal

@@ -751,9 +751,15 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     const std::string path = checkpoint ? tiling_internal::TilePath(tiling.checkpoint_dir, k) : "";
     const TileWindow& t = ts.tiles[k];
     std::optional<ReconstructionProblem> p;
-    if (checkpoint && tiling_internal::ReadTile(path, fingerprint, k, &out->rec)) {
+    std::vector<double> stored;  // the misfit a checkpoint kept: per frame Σ r², then per frame the pixels
+    bool solved = false;
+    if (checkpoint && tiling_internal::ReadTile(path, fingerprint, k, &out->rec, &stored)) {
       out->resumed = true;
       out->empty = out->rec.summary.method.empty() && out->rec.summary.message == "no data";
+      if (misfit_by_tiles && int(stored.size()) == 2 * n) {
+        out->ss.assign(stored.begin(), stored.begin() + n);
+        out->px.assign(stored.begin() + n, stored.end());
+      }
     } else {
       p = window_problem(t);
       if (!AnyWeighted(*p)) {  // nothing observed in the window: zeros, said in the summary
@@ -767,9 +773,9 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
           return;
         }
       }
-      if (checkpoint) tiling_internal::WriteTile(path, fingerprint, k, out->rec);
+      solved = true;
     }
-    if (misfit_by_tiles && !out->empty) {
+    if (misfit_by_tiles && !out->empty && out->ss.empty()) {
       if (!p) p = window_problem(t);
       const ImageStack predicted = p->model->Render(out->rec.image);
       out->ss.assign(n, 0.0);
@@ -783,6 +789,11 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
             out->ss[i] += d * d;
             out->px[i] += 1;
           }
+    }
+    if (solved && checkpoint) {
+      std::vector<double> misfit = out->ss;
+      misfit.insert(misfit.end(), out->px.begin(), out->px.end());
+      tiling_internal::WriteTile(path, fingerprint, k, out->rec, misfit);
     }
   };
 

@@ -298,8 +298,10 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
                                    "allowed: an existing folder (on storage the workers share)")
     dataset = os.path.abspath(os.fspath(dataset))
     common = {"weights": weights, "offsets": offsets, "options": options}
+    # The client keeps the dataset's FieldData from the plan to the blend (and for tasks run here with
+    # client="serial"), and frees it at the end.
     plan = aosr._aosr._tiles(dataset, method, phase="plan", tile=tile, tile_overlap=tile_overlap,
-                             memory_limit=memory_limit, **common)
+                             memory_limit=memory_limit, keep=True, **common)
     own_folder = checkpoint_dir is None
     if own_folder:
         parent = os.path.dirname(os.path.abspath(output)) if output else None
@@ -312,8 +314,10 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
                                          checkpoint_dir], sort_keys=True, default=str).encode()).hexdigest()[:16]
         map_tasks(_tile_task, tasks, client=client, progress=progress, n_workers=n_workers,
                   key_prefix=f"aosr-tile-{key}")
-        rec = aosr._aosr._tiles(dataset, method, phase="blend", plan=plan, checkpoint_dir=checkpoint_dir, **common)
+        rec = aosr._aosr._tiles(dataset, method, phase="blend", plan=plan, checkpoint_dir=checkpoint_dir, keep=True,
+                                **common)
     finally:
+        aosr._aosr._tiles_forget()
         _remove_stale_temporaries([os.path.join(checkpoint_dir, f"tile_{k}.bin") for k in range(plan["tiles"])])
         if own_folder:
             shutil.rmtree(checkpoint_dir, ignore_errors=True)

@@ -908,6 +908,17 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
       py::arg("tile_overlap") = -1, py::arg("memory_limit") = py::none(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("options") = py::dict(), py::arg("keep") = false,
       "Internal: the phases of aosr.distributed.reconstruct_tiles (plan, solve tiles, blend).");
+  m.def(
+      "_tiles_forget",
+      [] {
+        TileDataCache& cache = WorkerTileData();
+        const std::lock_guard<std::mutex> lock(cache.mutex);
+        cache.key.clear();
+        cache.dataset.reset();
+        cache.problem.reset();
+        cache.models.reset();
+      },
+      "Internal: frees the dataset aosr.distributed.reconstruct_tiles kept in this process.");
 
   m.def(
       "stars_psf",
