@@ -11,6 +11,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <utility>
 
 #include "aosr/core/error.hpp"
@@ -444,7 +445,18 @@ double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, i
   const double solve = EstimateSolveBytes(method, int(field.frames.size()), window_hr, weighted) + 8.0 * 3 * window_hr;
   // Two tile rows of output accumulators (numerator and denominator, twice with a second map).
   const double band = 2.0 * side * field.r * double(field.lr.cols) * field.r * 8.0 * (aux ? 4 : 2);
-  return data + concurrent * solve + band;
+  // The window models, one per window shape, kept for the run (N half spectra each, ~8 bytes per HR px per
+  // frame). Up to 9 shapes (first, inner, last along each axis): at 8192² from 4 frames, tiles of 512, that is
+  // 1.4 GB, which TV's run at --memory-limit 4G showed the estimate had left out (peak RSS 4.6 GiB).
+  int shapes = 9;
+  try {
+    std::set<std::pair<Index, Index>> distinct;
+    for (const TileWindow& t : MakeTiles(field.lr, tile, overlap, "EstimateTiledBytes")) distinct.insert({t.rows, t.cols});
+    shapes = int(distinct.size());
+  } catch (const InvalidArgument&) {
+  }
+  const double models = double(shapes) * 8.0 * double(field.frames.size()) * window_hr;
+  return data + concurrent * solve + band + models;
 }
 
 int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod method, double limit_bytes) {
