@@ -40,7 +40,9 @@ struct TileFnv {
 // A little-endian-as-in-memory writer/reader of the fields (the file is read back by the same build).
 struct TileWriter {
   std::vector<char> buf;
-  void Bytes(const void* p, std::size_t n) { buf.insert(buf.end(), (const char*)p, (const char*)p + n); }
+  void Bytes(const void* p, std::size_t n) {
+    if (n > 0) buf.insert(buf.end(), (const char*)p, (const char*)p + n);
+  }
   template <class T>
   void Value(const T& v) {
     Bytes(&v, sizeof v);
@@ -65,6 +67,7 @@ struct TileReader {
       ok = false;
       return;
     }
+    if (n == 0) return;  // an empty array's data() may be null, which memcpy may not be given
     std::memcpy(p, buf.data() + at, n);
     at += n;
   }
