@@ -591,40 +591,55 @@ namespace {
 // The reserved header space of a FitsRowWriter's primary HDU, in keywords: a reconstruction's header with WCS
 // and the linear method's summary holds about 60.
 constexpr int kFitsRowWriterHeaderKeywords = 400;
+
+// What FitsRowWriter and FitsCubeWriter share: a temporary file next to `path` (renamed onto it when finished)
+// holding one image HDU of `axes` (NAXIS1 first) with header space reserved. Nothing is left behind if it throws.
+void* CreateTemporaryImage(const std::string& path, const char* tag, LONGLONG* axes, int naxis, FitsType type,
+                           std::string* tmp) {
+  const std::filesystem::path p(path);
+  const std::filesystem::path dir = p.parent_path().empty() ? std::filesystem::path(".") : p.parent_path();
+  if (!std::filesystem::is_directory(dir)) throw IoError(path, "its folder does not exist");
+  static std::atomic<unsigned> counter{0};
+  *tmp = path + ".tmp-" + std::to_string(::getpid()) + "-" + tag + std::to_string(counter++);
+  ClearFitsMessages();
+  fitsfile* f = nullptr;
+  int status = 0;
+  if (fits_create_diskfile(&f, tmp->c_str(), &status)) ThrowFits(path, status, "cannot create");
+  const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
+  if (fits_create_imgll(f, bitpix, naxis, axes, &status) ||
+      fits_set_hdrsize(f, kFitsRowWriterHeaderKeywords, &status)) {
+    int ignored = 0;
+    fits_close_file(f, &ignored);
+    std::error_code ec;
+    std::filesystem::remove(*tmp, ec);  // a throwing constructor runs no destructor
+    ThrowFits(path, status, "cannot create the image HDU and its header space");
+  }
+  ClearFitsMessages();
+  return f;
+}
+
+// An unfinished writer's end: the file closed and the temporary removed.
+void AbandonTemporaryImage(void* file, const std::string& tmp) {
+  if (file != nullptr) {
+    int status = 0;
+    fits_close_file(static_cast<fitsfile*>(file), &status);
+    ClearFitsMessages();
+  }
+  if (!tmp.empty()) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+  }
+}
 }  // namespace
 
 FitsRowWriter::FitsRowWriter(const std::string& path, Shape shape, FitsType type)
     : path_(path), shape_(shape), type_(type) {
   CheckArgument(shape.rows > 0 && shape.cols > 0, "FitsRowWriter", "shape", ToString(shape), "non-empty");
-  const std::filesystem::path p(path);
-  const std::filesystem::path dir = p.parent_path().empty() ? std::filesystem::path(".") : p.parent_path();
-  if (!std::filesystem::is_directory(dir)) throw IoError(path, "its folder does not exist");
-  static std::atomic<unsigned> counter{0};
-  tmp_ = path + ".tmp-" + std::to_string(::getpid()) + "-rows" + std::to_string(counter++);
-  ClearFitsMessages();
-  fitsfile* f = nullptr;
-  int status = 0;
-  if (fits_create_diskfile(&f, tmp_.c_str(), &status)) ThrowFits(path, status, "cannot create");
-  file_ = f;
   LONGLONG axes[2] = {shape.cols, shape.rows};
-  const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
-  if (fits_create_imgll(f, bitpix, 2, axes, &status)) ThrowFits(path, status, "cannot create the image HDU");
-  if (fits_set_hdrsize(f, kFitsRowWriterHeaderKeywords, &status))
-    ThrowFits(path, status, "cannot reserve header space");
-  ClearFitsMessages();
+  file_ = CreateTemporaryImage(path, "rows", axes, 2, type, &tmp_);
 }
 
-FitsRowWriter::~FitsRowWriter() {
-  if (file_ != nullptr) {
-    int status = 0;
-    fits_close_file(static_cast<fitsfile*>(file_), &status);
-    ClearFitsMessages();
-  }
-  if (!tmp_.empty()) {
-    std::error_code ec;
-    std::filesystem::remove(tmp_, ec);
-  }
-}
+FitsRowWriter::~FitsRowWriter() { AbandonTemporaryImage(file_, tmp_); }
 
 void FitsRowWriter::WriteRows(Index row0, const Image& rows) {
   CheckArgument(file_ != nullptr, "FitsRowWriter::WriteRows", "state", "finished", "a writer not yet finished");
@@ -676,36 +691,12 @@ FitsCubeWriter::FitsCubeWriter(const std::string& path, Shape plane, Index reser
     : path_(path), plane_(plane), type_(type) {
   CheckArgument(plane.rows > 0 && plane.cols > 0, "FitsCubeWriter", "plane", ToString(plane), "non-empty");
   CheckArgument(reserve_planes >= 0, "FitsCubeWriter", "reserve_planes", reserve_planes, ">= 0");
-  const std::filesystem::path p(path);
-  const std::filesystem::path dir = p.parent_path().empty() ? std::filesystem::path(".") : p.parent_path();
-  if (!std::filesystem::is_directory(dir)) throw IoError(path, "its folder does not exist");
-  static std::atomic<unsigned> counter{0};
-  tmp_ = path + ".tmp-" + std::to_string(::getpid()) + "-cube" + std::to_string(counter++);
-  ClearFitsMessages();
-  fitsfile* f = nullptr;
-  int status = 0;
-  if (fits_create_diskfile(&f, tmp_.c_str(), &status)) ThrowFits(path, status, "cannot create");
-  file_ = f;
   capacity_ = std::max<Index>(1, reserve_planes);
   LONGLONG axes[3] = {plane.cols, plane.rows, LONGLONG(capacity_)};
-  const int bitpix = type == FitsType::kFloat32 ? FLOAT_IMG : DOUBLE_IMG;
-  if (fits_create_imgll(f, bitpix, 3, axes, &status)) ThrowFits(path, status, "cannot create the image HDU");
-  if (fits_set_hdrsize(f, kFitsRowWriterHeaderKeywords, &status))
-    ThrowFits(path, status, "cannot reserve header space");
-  ClearFitsMessages();
+  file_ = CreateTemporaryImage(path, "cube", axes, 3, type, &tmp_);
 }
 
-FitsCubeWriter::~FitsCubeWriter() {
-  if (file_ != nullptr) {
-    int status = 0;
-    fits_close_file(static_cast<fitsfile*>(file_), &status);
-    ClearFitsMessages();
-  }
-  if (!tmp_.empty()) {
-    std::error_code ec;
-    std::filesystem::remove(tmp_, ec);
-  }
-}
+FitsCubeWriter::~FitsCubeWriter() { AbandonTemporaryImage(file_, tmp_); }
 
 // The primary HDU is the file's only one until Finish: resizing it moves nothing (growing pads with zeros
 // that the next planes overwrite; cutting truncates).
