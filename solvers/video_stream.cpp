@@ -413,6 +413,9 @@ DatasetVideo::DatasetVideo(const Dataset& d, const VideoOptions& options, Datase
   weights_ = std::move(fw.weights);
   weights_source_ = std::move(fw.source);
   warning_ = std::move(fw.warning);
+  slot_weight_ = representative;
+  gain_e_per_adu_ = d.gain_e_per_adu;
+  bias_adu_ = d.bias_adu;
   times_.resize(d.frames.size());
   for (std::size_t i = 0; i < d.frames.size(); ++i)
     times_[i] = d.times_s.size() == d.frames.size() ? d.times_s[i] : double(i) / frame_rate_hz;
@@ -435,5 +438,15 @@ std::optional<VideoFrame> DatasetVideo::Next() {
   }
   return std::nullopt;
 }
+
+std::optional<VideoFrame> DatasetVideo::PushFrame(int slot, int index, double time_s, const Image& frame_adu) {
+  CheckArgument(slot >= 0 && slot < slot_count(), "DatasetVideo::PushFrame", "slot", slot,
+                "0.." + std::to_string(slot_count() - 1) + " (the dataset's phases)");
+  const Image empty;
+  const Image& w = weights_.empty() ? empty : weights_[std::size_t(slot_weight_[std::size_t(slot)])];
+  return engine_->Push(slot, index, time_s, (frame_adu - bias_adu_) * gain_e_per_adu_, w);
+}
+
+Shape DatasetVideo::frame_shape() const { return engine_->model()->lr_shape(); }
 
 }  // namespace aosr

@@ -16,5 +16,6 @@ void RegisterReconstruct(CLI::App& app);
 void RegisterTradeoff(CLI::App& app);
 void RegisterMtf(CLI::App& app);
 void RegisterVideo(CLI::App& app);
+void RegisterWatch(CLI::App& app);
 
 }  // namespace aosr::cli

@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   aosr::cli::RegisterTradeoff(app);
   aosr::cli::RegisterMtf(app);
   aosr::cli::RegisterVideo(app);
+  aosr::cli::RegisterWatch(app);
   aosr::cli::SetCommandLine(argc, argv);
   try {
     app.parse(argc, argv);

@@ -24,6 +24,7 @@
 #include "aosr/solvers/video_stream.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
+#include "stream_options.hpp"
 
 namespace aosr::cli {
 namespace {
@@ -33,17 +34,7 @@ constexpr const char* kVideoCmd = "aosr video";
 
 struct VideoArgs {
   std::string dataset, out;
-  std::string method = "tikhonov";
-  std::string window = "sliding";
-  std::string weights = "auto";
-  double lambda = -1;
-  std::string lambda_rule = "gcv";
-  std::string prior = "gradient";
-  std::string target_psf = "auto";
-  double leakage = 1e-3;
-  double mu = -1;
-  int tv_iterations = 10;
-  int tv_first_iterations = 1000;
+  StreamArgs stream;
   double frame_rate = 1.0;
   double fps = 10.0;
   std::string codec = "MJPG";
@@ -52,7 +43,6 @@ struct VideoArgs {
   std::string stretch = "asinh";
   int zoom = 1;
   int limit = 0;
-  bool batch = false;
   bool force = false;
   bool json = false;
   ExecutionArgs exec;
@@ -79,41 +69,7 @@ std::string TimeLabel(double t) {
 void RunVideo(const VideoArgs& a) {
   ApplyExecution(a.exec);
   const Progress progress(!a.json);
-  VideoOptions vo;
-  vo.method = ParseReconstructionMethod(a.method);
-  vo.window = ParseVideoWindow(a.window);
-  vo.tv_iterations = a.tv_iterations;
-  vo.slot_filter = !a.batch;
-  // As `aosr reconstruct`: weights are inverse variances, so a weight-1 pixel has sigma 1 (the discrepancy rule).
-  vo.reconstruct.tikhonov.noise_sigma = 1.0;
-  vo.reconstruct.linear.noise_sigma = 1.0;
-  vo.reconstruct.tikhonov.prior = ParseTikhonovPrior(a.prior);
-  if (a.lambda >= 0) {
-    vo.reconstruct.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
-    vo.reconstruct.tikhonov.lambda = a.lambda;
-  } else {
-    vo.reconstruct.tikhonov.lambda_rule = ParseTikhonovLambdaRule(a.lambda_rule);
-  }
-  if (a.target_psf.rfind("gaussian:", 0) == 0) {
-    vo.reconstruct.linear.kind = TargetPsfKind::kGaussian;
-    try {
-      vo.reconstruct.linear.fwhm_hr_px = std::stod(a.target_psf.substr(9));
-    } catch (const std::exception&) {
-      throw InvalidArgument(kVideoCmd, "--target-psf", a.target_psf, "auto | gaussian:<FWHM in HR px>");
-    }
-  } else if (a.target_psf != "auto") {
-    throw InvalidArgument(kVideoCmd, "--target-psf", a.target_psf, "auto | gaussian:<FWHM in HR px>");
-  }
-  vo.reconstruct.linear.leakage = a.leakage;
-  if (a.mu >= 0) {
-    vo.reconstruct.auto_regularisation = false;
-    vo.reconstruct.tv.mu = a.mu;
-  }
-  vo.reconstruct.tv.max_iterations = a.tv_first_iterations;
-  {
-    std::string why;
-    if (!vo.IsValid(&why)) throw InvalidArgument(std::string(kVideoCmd) + ": " + why);
-  }
+  const VideoOptions vo = StreamVideoOptions(a.stream, kVideoCmd);
   VideoFileOptions fo;
   fo.fps = a.fps;
   fo.codec = a.codec;
@@ -123,8 +79,7 @@ void RunVideo(const VideoArgs& a) {
     std::string why;
     if (!fo.IsValid(&why)) throw InvalidArgument(std::string(kVideoCmd) + ": video " + why);
   }
-  DatasetProblemOptions po;
-  po.weights = ParseDatasetWeights(a.weights);
+  const DatasetProblemOptions po = StreamProblemOptions(a.stream);
 
   progress.Step("reading " + a.dataset);
   const Dataset d = LoadDataset(a.dataset);
@@ -277,25 +232,7 @@ void RegisterVideo(CLI::App& app) {
       "--force.");
   cmd->add_option("dataset", a->dataset, "dataset folder or manifest")->required();
   cmd->add_option("-o,--output", a->out, "output folder (created if needed)")->required();
-  cmd->add_option("-m,--method", a->method, "tikhonov | linear | tv")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"tikhonov", "linear", "tv"}));
-  cmd->add_option("--window", a->window, "sliding | cycle")->capture_default_str()->check(CLI::IsMember({"sliding", "cycle"}));
-  cmd->add_option("--weights", a->weights, "auto | background | dataset | mask (as aosr reconstruct)")->capture_default_str();
-  cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: the --lambda-rule on the first window, then fixed)")
-      ->check(NonNegativeFinite());
-  cmd->add_option("--lambda-rule", a->lambda_rule, "gcv | discrepancy | lcurve | upre (run once, on the first window)")
-      ->capture_default_str();
-  cmd->add_option("--prior", a->prior, "Tikhonov prior: gradient | laplacian | identity | power-spectrum")->capture_default_str();
-  cmd->add_option("--target-psf", a->target_psf, "linear: auto | gaussian:<FWHM in HR px>")->capture_default_str();
-  cmd->add_option("--leakage", a->leakage, "linear: leakage bound epsilon")->capture_default_str();
-  cmd->add_option("--mu", a->mu, "tv: weight mu (default: automatic, on the first window)")->check(NonNegativeFinite());
-  cmd->add_option("--tv-iterations", a->tv_iterations, "tv: ADMM iterations per warm-started output")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 100000));
-  cmd->add_option("--tv-first-iterations", a->tv_first_iterations, "tv: ADMM iteration limit of the first window")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 1000000));
+  AddStreamOptions(cmd, &a->stream);
   cmd->add_option("--frame-rate", a->frame_rate, "frames per second, for times index/rate when the dataset has none")
       ->capture_default_str()
       ->check(CLI::Range(1e-9, 1e9));
@@ -309,7 +246,6 @@ void RegisterVideo(CLI::App& app) {
       ->check(CLI::IsMember({"asinh", "log", "linear"}));
   cmd->add_option("--zoom", a->zoom, "video: integer enlargement")->capture_default_str()->check(CLI::Range(1, 16));
   cmd->add_option("--limit", a->limit, "stop after this many outputs (0: all)")->capture_default_str()->check(CLI::Range(0, 1 << 30));
-  cmd->add_flag("--batch", a->batch, "the batch solver on every window instead of the slot filter (to compare)");
   cmd->add_flag("--force", a->force, "overwrite video.fits and the video file in DIR if they exist");
   cmd->add_flag("--json", a->json, "print the summary as JSON");
   AddExecutionOptions(cmd, &a->exec);

@@ -21,6 +21,7 @@
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "support/testing.hpp"
+#include "support/video_sequence.hpp"
 
 namespace AOSR_TEST_NS {
 
@@ -32,61 +33,16 @@ using aosr::test::CliRun;
 using aosr::test::RunCli;
 using ::testing::HasSubstr;
 
-constexpr aosr::Shape kVideoHr{48, 40};
-constexpr int kVideoR = 2;
-constexpr int kVideoFrames = 10;
-constexpr double kVideoGain = 2.0, kVideoBias = 100.0, kVideoDt = 0.05;
-const std::vector<std::pair<double, double>> kVideoShifts = {{0, 0}, {0, 1}, {1, 0}, {1, 1.5}};  // HR px
-
-// The phases' PSFs: Gaussians of σ 1.1 HR px shifted by the raster above, 16 x 16, unit sum.
-ImageStack VideoPsfs() {
-  ImageStack psfs;
-  for (auto [dy, dx] : kVideoShifts) {
-    Image k(16, 16);
-    for (Index y = 0; y < 16; ++y)
-      for (Index x = 0; x < 16; ++x) {
-        const double a = double(y) - 8 - dy, b = double(x) - 8 - dx;
-        k(y, x) = std::exp(-(a * a + b * b) / (2 * 1.1 * 1.1));
-      }
-    psfs.push_back(k / k.sum());
-  }
-  return psfs;
-}
-
-// Frame j in e-: phase j mod 4 of a background plus a blob at x = 10 + j HR px, with noise of σ 0.01.
-Image VideoFrameE(int j) {
-  const auto model = aosr::MultiFrameModel::FromKernels(kVideoHr, kVideoR, VideoPsfs());
-  Image x = 0.1 * aosr::test::RandomImage(kVideoHr, 11, false);
-  for (Index y = 0; y < kVideoHr.rows; ++y)
-    for (Index c = 0; c < kVideoHr.cols; ++c) {
-      const double dy = double(y) - 20.0, dx = double(c) - 10.0 - j;
-      x(y, c) += 3.0 * std::exp(-(dy * dy + dx * dx) / 8.0);
-    }
-  return model.Render(x)[std::size_t(j % 4)] + 0.01 * aosr::test::RandomImage(model.lr_shape(), 700 + std::uint64_t(j));
-}
-
-// A manifest of frames `frames` (ADU, gain 2, bias 100) with PSFs `psfs`, the detector model's noise (uniform
-// background weights 1/σ²) and a WCS; `sequence` adds slots and times.
-nlohmann::json VideoManifest(const nlohmann::json& sequence) {
-  nlohmann::json m = {{"format", "aosr-manifest"}, {"version", 1}, {"frames", "frames.fits"}, {"psfs", "psfs.fits"},
-                      {"r", kVideoR}, {"gain_e_per_adu", kVideoGain}, {"bias_adu", kVideoBias}};
-  m["noise"] = {{"model", "peak-fraction"}, {"sigma_e", 0.01}};
-  m["wcs"] = {{"CTYPE1", "RA---TAN"}, {"CTYPE2", "DEC--TAN"}, {"CRPIX1", 10.5}, {"CRPIX2", 12.5},
-              {"CRVAL1", 150.1},      {"CRVAL2", 2.2},        {"CD1_1", -1e-5},  {"CD1_2", 0.0},
-              {"CD2_1", 0.0},         {"CD2_2", 1e-5}};
-  if (!sequence.is_null()) m["sequence"] = sequence;
-  return m;
-}
-
-void WriteVideoDataset(const fs::path& dir, const std::vector<int>& frames, const ImageStack& psfs,
-                       const nlohmann::json& sequence) {
-  fs::create_directories(dir);
-  ImageStack adu;
-  for (int j : frames) adu.push_back(VideoFrameE(j) / kVideoGain + kVideoBias);
-  aosr::WriteFitsCube((dir / "frames.fits").string(), adu, {}, aosr::FitsType::kFloat64);
-  aosr::WriteFitsCube((dir / "psfs.fits").string(), psfs, {}, aosr::FitsType::kFloat64);
-  std::ofstream(dir / "manifest.json") << VideoManifest(sequence).dump(1);
-}
+using aosr::test::kVideoBias;
+using aosr::test::kVideoDt;
+using aosr::test::kVideoFrames;
+using aosr::test::kVideoGain;
+using aosr::test::kVideoHr;
+using aosr::test::kVideoR;
+using aosr::test::VideoFrameE;
+using aosr::test::VideoManifest;
+using aosr::test::VideoPsfs;
+using aosr::test::WriteVideoDataset;
 
 // The number of frames OpenCV reads back from a video file, and their size; -1 when it cannot open it.
 int VideoFramesReadBack(const std::string& path, int* rows, int* cols) {

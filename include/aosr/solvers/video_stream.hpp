@@ -186,6 +186,15 @@ class DatasetVideo {
                double frame_rate_hz = 1.0);
   // The next output, or nothing when the frames are used up.
   std::optional<VideoFrame> Next();
+  // A frame from outside the dataset, e.g. a live camera's (solvers/quick_look.hpp): raw counts (ADU) of phase
+  // `slot`, converted as the dataset's frames are ((ADU − bias) · gain) and weighted as the dataset's first frame
+  // of that phase is (its valid mask and the noise level resolved from the dataset's frames: the same detector).
+  // `index` is the caller's frame number (VideoFrame::frames). InvalidArgument for a slot out of range or a
+  // frame of another shape (VideoReconstructor::Push's checks).
+  std::optional<VideoFrame> PushFrame(int slot, int index, double time_s, const Image& frame_adu);
+
+  int slot_count() const { return int(slot_weight_.size()); }
+  Shape frame_shape() const;
 
   int frames_total() const { return int(frames_e_.size()); }
   int frames_read() const { return next_; }
@@ -200,6 +209,8 @@ class DatasetVideo {
   ImageStack frames_e_, weights_;
   std::vector<int> slots_;
   std::vector<double> times_;
+  std::vector<int> slot_weight_;  // per slot: the frame whose weight map PushFrame uses
+  double gain_e_per_adu_ = 1, bias_adu_ = 0;
   std::string weights_source_, warning_;
   int next_ = 0;
 };
