@@ -9,7 +9,9 @@ rename). `aosr watch` (the real executable, its own process) reconstructs them a
 linear methods (Tikhonov with a fixed lambda, the target-PSF output), on 1 and 2 threads, and must account for every
 file: the table reports lost, half-read (rejected) and late files (all must be 0), the latency from each file's
 completion (its modification time) to the quick-look FITS and PNG renamed into place (p50, p95, p99, max; the
-first output, which builds the slot filter, apart), and the median stages (read, reconstruct, write).
+first output, which builds the slot filter, apart), and the median stages (read, reconstruct, write). Only the
+newest output is written when files queue up (solvers/quick_look.hpp): the table counts the outputs written and
+those superseded.
 
 The model dataset: Gaussian PSFs (σ 1.3 HR px) on the 2 × 2 raster of half-pixel shifts, gain 2, bias 100, a known
 noise σ; the frames: a field of stars and a moving blob, noise σ 1 e⁻.
@@ -164,7 +166,8 @@ def main():
             s = run(args, aosr_cli, work, work / "model", work / "cycle.npy", method, threads)
             lat = s["latency_ms"]
             rows.append(f"| {method} | {threads} | {args.frames} | {s['used']} | {s['lost']} | {s['rejected']} | "
-                        f"{s['late']} | {s['incomplete']} | {s['first_latency_ms']:.0f} | {lat['p50']:.1f} | "
+                        f"{s['late']} | {s['incomplete']} | {s['written']} | {s['superseded']} | "
+                        f"{s['first_latency_ms']:.0f} | {lat['p50']:.1f} | "
                         f"{lat['p95']:.1f} | {lat['p99']:.1f} | {lat['max']:.1f} | {s['read_ms_p50']:.2f} | "
                         f"{s['reconstruct_ms_p50']:.2f} | {s['write_ms_p50']:.2f} | {s['writer_late']} |")
             print(rows[-1], flush=True)
@@ -174,9 +177,10 @@ def main():
         f"({R * LR}² outputs), sliding window; writer: {writer_kind}; inotify. Latency: file complete (mtime) → "
         "quicklook.fits and quicklook.png renamed into place. Stages: medians per output.",
         "",
-        "| method | threads | files | used | lost | rejected | late | incomplete | first output ms | p50 ms | p95 ms | "
-        "p99 ms | max ms | read ms | reconstruct ms | write ms | writer behind schedule |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| method | threads | files | used | lost | rejected | late | incomplete | outputs written | superseded | "
+        "first output ms | p50 ms | p95 ms | p99 ms | max ms | read ms | reconstruct ms | write ms | "
+        "writer behind schedule |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ] + rows) + "\n"
     print()
     print(text)

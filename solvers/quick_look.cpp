@@ -82,19 +82,32 @@ std::optional<QuickLookEvent> QuickLook::Next(double timeout_s) {
   CheckArgument(std::isfinite(timeout_s) && timeout_s >= 0, "QuickLook::Next", "timeout_s", timeout_s,
                 "finite and >= 0");
   for (auto& a : watcher_->TakeAbandoned()) abandoned_.push_back(std::move(a));
+  QuickLookEvent e;
   if (abandoned_.empty()) {
     std::optional<WatchedFile> f = watcher_->Next(timeout_s);
     for (auto& a : watcher_->TakeAbandoned()) abandoned_.push_back(std::move(a));
-    if (f) return Process(*f);
+    if (!f && abandoned_.empty()) return std::nullopt;
+    if (f) e = Process(*f);
   }
-  if (abandoned_.empty()) return std::nullopt;
-  QuickLookEvent e;
-  e.file = abandoned_.front().first;
-  e.status = "incomplete";
-  e.message = "never complete: " + abandoned_.front().second;
-  abandoned_.erase(abandoned_.begin());
-  ++incomplete_;
+  if (e.file.empty()) {
+    e.file = abandoned_.front().first;
+    e.status = "incomplete";
+    e.message = "never complete: " + abandoned_.front().second;
+    abandoned_.erase(abandoned_.begin());
+    ++incomplete_;
+  }
+  // The newest output goes in place unless a file is already waiting (top of quick_look.hpp).
+  if (unwritten_ && !watcher_->Ready()) WriteLatest(&e);
   return e;
+}
+
+void QuickLook::WriteLatest(QuickLookEvent* e) {
+  const auto t_write = std::chrono::steady_clock::now();
+  if (!options_.output_dir.empty()) WriteOutputs(*unwritten_);
+  e->write_s = Since(t_write);
+  e->written_output = unwritten_->index;
+  e->latency_s = NowUnix() - unwritten_mtime_;
+  unwritten_.reset();
 }
 
 QuickLookEvent QuickLook::Process(const WatchedFile& f) {
@@ -163,10 +176,9 @@ QuickLookEvent QuickLook::Process(const WatchedFile& f) {
   slot_file_[std::size_t(slot)] = f.name;
   if (e.output) {
     ++outputs_;
-    const auto t_write = std::chrono::steady_clock::now();
-    if (!options_.output_dir.empty()) WriteOutputs(*e.output);
-    e.write_s = Since(t_write);
-    e.latency_s = NowUnix() - f.mtime_unix_s;
+    if (unwritten_) ++superseded_;
+    unwritten_ = *e.output;
+    unwritten_mtime_ = f.mtime_unix_s;
   }
   return e;
 }

@@ -506,17 +506,17 @@ py::object QuickLookNext(PyQuickLook& q) {
       d["read_s"] = e->read_s;
       d["reconstruct_s"] = e->reconstruct_s;
       d["write_s"] = e->write_s;
+      d["written_output"] = e->written_output >= 0 ? py::object(py::int_(e->written_output)) : py::object(py::none());
+      d["latency_s"] = e->written_output >= 0 ? py::object(py::float_(e->latency_s)) : py::object(py::none());
       if (e->output) {
         d["output"] = e->output->index;
         d["frames"] = e->output->frames;
         d["path"] = e->output->path;
-        d["latency_s"] = e->latency_s;
         d["image"] = MoveImage(std::move(e->output->image));
       } else {
         d["output"] = py::none();
         d["frames"] = py::none();
         d["path"] = py::none();
-        d["latency_s"] = py::none();
         d["image"] = py::none();
       }
       return std::move(d);
@@ -1237,6 +1237,8 @@ when called: InvalidArgument (a ValueError) naming the argument, IoError for an 
       .def_property_readonly("late", [](const PyQuickLook& q) { return q.quick_look->late(); })
       .def_property_readonly("rejected", [](const PyQuickLook& q) { return q.quick_look->rejected(); })
       .def_property_readonly("incomplete", [](const PyQuickLook& q) { return q.quick_look->incomplete(); })
+      .def_property_readonly("superseded", [](const PyQuickLook& q) { return q.quick_look->superseded(); },
+                             "outputs never written to the quick-look files: a newer file was already waiting")
       .def_property_readonly("inotify", [](const PyQuickLook& q) { return q.quick_look->using_inotify(); },
                              "True: the kernel reports new files (inotify); False: the folder is scanned")
       .def_property_readonly("phases", [](const PyQuickLook& q) { return q.quick_look->video().slot_count(); })
@@ -1306,7 +1308,9 @@ poll_interval, abandon_after   seconds between scans of the folder (the fallback
 Each event is a dict: file, status ('used' | 'late': older than its phase's current frame | 'rejected': not a
 usable frame | 'incomplete': never finished), message (why), phase, frame (number among the used frames), time_s,
 output (the output's index or None), image (ndarray or None), frames (the frame used for each phase), path,
-latency_s (file completed -> quick-look written), read_s, reconstruct_s, write_s. Half-written files are never read.
+written_output (the output put in place during this event, or None: only the newest is written when files queue
+up), latency_s (its file completed -> quick-look written, or None), read_s, reconstruct_s, write_s. Half-written
+files are never read.
 Ctrl-C raises KeyboardInterrupt between waits. Returns an aosr.QuickLook (its used, outputs, late, rejected,
 incomplete, inotify, phases count the run). InvalidArgument (a ValueError) naming a bad argument, IoError for a
 missing folder or an unreadable model.)doc");

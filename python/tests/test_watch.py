@@ -94,7 +94,9 @@ def test_watch_follows_a_writer_process_at_50_frames_per_second(tmp_path):
     assert sorted(e["phase"] for e in events) == sorted(j % 4 for j in range(FRAMES))
     outputs = [e for e in events if e["image"] is not None]
     assert len(outputs) == FRAMES - 3 and ql.outputs == FRAMES - 3 and ql.used == FRAMES
-    assert all(e["latency_s"] > 0 for e in outputs)
+    written = [e for e in events if e["written_output"] is not None]
+    assert len(written) + ql.superseded == len(outputs) and written[-1]["written_output"] == len(outputs) - 1
+    assert all(e["latency_s"] > 0 for e in written)
     # The same frames as a sequence dataset, through aosr.video: the same engine, the same outputs.
     seq = _dataset(tmp_path / "seq", frames, True)
     by_time = sorted(events, key=lambda e: e["time_s"])

@@ -131,19 +131,25 @@ void RunWatch(const WatchArgs& a) {
       j["path"] = e->output->path;
       j["frames"] = e->output->frames;
       j["reconstruct_ms"] = 1e3 * e->reconstruct_s;
+      read.push_back(1e3 * e->read_s);
+      rec.push_back(1e3 * e->reconstruct_s);
+    }
+    if (e->written_output >= 0) {
+      j["written"] = e->written_output;
       j["write_ms"] = 1e3 * e->write_s;
       j["latency_ms"] = 1e3 * e->latency_s;
       latency.push_back(1e3 * e->latency_s);
-      read.push_back(1e3 * e->read_s);
-      rec.push_back(1e3 * e->reconstruct_s);
       write.push_back(1e3 * e->write_s);
     }
     log << j.dump() << '\n' << std::flush;
     if (!a.quiet && !a.json) {
-      if (e->output)
-        std::printf("%-7s %s phase %d -> output %d (%s), latency %.1f ms\n", e->status.c_str(),
+      if (e->output && e->written_output >= 0)
+        std::printf("%-7s %s phase %d -> output %d (%s), written with latency %.1f ms\n", e->status.c_str(),
                     fs::path(e->file).filename().c_str(), e->slot, e->output->index, e->output->path.c_str(),
                     1e3 * e->latency_s);
+      else if (e->output)
+        std::printf("%-7s %s phase %d -> output %d (%s), not written: a newer file is waiting\n", e->status.c_str(),
+                    fs::path(e->file).filename().c_str(), e->slot, e->output->index, e->output->path.c_str());
       else
         std::printf("%-7s %s%s%s\n", e->status.c_str(), fs::path(e->file).filename().c_str(),
                     e->message.empty() ? "" : ": ", e->message.c_str());
@@ -152,7 +158,8 @@ void RunWatch(const WatchArgs& a) {
   }
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
-  // Steady state: the first output builds the slot filter (or chooses λ, μ) and is reported apart.
+  // Steady state: the first output builds the slot filter (or chooses λ, μ) and is reported apart. Latencies are
+  // those of the written outputs (quick_look.hpp).
   std::vector<double> steady(latency.size() > 1 ? latency.begin() + 1 : latency.end(), latency.end());
   if (a.json) {
     nlohmann::json j;
@@ -162,6 +169,8 @@ void RunWatch(const WatchArgs& a) {
     j["rejected"] = ql.rejected();
     j["incomplete"] = ql.incomplete();
     j["outputs"] = ql.outputs();
+    j["written"] = int(latency.size());
+    j["superseded"] = ql.superseded();
     j["stopped_by"] = stop_reason;
     j["inotify"] = ql.using_inotify();
     j["first_latency_ms"] = latency.empty() ? 0.0 : latency.front();
@@ -175,8 +184,10 @@ void RunWatch(const WatchArgs& a) {
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }
-  std::printf("aosr watch: stopped by %s after %d files: %d used, %d late, %d rejected, %d incomplete; %d outputs\n",
-              stop_reason.c_str(), files, ql.used(), ql.late(), ql.rejected(), ql.incomplete(), ql.outputs());
+  std::printf("aosr watch: stopped by %s after %d files: %d used, %d late, %d rejected, %d incomplete; %d outputs, "
+              "%d written (%d superseded by a newer one)\n",
+              stop_reason.c_str(), files, ql.used(), ql.late(), ql.rejected(), ql.incomplete(), ql.outputs(),
+              int(latency.size()), ql.superseded());
   if (!latency.empty())
     std::printf("  latency (file complete -> quick-look written): first %.1f ms; then p50 %.1f, p95 %.1f, max %.1f ms\n",
                 latency.front(), Percentile(steady, 50), Percentile(steady, 95),

@@ -370,6 +370,13 @@ std::optional<WatchedFile> DirectoryWatcher::Next(double timeout_s) {
   }
 }
 
+bool DirectoryWatcher::Ready() {
+  Impl& m = *impl_;
+  if (m.fd >= 0 && !m.Drain()) m.Scan();
+  if (Impl::Steady() >= m.next_scan_s) m.Scan();
+  return !m.ready.empty();
+}
+
 std::vector<std::pair<std::string, std::string>> DirectoryWatcher::TakeAbandoned() {
   std::vector<std::pair<std::string, std::string>> out;
   out.swap(impl_->abandoned);

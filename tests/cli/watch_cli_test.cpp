@@ -81,7 +81,9 @@ TEST_F(WatchCliTest, ReconstructsFramesAsTheCameraWritesThem) {
   ASSERT_EQ(lines.size(), 10u);
   EXPECT_EQ(lines[3]["output"], 0);
   EXPECT_EQ(lines[9]["output"], 6);
+  EXPECT_EQ(lines[9]["written"], 6);  // the last output is always put in place
   EXPECT_GT(lines[9]["latency_ms"].get<double>(), 0.0);
+  EXPECT_EQ(j["written"].get<int>() + j["superseded"].get<int>(), 7);
   // The quick-look is the library engine's last output for the same frames.
   const aosr::Dataset model = aosr::LoadDataset(P("model"));
   aosr::VideoOptions vo;

@@ -77,6 +77,9 @@ class DirectoryWatcher {
 
   // The next complete file, waiting up to timeout_s (>= 0; 0: only what is ready now). nullopt on timeout.
   std::optional<WatchedFile> Next(double timeout_s);
+  // Whether a complete file is waiting now (no wait): a consumer that is behind can skip work that the next file
+  // makes stale (the quick-look writes only the newest output).
+  bool Ready();
   // Files given up as incomplete since the last call (path and the reason), each once.
   std::vector<std::pair<std::string, std::string>> TakeAbandoned();
   // Whether inotify is in use (false: scanning).

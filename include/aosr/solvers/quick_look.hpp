@@ -16,9 +16,13 @@
 //   4. when it completes an output: output_dir/quicklook.fits (float32, e⁻ per HR pixel, the HR grid's WCS,
 //      the files used) and quicklook.png (the stretch of `view`, row 0 at the top as in aosr's video files) are
 //      replaced atomically, so a viewer polling them never sees a partial image.
-// Latency (QuickLookEvent::latency_s): from the file's completion (its modification time, the wall clock) to
-// the moment the quick-look was renamed into place (or the output existed, without output_dir). It includes
-// the watcher's detection, the read, the reconstruction and the writes.
+// Only the newest output is written: when another file is already waiting, writing is left to it (the output
+// is "superseded"; the next written quick-look contains its frame, the window being sliding). Writing (~10 ms
+// at 512²) costs more than an output of the slot filter (~2 ms), so a quick-look that fell behind (a burst of
+// files, a busy machine) catches up instead of lagging further behind with every frame.
+// Latency (QuickLookEvent::latency_s): from the completion (modification time, the wall clock) of the file that
+// completed the output written, to the moment the quick-look was renamed into place (or, without output_dir,
+// the output existed). It includes the watcher's detection, the read, the reconstruction and the writes.
 //
 // Nothing is lost silently: every file the watcher sees gives one event with a status (used, late, rejected,
 // incomplete) and, for the last three, the reason.
@@ -69,7 +73,8 @@ struct QuickLookEvent {
   double time_s = 0;      // the frame's time (time_key, or seconds since start)
   std::optional<VideoFrame> output;  // the output this frame completed, if any
   double file_mtime_unix_s = 0;      // the file's completion
-  double latency_s = 0;   // completion → quick-look in place (top of the file); 0 without an output
+  int written_output = -1;  // the output put in place during this event (this frame's or a deferred one), or −1
+  double latency_s = 0;     // for written_output: completion of its file → quick-look in place (top of the file)
   double read_s = 0, reconstruct_s = 0, write_s = 0;  // this frame's stages, wall seconds
 };
 
@@ -90,12 +95,14 @@ class QuickLook {
   int late() const { return late_; }
   int rejected() const { return rejected_; }
   int incomplete() const { return incomplete_; }
+  int superseded() const { return superseded_; }  // outputs never written: a newer one was
   bool using_inotify() const { return watcher_->using_inotify(); }
   const DatasetVideo& video() const { return *video_; }
 
  private:
   QuickLookEvent Process(const WatchedFile& f);
   void WriteOutputs(const VideoFrame& out);
+  void WriteLatest(QuickLookEvent* e);
 
   QuickLookOptions options_;
   FitsHeader header_;  // the model's HR keywords (BUNIT, WCS), the base of every quicklook.fits
@@ -105,7 +112,9 @@ class QuickLook {
   std::vector<std::string> slot_file_;   // its file name
   std::vector<std::pair<std::string, std::string>> abandoned_;
   double start_unix_s_ = 0;
-  int used_ = 0, outputs_ = 0, late_ = 0, rejected_ = 0, incomplete_ = 0;
+  std::optional<VideoFrame> unwritten_;  // the newest output, until written
+  double unwritten_mtime_ = 0;           // its file's completion
+  int used_ = 0, outputs_ = 0, late_ = 0, rejected_ = 0, incomplete_ = 0, superseded_ = 0;
 };
 
 }  // namespace aosr
