@@ -69,6 +69,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     QuickLook,
     write_figure,
     write_fits,
+    write_image,
 )
 
 __all__ = [
@@ -77,7 +78,7 @@ __all__ = [
     "evaluate", "fourier_shift", "load_scene",
     "methods", "mtf", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
     "scene_from_dict", "set_fft_planner", "fft_wisdom_loaded", "allocator_tuned", "tune_allocator", "set_memory_limit", "set_threads", "simulate", "stars_psf",
-    "synthesize_calibration", "threads", "usaf_resolving_power", "video", "VideoStream", "watch", "QuickLook", "write_figure", "write_fits",
+    "synthesize_calibration", "threads", "usaf_resolving_power", "video", "VideoStream", "watch", "QuickLook", "write_figure", "write_fits", "write_image",
 ]
 
 

@@ -5,6 +5,7 @@
 // astropy expects for them, and what cfitsio wrote); write_fits accepts either form.
 #include "aosr/core/error.hpp"
 #include "aosr/io/fits.hpp"
+#include "aosr/io/image_io.hpp"
 #include "aosr/io/plot.hpp"
 #include "common.hpp"
 
@@ -96,6 +97,36 @@ void BindIo(py::module_& m) {
       "Writes a 2-D image or an (N, rows, cols) cube as FITS, atomically (write to a temporary name, then\n"
       "rename). header: a dict {KEYWORD: value} or an astropy Header (structural keywords are skipped);\n"
       "comments: {KEYWORD: comment}. dtype 'float32' (default) or 'float64' (exact).");
+  m.def(
+      "write_image",
+      [](py::object path_object, py::handle image, const std::string& stretch, double low, double high, int bits,
+         double softening) {
+        const std::string path = PathString(path_object);
+        const Image img = ImageFromArray(image, "image");
+        ViewOptions o;
+        if (stretch == "linear") {
+          o.stretch = Stretch::kLinear;
+        } else if (stretch == "log") {
+          o.stretch = Stretch::kLog;
+        } else if (stretch == "asinh") {
+          o.stretch = Stretch::kAsinh;
+        } else {
+          throw InvalidArgument("aosr.write_image", "stretch", stretch, "linear | log | asinh");
+        }
+        o.low_percentile = low;
+        o.high_percentile = high;
+        o.bits = bits;
+        o.asinh_softening = softening;
+        std::string why;
+        if (!o.IsValid(&why)) throw InvalidArgument("aosr.write_image: " + why);
+        WithoutGil([&] { WriteViewImage(path, img, o); });
+      },
+      py::arg("path"), py::arg("image"), py::kw_only(), py::arg("stretch") = "asinh", py::arg("low") = 0.5,
+      py::arg("high") = 99.8, py::arg("bits") = 8, py::arg("softening") = 0.05,
+      "Writes a 2-D image as a grayscale PNG (.png) or TIFF (.tif, .tiff), atomically, for viewing\n"
+      "(include/aosr/io/image_io.hpp): the values between the low and high percentiles (in %) mapped through the\n"
+      "stretch ('linear' | 'log' | 'asinh' with the given softening) to 0..2^bits-1 (8 or 16; 32: float TIFF).\n"
+      "Row 0 is the top row of the file. The quick-look PNG of aosr watch is this with the defaults.");
   m.def(
       "write_figure",
       [](py::object path_object, py::list panels, int panel_width, int panel_height, int columns) {

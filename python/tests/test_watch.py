@@ -129,3 +129,62 @@ def test_watch_refuses_bad_arguments_when_called(tmp_path):
         aosr.watch(camera, model, output=tmp_path / "absent")
     # Nothing arrives: the idle limit ends the iteration.
     assert list(aosr.watch(camera, model, idle_timeout=0.3)) == []
+
+
+def _read_png_gray8(path):
+    """A minimal decoder of an 8-bit grayscale PNG (zlib from the standard library; PNG spec, filters 0-4)."""
+    import struct
+    import zlib
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat = 8, b""
+    while pos < len(data):
+        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            w, h, depth, colour = struct.unpack(">IIBB", body[:10])
+            assert (depth, colour) == (8, 0), (depth, colour)
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + n
+    raw = zlib.decompress(idat)
+    out = np.zeros((h, w), dtype=np.int64)
+    prev = np.zeros(w, dtype=np.int64)
+    for y in range(h):
+        f, row = raw[y * (w + 1)], np.frombuffer(raw[y * (w + 1) + 1:(y + 1) * (w + 1)], dtype=np.uint8).astype(np.int64)
+        cur = np.zeros(w, dtype=np.int64)
+        for x in range(w):
+            a = cur[x - 1] if x else 0
+            b, c = prev[x], (prev[x - 1] if x else 0)
+            if f == 0:
+                pred = 0
+            elif f == 1:
+                pred = a
+            elif f == 2:
+                pred = b
+            elif f == 3:
+                pred = (a + b) // 2
+            else:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                pred = a if pa <= pb and pa <= pc else (b if pb <= pc else c)
+            cur[x] = (row[x] + pred) % 256
+        out[y], prev = cur, cur
+    return out
+
+
+def test_write_image_maps_the_stretch_to_8_bits_with_row_0_at_the_top(tmp_path):
+    ramp = np.add.outer(np.arange(6.0), np.arange(10.0) * 10)  # rows 0..5 (top to bottom), columns 0..90
+    aosr.write_image(tmp_path / "ramp.png", ramp, stretch="linear", low=0, high=100)
+    got = _read_png_gray8(tmp_path / "ramp.png")
+    expected = np.floor((ramp - ramp.min()) / (ramp.max() - ramp.min()) * 255 + 0.5)
+    assert got.shape == ramp.shape and np.array_equal(got, expected)
+    aosr.write_image(tmp_path / "asinh.png", ramp)  # the quick-look's defaults
+    a = _read_png_gray8(tmp_path / "asinh.png")
+    assert a[0, 0] == 0 and a[-1, -1] == 255 and np.all(np.diff(a[0]) >= 0)
+    with pytest.raises(aosr.InvalidArgument, match="stretch"):
+        aosr.write_image(tmp_path / "x.png", ramp, stretch="gamma")
+    with pytest.raises(aosr.InvalidArgument, match="percentile"):
+        aosr.write_image(tmp_path / "x.png", ramp, low=50, high=10)
+    with pytest.raises(aosr.InvalidArgument, match=".jpg"):
+        aosr.write_image(tmp_path / "x.jpg", ramp)
