@@ -161,9 +161,10 @@ void BindIo(py::module_& m) {
           if (d.contains("series"))
             for (py::handle s : d["series"].cast<py::list>()) {
               const py::dict sd = s.cast<py::dict>();
-              keys(sd, {"label", "x", "y"}, where + ".series");
+              keys(sd, {"label", "x", "y", "point_labels"}, where + ".series");
               PlotSeries ps;
               if (sd.contains("label")) ps.label = sd["label"].cast<std::string>();
+              if (sd.contains("point_labels")) ps.point_labels = sd["point_labels"].cast<std::vector<std::string>>();
               ps.x = sd["x"].cast<std::vector<double>>();
               ps.y = sd["y"].cast<std::vector<double>>();
               lp.series.push_back(std::move(ps));
@@ -180,7 +181,8 @@ void BindIo(py::module_& m) {
       py::arg("columns") = 2,
       "Writes line plots as a PNG, atomically (include/aosr/io/plot.hpp: the pictures of aosr tradeoff and\n"
       "evaluate). panels: a list of {'title': str, 'x': {'label', 'log', 'min', 'max'}, 'y': {...},\n"
-      "'series': [{'label': str, 'x': [...], 'y': [...]}]}; non-finite points break a line. For benches and\n"
+      "'series': [{'label': str, 'x': [...], 'y': [...], 'point_labels': [str per point] (optional)}]};\n"
+      "non-finite points break a line. For benches and\n"
       "reports without matplotlib. Raises ValueError naming the bad panel, series or key.");
 }
 

@@ -81,3 +81,6 @@ def test_write_figure(tmp_path):
         aosr.write_figure(path, [{"colour": "red"}])
     with pytest.raises(ValueError, match="log"):
         aosr.write_figure(path, [{"y": {"log": True}, "series": [{"x": [1], "y": [-1]}]}])
+    aosr.write_figure(path, [{"series": [{"x": [1, 2], "y": [3, 4], "point_labels": ["a", ""]}]}])
+    with pytest.raises(ValueError, match="point_labels"):
+        aosr.write_figure(path, [{"series": [{"x": [1, 2], "y": [3, 4], "point_labels": ["a"]}]}])

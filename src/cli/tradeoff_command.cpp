@@ -6,6 +6,12 @@
 //   shift-add, shift-add-median, drizzle   one run (no knob)
 //   tikhonov                               λ by GCV, then fixed λ = f · λ_GCV for each --lambda-factors f
 //                                          (the fixed runs skip the GCV search, so they are also its cost)
+//   linear                                 the target-PSF output (target_psf.hpp), the science output: its
+//                                          automatic target (leakage bound), then Gaussian targets of
+//                                          FWHM f · FWHM_auto for each --target-factors f: resolution bought
+//                                          with noise and leakage. Scored against the truth seen through its
+//                                          own effective PSF (what it estimates), with the target and
+//                                          effective FWHM, the noise RMS and the leakage per row
 //   tv, map                                one run per --iterations cap, each from scratch (the Tikhonov
 //   pilot,
 //                                          which also sets their weight, is part of every run's time)
@@ -21,8 +27,9 @@
 //                    when the residual is at the noise level with true inverse-variance weights; comparable
 //                    across methods), and the relative change ‖x_k − x_{k−1}‖ / ‖x_k‖ from the previous row
 //                    of the same method (previous cap, or next smaller λ).
-// The picture: PSNR [dB] and SSIM against wall seconds (log axis), one curve per method; without a truth, the
-// misfit and the relative change (both log) instead, and the titles say so.
+// The picture: PSNR [dB] and SSIM against wall seconds (log axis), one curve per method, the fixed-λ Tikhonov
+// points labelled with their λ and the linear ones with their target FWHM; without a truth, the misfit and the
+// relative change (both log) instead, and the titles say so.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -37,6 +44,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/metrics.hpp"
+#include "aosr/core/operators.hpp"
 #include "aosr/core/parallel.hpp"
 #include "aosr/io/atomic_file.hpp"
 #include "aosr/io/plot.hpp"
@@ -54,7 +62,7 @@ namespace {
 namespace fs = std::filesystem;
 constexpr const char* kCmd = "aosr tradeoff";
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-const char* const kAllMethods[] = {"shift-add", "shift-add-median", "drizzle", "tikhonov", "tv", "map"};
+const char* const kAllMethods[] = {"shift-add", "shift-add-median", "drizzle", "tikhonov", "linear", "tv", "map"};
 
 struct TradeoffArgs {
   std::string dataset;
@@ -62,6 +70,7 @@ struct TradeoffArgs {
   std::vector<std::string> methods;  // empty: all
   std::vector<int> iterations = {10, 30, 100, 300};
   std::vector<double> lambda_factors = {0.01, 0.1, 10, 100};
+  std::vector<double> target_factors = {0.9, 1.25, 1.5, 2.0};
   std::string weights = "auto";
   bool force = false;
   bool json = false;
@@ -74,6 +83,10 @@ struct Row {
   std::string knob;             // human-readable knob setting, "-" for none
   double lambda_factor = kNaN;  // tikhonov: λ / λ_GCV (1 for the GCV row)
   int iteration_cap = 0;        // tv, map
+  double target_factor = kNaN;  // linear: target FWHM / the automatic target's (1 for the automatic row)
+  // linear: the target's and the effective PSF's FWHM [HR px], the output's noise RMS (frame units per HR
+  // pixel) and its leakage U (target_psf.hpp).
+  double target_fwhm = kNaN, effective_fwhm = kNaN, noise_rms = kNaN, leakage = kNaN;
   int iterations = 0;
   std::string termination, message;
   double seconds = 0, regularisation = 0;
@@ -109,7 +122,7 @@ std::vector<std::string> Methods(const TradeoffArgs& a) {
     if (std::find(std::begin(kAllMethods), std::end(kAllMethods), m) == std::end(kAllMethods))
       throw InvalidArgument(
           kCmd, "--methods", m,
-          "a comma-separated list of shift-add, shift-add-median, drizzle, tikhonov, tv, map");
+          "a comma-separated list of shift-add, shift-add-median, drizzle, tikhonov, linear, tv, map");
     if (std::find(out.begin(), out.end(), m) == out.end()) out.push_back(m);
   }
   return out;
@@ -175,6 +188,22 @@ std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProbl
     os << Fmt("%.4g", r.objective) << " | " << Fmt("%.4g", r.misfit) << " | " << Fmt("%.3g", r.change)
        << " |\n";
   }
+  // The linear output's own knob: what each target costs in noise and leakage.
+  bool any_linear = false;
+  for (const Row& r : rows) any_linear = any_linear || r.method == "linear";
+  if (any_linear) {
+    os << "\nlinear (the target-PSF output): PSNR/SSIM above are against the truth seen through the row's own "
+          "effective PSF, which is what the output estimates (not comparable with the other rows). Per target:\n\n"
+       << "| target | target FWHM [HR px] | effective FWHM [HR px] | noise RMS | leakage U |"
+       << (truth ? " PSNR through its PSF [dB] |" : "") << "\n|---|---:|---:|---:|---:|" << (truth ? "---:|" : "")
+       << "\n";
+    for (const Row& r : rows) {
+      if (r.method != "linear") continue;
+      os << "| " << r.knob << " | " << Fmt("%.2f", r.target_fwhm) << " | " << Fmt("%.2f", r.effective_fwhm) << " | "
+         << Fmt("%.4g", r.noise_rms) << " | " << Fmt("%.3g", r.leakage) << " |"
+         << (truth ? " " + Fmt("%.2f", r.psnr) + " |" : "") << "\n";
+    }
+  }
   os << "\n![accuracy against time](tradeoff.png)\n";
   return os.str();
 }
@@ -200,6 +229,14 @@ nlohmann::json RowJson(const Row& r) {
                       {"change", Number(r.change)}};
   if (std::isfinite(r.lambda_factor)) j["lambda_factor"] = r.lambda_factor;
   if (r.iteration_cap > 0) j["iteration_cap"] = r.iteration_cap;
+  if (r.method == "linear") {
+    j["target_factor"] = Number(r.target_factor);
+    j["target_fwhm_hr_px"] = Number(r.target_fwhm);
+    j["effective_fwhm_hr_px"] = Number(r.effective_fwhm);
+    j["noise_rms"] = Number(r.noise_rms);
+    j["leakage"] = Number(r.leakage);
+    j["scored_through"] = "its effective PSF";
+  }
   return j;
 }
 
@@ -223,11 +260,13 @@ std::vector<LinePlot> Panels(const std::string& name, bool truth, const std::vec
   }
   // One curve per method; Tikhonov as two: the GCV run (it pays the λ search) and the fixed-λ sweep in
   // increasing λ (each one solve).
-  const auto add = [&](const std::string& label, const auto& take) {
+  const auto add = [&](const std::string& label, const auto& take, const auto& point_label) {
     PlotSeries sa, sb;
     sa.label = sb.label = label;
     for (const Row& r : rows) {
       if (!take(r)) continue;
+      sa.point_labels.push_back(point_label(r));
+      sb.point_labels.push_back(point_label(r));
       const double t = std::max(r.seconds, 1e-6);  // a log axis: a run faster than a microsecond sits at 1 us
       const auto positive = [](double v) { return v > 0 ? v : kNaN; };
       sa.x.push_back(t);
@@ -238,14 +277,18 @@ std::vector<LinePlot> Panels(const std::string& name, bool truth, const std::vec
     a.series.push_back(sa);
     b.series.push_back(sb);
   };
+  const auto none = [](const Row&) { return std::string(); };
   for (const std::string& m : methods) {
     if (m == "tikhonov") {
-      add("tikhonov (GCV)", [](const Row& r) { return r.method == "tikhonov" && r.lambda_factor == 1.0; });
-      add("tikhonov (fixed lambda)",
-          [](const Row& r) { return r.method == "tikhonov" && r.lambda_factor != 1.0; });
+      add("tikhonov (GCV)", [](const Row& r) { return r.method == "tikhonov" && r.lambda_factor == 1.0; }, none);
+      add("tikhonov (fixed lambda)", [](const Row& r) { return r.method == "tikhonov" && r.lambda_factor != 1.0; },
+          [](const Row& r) { return "lambda " + Fmt("%.2g", r.regularisation); });
+    } else if (m == "linear") {
+      add(truth ? "linear (vs truth through its PSF)" : "linear (target widths)",
+          [](const Row& r) { return r.method == "linear"; },
+          [](const Row& r) { return "FWHM " + Fmt("%.1f", r.target_fwhm); });
     } else {
-      add(m == "tv" || m == "map" ? m + " (iteration caps)" : m,
-          [&m](const Row& r) { return r.method == m; });
+      add(m == "tv" || m == "map" ? m + " (iteration caps)" : m, [&m](const Row& r) { return r.method == m; }, none);
     }
   }
   return {a, b};
@@ -268,6 +311,10 @@ void RunTradeoff(const TradeoffArgs& a) {
     if (!(std::isfinite(f) && f > 0) || f == 1.0)
       throw InvalidArgument(kCmd, "--lambda-factors", ToString(f),
                             "finite factors > 0 other than 1 (the GCV row is always run)");
+  for (double f : a.target_factors)
+    if (!(std::isfinite(f) && f > 0 && f <= 10) || f == 1.0)
+      throw InvalidArgument(kCmd, "--target-factors", ToString(f),
+                            "finite factors in (0, 10] other than 1 (the automatic target's row is always run)");
   DatasetProblemOptions dpo;
   dpo.weights = ParseDatasetWeights(a.weights);
   const std::string md_path = JoinPath(a.out_dir, "tradeoff.md"),
@@ -325,11 +372,25 @@ void RunTradeoff(const TradeoffArgs& a) {
     row.objective = has_objective ? rec.summary.final_cost : kNaN;
     if (AllFinite(rec.image)) {
       row.misfit = ReducedChiSquare(p, rec.image);
+      if (rec.linear) {
+        row.target_fwhm = rec.linear->target_fwhm_hr_px;
+        row.effective_fwhm = rec.linear->effective_fwhm_hr_px;
+        row.noise_rms = rec.linear->noise_rms;
+        row.leakage = rec.linear->leakage;
+      }
       if (d.truth) {
         EvaluationOptions eo;
         eo.crop_px = mo.crop_px;
         eo.hr_pixel_mas = hr_mas;
-        const Evaluation ev = EvaluateReconstruction(*d.truth, rec.image, {}, eo);
+        // The linear output estimates the truth seen through its effective PSF, sky included: scored against
+        // that, its sky level subtracted (as `aosr reconstruct` scores it: against_truth_through_psf).
+        eo.subtract_sky = rec.linear.has_value();
+        const Image seen = rec.effective_psf.size() > 0
+                               ? ToImage(PeriodicConvolutionFromKernel(d.hr_frame, rec.effective_psf)
+                                             ->Apply(AsVector(*d.truth)),
+                                         d.hr_frame)
+                               : *d.truth;
+        const Evaluation ev = EvaluateReconstruction(seen, rec.image, {}, eo);
         row.psnr = ev.metrics.psnr;
         row.ssim = ev.metrics.ssim;
         row.rmse = ev.metrics.rmse;
@@ -382,6 +443,33 @@ void RunTradeoff(const TradeoffArgs& a) {
         row.lambda_factor = f;
         row.knob = "λ = " + Fmt("%g", f) + " × GCV = " + Fmt("%.3g", f * lambda_gcv);
         row = run(m, fixed, row, &image);
+        append(row, std::move(image), &previous);
+      }
+    } else if (m == "linear") {
+      // The automatic target first: its FWHM anchors the sweep. Rows in increasing target width.
+      Row auto_row;
+      auto_row.target_factor = 1.0;
+      auto_row.knob = "target auto";
+      Image auto_image;
+      auto_row = run(m, o, auto_row, &auto_image);
+      const double fwhm_auto = auto_row.target_fwhm;
+      auto_row.knob = "target auto (FWHM " + Fmt("%.2f", fwhm_auto) + " HR px)";
+      std::vector<double> factors = a.target_factors;
+      factors.push_back(1.0);
+      std::sort(factors.begin(), factors.end());
+      factors.erase(std::unique(factors.begin(), factors.end()), factors.end());
+      for (double f : factors) {
+        if (f == 1.0 || !(fwhm_auto > 0)) {
+          if (f == 1.0) append(auto_row, auto_image, &previous);
+          continue;
+        }
+        ReconstructOptions gaussian = o;
+        gaussian.linear.kind = TargetPsfKind::kGaussian;
+        gaussian.linear.fwhm_hr_px = f * fwhm_auto;
+        Row row;
+        row.target_factor = f;
+        row.knob = "Gaussian FWHM " + Fmt("%g", f) + " × auto = " + Fmt("%.2f", f * fwhm_auto) + " HR px";
+        row = run(m, gaussian, row, &image);
         append(row, std::move(image), &previous);
       }
     } else if (m == "tv" || m == "map") {
@@ -451,7 +539,8 @@ void RegisterTradeoff(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "tradeoff",
       "Accuracy against wall time of every reconstructor on a dataset: shift-add, shift-add-median, drizzle, "
-      "tikhonov (GCV and fixed lambdas around it), tv and map (over iteration caps). Writes DIR/tradeoff.md "
+      "tikhonov (GCV and fixed lambdas around it), linear (its automatic target and Gaussian targets around it, "
+      "scored through its own PSF, with noise and leakage), tv and map (over iteration caps). Writes DIR/tradeoff.md "
       "(table and command line), DIR/tradeoff.json (the rows) and DIR/tradeoff.png (PSNR and SSIM against "
       "seconds; without a truth, the data misfit and the change between knob settings).");
   cmd->add_option("dataset", a->dataset, "dataset folder or manifest")->required();
@@ -460,13 +549,17 @@ void RegisterTradeoff(CLI::App& app) {
       ->required();
   cmd->add_option(
          "--methods", a->methods,
-         "comma-separated subset of shift-add,shift-add-median,drizzle,tikhonov,tv,map (default: all)")
+         "comma-separated subset of shift-add,shift-add-median,drizzle,tikhonov,linear,tv,map (default: all)")
       ->delimiter(',');
   cmd->add_option("--iterations", a->iterations, "comma-separated iteration caps of tv and map")
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--lambda-factors", a->lambda_factors,
                   "comma-separated multiples of the GCV lambda run as fixed-lambda Tikhonov")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--target-factors", a->target_factors,
+                  "linear: comma-separated multiples of the automatic target's FWHM run as Gaussian targets")
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--weights", a->weights,

@@ -274,6 +274,13 @@ void DrawPanel(cv::Mat& m, const LinePlot& p) {
       const cv::Point q(int(std::lround(px)), int(std::lround(py)));
       cv::circle(m, q, 4, Bgr(int(i)), cv::FILLED, cv::LINE_AA);
       cv::circle(m, q, 4, kBlack, 1, cv::LINE_AA);
+      // The point's label to its upper right, inside the plot area (left of the point near the right edge).
+      if (k < s.point_labels.size() && !s.point_labels[k].empty()) {
+        const std::string l = Ascii(s.point_labels[k]);
+        const int w = TextSize(l, kTickFont).width;
+        const int tx = q.x + 7 + w <= area.x + area.width ? q.x + 7 : q.x - 7 - w;
+        Text(m, l, tx, std::max(area.y + 6, q.y - 9), kTickFont);
+      }
     }
   }
 
@@ -352,6 +359,9 @@ bool LinePlot::IsValid(std::string* why) const {
     if (s.x.size() != s.y.size())
       return fail(name + ": x has " + std::to_string(s.x.size()) + " points, y " +
                   std::to_string(s.y.size()));
+    if (!s.point_labels.empty() && s.point_labels.size() != s.x.size())
+      return fail(name + ": point_labels has " + std::to_string(s.point_labels.size()) + " entries for " +
+                  std::to_string(s.x.size()) + " points (empty, or one per point)");
     for (std::size_t k = 0; k < s.x.size(); ++k) {
       if (x.log && std::isfinite(s.x[k]) && s.x[k] <= 0)
         return fail(name + ".x[" + std::to_string(k) + "] = " + ToString(s.x[k]) +

@@ -124,6 +124,30 @@ TEST_F(TradeoffCliTest, WritesTableJsonAndPictureWithARowPerMethodAndKnob) {
   EXPECT_EQ(png.second, 460u);
 }
 
+TEST_F(TradeoffCliTest, LinearRowsTradeResolutionForNoiseAndAreScoredThroughTheirOwnPsf) {
+  const CliRun t = RunCli("tradeoff " + Data() + " -o " + Out("linear") +
+                          " --methods linear --target-factors 1.5,0.8 --threads 1 --json");
+  ASSERT_EQ(t.status, 0) << t.out;
+  const nlohmann::json j = nlohmann::json::parse(t.out);
+  ASSERT_EQ(j["rows"].size(), 3u) << j.dump(2);
+  const auto& rows = j["rows"];
+  // In increasing target width: 0.8, 1 (automatic), 1.5.
+  EXPECT_DOUBLE_EQ(rows[1]["target_factor"].get<double>(), 1.0);
+  EXPECT_NEAR(rows[0]["target_fwhm_hr_px"].get<double>(), 0.8 * rows[1]["target_fwhm_hr_px"].get<double>(), 1e-9);
+  EXPECT_NEAR(rows[2]["target_fwhm_hr_px"].get<double>(), 1.5 * rows[1]["target_fwhm_hr_px"].get<double>(), 1e-9);
+  // A wider target: less noise, a wider effective PSF.
+  EXPECT_LT(rows[2]["noise_rms"].get<double>(), rows[1]["noise_rms"].get<double>());
+  EXPECT_GT(rows[2]["effective_fwhm_hr_px"].get<double>(), rows[1]["effective_fwhm_hr_px"].get<double>());
+  for (const auto& row : rows) EXPECT_GE(row["leakage"].get<double>(), 0.0);
+  // The automatic row's score is `aosr reconstruct -m linear`'s against the truth through its PSF.
+  const CliRun r = RunCli("reconstruct " + Data() + " -m linear -o " + Out("linear/lin.fits") + " --threads 1 --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json k = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(rows[1]["psnr_db"].get<double>(), k["against_truth_through_psf"]["psnr_db"].get<double>(), 1e-9);
+  const std::string md = ReadText(fs::path(Out("linear")) / "tradeoff.md");
+  EXPECT_THAT(md, HasSubstr("effective FWHM"));
+}
+
 TEST_F(TradeoffCliTest, PsnrAgreesWithReconstruct) {
   const CliRun t =
       RunCli("tradeoff " + Data() + " -o " + Out("agree") + " --methods tikhonov --lambda-factors 10 --json");

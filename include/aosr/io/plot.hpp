@@ -42,6 +42,8 @@ struct PlotSeries {
   std::string label;      // legend entry; empty: the series is drawn but not listed
   std::vector<double> x;  // abscissae, same length as y
   std::vector<double> y;  // ordinates
+  // Optional text beside each point (e.g. the knob's value): empty, or one entry per point ("" for none).
+  std::vector<std::string> point_labels;
 };
 
 struct PlotAxis {
