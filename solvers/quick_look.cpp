@@ -3,6 +3,7 @@
 #include "aosr/solvers/quick_look.hpp"
 
 #include <chrono>
+#include <future>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -38,6 +39,7 @@ ViewOptions QuickLookOptions::DefaultQuickLookView() {
   v.low_percentile = 0.5;
   v.high_percentile = 99.8;
   v.asinh_softening = 0.05;
+  v.png_compression = 1;  // refreshed many times a second: speed over size
   return v;
 }
 
@@ -198,8 +200,18 @@ void QuickLook::WriteOutputs(const VideoFrame& out) {
     h.Set("QLFILE" + std::to_string(s), name, "frame of phase " + std::to_string(s));
   }
   const std::string dir = options_.output_dir;
-  WriteFits(dir + "/quicklook.fits", out.image, h, FitsType::kFloat32);
-  if (options_.write_png) WriteViewImage(dir + "/quicklook.png", out.image, options_.view);
+  // The PNG (stretch and encoding, the larger part) on its own thread while this one writes the FITS file: two
+  // independent files, each renamed into place when complete.
+  std::future<void> png;
+  if (options_.write_png)
+    png = std::async(std::launch::async, [&] { WriteViewImage(dir + "/quicklook.png", out.image, options_.view); });
+  try {
+    WriteFits(dir + "/quicklook.fits", out.image, h, FitsType::kFloat32);
+  } catch (...) {
+    if (png.valid()) png.wait();
+    throw;
+  }
+  if (png.valid()) png.get();  // rethrows the PNG's error
 }
 
 }  // namespace aosr

@@ -117,7 +117,7 @@ const OiioPlugin& Oiio() {
         return;
       }
       plugin.handle = handle;
-      plugin.write = reinterpret_cast<AosrOiioWriteFn>(dlsym(handle, "aosr_oiio_write"));
+      plugin.write = reinterpret_cast<AosrOiioWriteFn>(dlsym(handle, "aosr_oiio_write2"));
       plugin.open = reinterpret_cast<AosrOiioOpenFn>(dlsym(handle, "aosr_oiio_open"));
       plugin.read = reinterpret_cast<AosrOiioReadFn>(dlsym(handle, "aosr_oiio_read"));
       plugin.close = reinterpret_cast<AosrOiioCloseFn>(dlsym(handle, "aosr_oiio_close"));
@@ -181,10 +181,11 @@ class OiioInput {
 
 // Writes through the plugin (to `tmp`, the atomic write's temporary file); IoError naming `path`.
 void OiioWrite(const std::string& path, const std::string& tmp, const std::string& format, int width, int height,
-               int channels, int type, const void* pixels) {
+               int channels, int type, const void* pixels, int png_compression = -1) {
   const OiioPlugin& p = OiioFor(path);
   char error[1024] = {0};
-  if (!p.write(format.c_str(), tmp.c_str(), width, height, channels, type, pixels, error, sizeof error))
+  if (!p.write(format.c_str(), tmp.c_str(), width, height, channels, type, pixels, png_compression, error,
+               sizeof error))
     throw IoError(path, error);
 }
 
@@ -204,6 +205,8 @@ bool ViewOptions::IsValid(std::string* why) const {
   }
   if (bits != 8 && bits != 16 && bits != 32)
     return fail("bits = " + std::to_string(bits) + "; need 8, 16 or 32");
+  if (png_compression < -1 || png_compression > 9)
+    return fail("png_compression = " + std::to_string(png_compression) + "; need -1 (the default) or 0..9");
   if (!(std::isfinite(asinh_softening) && asinh_softening > 0.0)) {
     return fail("asinh_softening = " + ToString(asinh_softening) + "; need a finite value > 0");
   }
@@ -284,7 +287,8 @@ void WriteViewImage(const std::string& path, const Image& img, const ViewOptions
 
   AtomicWrite(path, [&](const std::string& tmp) {
     // Written by format name: the temporary file's name does not end in the format's extension.
-    OiioWrite(path, tmp, format, static_cast<int>(img.cols()), static_cast<int>(img.rows()), 1, type, pixels);
+    OiioWrite(path, tmp, format, static_cast<int>(img.cols()), static_cast<int>(img.rows()), 1, type, pixels,
+              options.png_compression);
   });
 }
 

@@ -53,7 +53,7 @@ class WatchCliTest : public ::testing::Test {
 
 TEST_F(WatchCliTest, ReconstructsFramesAsTheCameraWritesThem) {
   CliRun run;
-  std::thread watch([&] {
+  aosr::test::JoiningThread watch([&] {
     run = RunCli("watch " + P("camera") + " --model " + P("model") + " -o " + P("out") +
                  " --lambda 3e-3 --time-key TSEC --frames 10 --idle-timeout 30 --json");
   });
@@ -66,14 +66,17 @@ TEST_F(WatchCliTest, ReconstructsFramesAsTheCameraWritesThem) {
       aosr::test::WriteLiveFrame(path, j, j % 4, 0.02 * j);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
-  watch.join();
+  watch.Join();
   ASSERT_EQ(run.status, 0) << run.out;
   const nlohmann::json j = Json(run);
   EXPECT_EQ(j["files"], 10);
   EXPECT_EQ(j["used"], 10);
   EXPECT_EQ(j["outputs"], 7);
   EXPECT_EQ(j["stopped_by"], "frames");
-  EXPECT_GT(j["latency_ms"]["p50"].get<double>(), 0.0);
+  // Latencies: the first written output apart, then percentiles of the others (none when a slow machine, e.g.
+  // under the sanitizers, superseded all but the last).
+  EXPECT_GT(j["first_latency_ms"].get<double>(), 0.0);
+  if (j["written"].get<int>() > 1) EXPECT_GT(j["latency_ms"]["p50"].get<double>(), 0.0);
   // One log line per file, complete JSON each.
   std::ifstream log(P("out/watch.jsonl"));
   std::vector<nlohmann::json> lines;

@@ -116,7 +116,7 @@ TEST_P(WatcherModes, ReportsEachFileOnceAndOnlyWhole) {
   o.poll_interval_s = 0.05;
   DirectoryWatcher w(t.Watched(), o);
   EXPECT_EQ(w.using_inotify(), inotify);
-  std::thread writer([&] {
+  test::JoiningThread writer([&] {
     WriteFrame(t.Watched("a.fits"), 1);  // atomic: temporary name, then rename
     // In place, in two parts with the file closed in between (and a pause longer than a scan).
     WriteFrame(t.Staging("b.fits"), 2);
@@ -129,7 +129,7 @@ TEST_P(WatcherModes, ReportsEachFileOnceAndOnlyWhole) {
     WriteFrame(t.Watched("c.fit"), 3);
   });
   const std::vector<WatchedFile> got = Collect(w, 1.2);
-  writer.join();
+  writer.Join();
   std::vector<std::string> names;
   for (const WatchedFile& f : got) {
     names.push_back(f.name);

@@ -74,7 +74,7 @@ TEST(QuickLook, EveryFileIsAccountedForAndOutputsEqualTheEngineFedDirectly) {
   o.watch.abandon_after_s = 0.4;
   QuickLook ql(dirs.Camera(), model, o);
   const std::vector<Written> night = Night();
-  std::thread camera([&] {
+  test::JoiningThread camera([&] {
     for (const Written& f : night) {
       if (f.j == 5) {  // written in place, in two parts, 30 ms apart
         test::WriteLiveFrameInTwoParts(dirs.Camera(f.name), (dirs.root / "staging.fits").string(), f.j, f.phase, f.t, 0.03);
@@ -101,7 +101,7 @@ TEST(QuickLook, EveryFileIsAccountedForAndOutputsEqualTheEngineFedDirectly) {
     EXPECT_EQ(events.count(name), 0u) << name << " reported twice";
     events[name] = *e;
   }
-  camera.join();
+  camera.Join();
   EXPECT_FALSE(ql.Next(0.3)) << "an event beyond the files written";
   ASSERT_EQ(events.size(), expected);
   EXPECT_EQ(events["wrong_shape.fits"].status, "rejected");

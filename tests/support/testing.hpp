@@ -8,6 +8,8 @@
 #include <exception>
 #include <random>
 #include <string>
+#include <thread>
+#include <utility>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/image.hpp"
@@ -55,6 +57,23 @@ inline CliRun RunShell(const std::string& command) {
   run.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return run;
 }
+
+// A thread joined when it goes out of scope, so that a failed ASSERT or an exception in the test body ends the
+// test as a failure instead of std::terminate (a joinable std::thread's destructor).
+class JoiningThread {
+ public:
+  template <typename F>
+  explicit JoiningThread(F&& f) : t_(std::forward<F>(f)) {}
+  ~JoiningThread() { Join(); }
+  JoiningThread(const JoiningThread&) = delete;
+  JoiningThread& operator=(const JoiningThread&) = delete;
+  void Join() {
+    if (t_.joinable()) t_.join();
+  }
+
+ private:
+  std::thread t_;
+};
 
 #ifdef AOSR_CLI_PATH
 inline CliRun RunCli(const std::string& args) { return RunShell(std::string(AOSR_CLI_PATH) + " " + args); }

@@ -34,16 +34,17 @@ OIIO::TypeDesc TypeOf(int type) {
 
 extern "C" {
 
-__attribute__((visibility("default"))) int aosr_oiio_write(const char* format, const char* path, int width,
-                                                           int height, int channels, int type,
-                                                           const void* pixels, char* error,
-                                                           std::size_t error_size) {
+__attribute__((visibility("default"))) int aosr_oiio_write2(const char* format, const char* path, int width,
+                                                            int height, int channels, int type,
+                                                            const void* pixels, int png_compression, char* error,
+                                                            std::size_t error_size) {
   try {
     // Created by format name: the (temporary) file's name need not end in the format's extension.
     auto out = OIIO::ImageOutput::create(format);
     if (!out)
       return SetError(error, error_size, OiioError(std::string("no OpenImageIO writer for ") + format)), 0;
-    const OIIO::ImageSpec spec(width, height, channels, TypeOf(type));
+    OIIO::ImageSpec spec(width, height, channels, TypeOf(type));
+    if (png_compression >= 0 && std::string(format) == "png") spec.attribute("png:compressionLevel", png_compression);
     if (!out->open(path, spec))
       return SetError(error, error_size, "cannot open for writing: " + out->geterror()), 0;
     if (!out->write_image(TypeOf(type), pixels))

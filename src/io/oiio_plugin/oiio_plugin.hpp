@@ -28,9 +28,12 @@ struct AosrOiioSpec {
 enum AosrOiioType { kAosrOiioUint8 = 0, kAosrOiioUint16 = 1, kAosrOiioFloat = 2 };
 
 // Writes a width x height image of `channels` interleaved channels of `type` to `path` as `format` ("png",
-// "tiff"). Returns 1 on success; 0 with a message in error[error_size] otherwise.
+// "tiff"); `png_compression` 0..9 is zlib's level for PNG (-1: OpenImageIO's default, 6). Returns 1 on success;
+// 0 with a message in error[error_size] otherwise. Entry point "aosr_oiio_write2" (the "2": the level was added;
+// a stale plugin without it is refused by name, not called with the wrong arguments).
 typedef int (*AosrOiioWriteFn)(const char* format, const char* path, int width, int height, int channels,
-                               int type, const void* pixels, char* error, std::size_t error_size);
+                               int type, const void* pixels, int png_compression, char* error,
+                               std::size_t error_size);
 // Opens `path` for reading and fills *spec. Returns a handle, or null with a message in error.
 typedef void* (*AosrOiioOpenFn)(const char* path, AosrOiioSpec* spec, char* error, std::size_t error_size);
 // Reads every channel of the opened image as `type` into buffer (width x height x channels values). 1 on
