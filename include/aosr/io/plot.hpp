@@ -43,7 +43,7 @@ struct PlotSeries {
   std::vector<double> x;  // abscissae, same length as y
   std::vector<double> y;  // ordinates
   // Optional text beside each point (e.g. the knob's value): empty, or one entry per point ("" for none).
-  std::vector<std::string> point_labels;
+  std::vector<std::string> point_labels = {};  // (the initializer keeps {label, x, y} aggregates warning-free)
 };
 
 struct PlotAxis {
