@@ -225,6 +225,10 @@ TEST_F(TradeoffCliTest, BadInputGetsAClearError) {
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_THAT(r.out, HasSubstr("--lambda-factors"));
 
+  r = RunCli("tradeoff " + Data() + " -o " + Out("bad3b") + " --methods linear --target-factors 1");
+  EXPECT_EQ(r.status, 1) << r.out;
+  EXPECT_THAT(r.out, HasSubstr("--target-factors"));
+
   r = RunCli("tradeoff " + Data() + " -o " + Out("bad4") + " --iterations 0");
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_THAT(r.out, HasSubstr("--iterations"));

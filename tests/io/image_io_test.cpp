@@ -109,6 +109,10 @@ TEST(ViewOptionsTest, IsValidNamesTheBadField) {
   o.asinh_softening = 0.0;
   EXPECT_FALSE(o.IsValid(&why));
   EXPECT_NE(why.find("asinh_softening"), std::string::npos);
+  o = ViewOptions{};
+  o.png_compression = 10;
+  EXPECT_FALSE(o.IsValid(&why));
+  EXPECT_NE(why.find("png_compression"), std::string::npos);
   EXPECT_FALSE(o.IsValid(nullptr));
 }
 

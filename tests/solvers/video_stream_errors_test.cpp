@@ -82,6 +82,10 @@ TEST(VideoStreamErrors, SequenceManifest) {
   DatasetProblemOptions po;
   po.offsets = DatasetOffsets::kEstimate;
   EXPECT_THAT(ErrorOf([&] { DatasetVideo(d, {}, po); }), HasSubstr("registration"));
+  // A frame from outside (the live quick-look): the phase must exist and the frame have the model's shape.
+  DatasetVideo live(d, {});
+  EXPECT_THAT(ErrorOf([&] { live.PushFrame(2, 0, 0.0, Image::Ones(8, 8)); }), HasSubstr("slot = 2"));
+  EXPECT_THAT(ErrorOf([&] { live.PushFrame(0, 0, 0.0, Image::Ones(4, 8)); }), HasSubstr("frame"));
   write({{"slots", {0, 0, 0, 0, 0}}});
   // Two PSF planes but slot 1 never appears: the video needs every phase.
   const Dataset one = LoadDataset(dir);
