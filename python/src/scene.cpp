@@ -322,6 +322,25 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
         if (!t) return py::none();
         return ViewImage(*t, self, false);
       }, "the HR object (r*rows, r*cols), e- per frame per HR pixel (a read-only view), or None")
+      .def_property_readonly("truth_frames", [](py::object self) -> py::object {
+        const ImageStack& t = self.cast<PyDataset&>().dataset->truth_frames;
+        if (t.empty()) return py::none();
+        return Cached(self, "truth_frames", [&] { return StackToArray(t); });
+      }, "(N, r*rows, r*cols) the truth at each frame's time (a sequence whose objects change), or None")
+      .def_property_readonly("times_s", [](const PyDataset& d) -> py::object {
+        const std::vector<double>& t = d.dataset->times_s;
+        if (t.empty()) return py::none();
+        return py::array_t<double>(py::ssize_t(t.size()), t.data());
+      }, "(N,) each frame's time in seconds (a sequence's; simulations: mid-exposure), or None")
+      .def_property_readonly("slots", [](const PyDataset& d) {
+        std::vector<int> s = d.dataset->slots;
+        if (s.size() != d.dataset->frames.size())
+          for (int i = int(s.size()); i < d.dataset->size(); ++i) s.push_back(i);
+        return s;
+      }, "each frame's DM phase (slot), 0..phases-1 (frame i is phase i without a sequence)")
+      .def_property_readonly("phases", [](const PyDataset& d) {
+        return d.dataset->slot_count > 0 ? d.dataset->slot_count : d.dataset->size();
+      }, "the number of DM phases the frames cycle through (the frame count without a sequence)")
       .def_property_readonly("offsets", [](const PyDataset& d) {
         py::list out;
         for (const DmOffset& o : d.dataset->offsets) out.append(FromJson(DmOffsetToJson(o)));
@@ -386,6 +405,10 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
             s["psfs"] = StackToArray(d.psfs);
             s["nominal_psfs"] = d.nominal_psfs.empty() ? py::none() : py::object(StackToArray(d.nominal_psfs));
             s["truth"] = d.truth ? py::object(ViewImage(*d.truth, self, false)) : py::none();
+            s["truth_frames"] = d.truth_frames.empty() ? py::none() : py::object(StackToArray(d.truth_frames));
+            s["slots"] = d.slots;
+            s["slot_count"] = d.slot_count;
+            s["times_s"] = d.times_s;
             py::list offsets;
             for (const DmOffset& o : d.offsets) offsets.append(FromJson(DmOffsetToJson(o)));
             s["offsets"] = offsets;
@@ -416,6 +439,13 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
             d.psfs = StackFromArray(s["psfs"], "psfs");
             if (!s["nominal_psfs"].is_none()) d.nominal_psfs = StackFromArray(s["nominal_psfs"], "nominal_psfs");
             if (!s["truth"].is_none()) d.truth = ImageFromArray(s["truth"], "truth");
+            if (s.contains("truth_frames") && !s["truth_frames"].is_none())
+              d.truth_frames = StackFromArray(s["truth_frames"], "truth_frames");
+            if (s.contains("slots")) {
+              d.slots = s["slots"].cast<std::vector<int>>();
+              d.slot_count = s["slot_count"].cast<int>();
+              d.times_s = s["times_s"].cast<std::vector<double>>();
+            }
             for (py::handle o : s["offsets"]) {
               // DmOffsetToJson's inline-design form, parsed back through a one-frame design (scene_spec.hpp).
               const nlohmann::json j = ToJson(o);

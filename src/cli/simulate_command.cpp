@@ -109,7 +109,7 @@ void RunSimulate(const SimulateArgs& args) {
   }
   if (!args.out_dir.empty()) PrepareSimulationOutput(args.out_dir, scene);  // fail before the simulation
 
-  progress.Step("simulating " + scene.name + ": " + std::to_string(scene.frames) + " frames of " +
+  progress.Step("simulating " + scene.name + ": " + std::to_string(scene.Exposures()) + " frames of " +
                 ToString(scene.frame) + " pixels, r = " + std::to_string(scene.r));
   const Simulation sim = pipeline.Run();
   if (!args.out_dir.empty()) {
@@ -124,6 +124,8 @@ void RunSimulate(const SimulateArgs& args) {
     for (const StageTiming& t : sim.timings) j["timings"].push_back({{"stage", t.name}, {"seconds", t.seconds}});
     j["simulate_seconds"] = sim.seconds;
     j["strehl"] = sim.strehl;
+    j["exposures"] = scene.Exposures();
+    if (!sim.times_s.empty()) j["times_s"] = sim.times_s;
     j["psf_window_fraction"] = sim.psf_window_fraction;
     j["distinct_psfs"] = sim.counters.psfs_computed;
     j["stars"] = sim.stars.size();
@@ -135,8 +137,9 @@ void RunSimulate(const SimulateArgs& args) {
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }
-  std::printf("aosr simulate: scene %s: N = %d frames of %s px, r = %d, HR %s, PSF %lld^2 (border %lld px)\n",
-              scene.name.c_str(), scene.frames, ToString(g.frame).c_str(), g.r, ToString(g.hr_frame).c_str(),
+  const std::string sequence = scene.sequence.enabled() ? " in a sequence of " + std::to_string(scene.Exposures()) + " exposures" : "";
+  std::printf("aosr simulate: scene %s: N = %d frames%s of %s px, r = %d, HR %s, PSF %lld^2 (border %lld px)\n",
+              scene.name.c_str(), scene.frames, sequence.c_str(), ToString(g.frame).c_str(), g.r, ToString(g.hr_frame).c_str(),
               static_cast<long long>(g.psf_size), static_cast<long long>(g.trustworthy_border_px));
   std::printf("%-20s %10s\n", "stage", "seconds");
   for (const StageTiming& t : sim.timings) std::printf("%-20s %10.4f\n", t.name.c_str(), t.seconds);
@@ -144,7 +147,7 @@ void RunSimulate(const SimulateArgs& args) {
   double lo = 1, hi = 0;
   for (double s : sim.strehl) lo = std::min(lo, s), hi = std::max(hi, s);
   if (!sim.strehl.empty())
-    std::printf("Strehl %.4g .. %.4g over %d exposures (%d distinct PSFs)\n", lo, hi, scene.frames, sim.counters.psfs_computed);
+    std::printf("Strehl %.4g .. %.4g over %d exposures (%d distinct PSFs)\n", lo, hi, scene.Exposures(), sim.counters.psfs_computed);
   if (!args.out_dir.empty()) std::printf("dataset written to %s\n", JoinPath(args.out_dir, kManifestFileName).c_str());
 }
 

@@ -17,6 +17,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/memory.hpp"
+#include "aosr/core/metrics.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/io/video_file.hpp"
 #include "aosr/scene/dataset.hpp"
@@ -109,6 +110,23 @@ void RunVideo(const VideoArgs& a) {
                 ToString(vo.method) + ", " + ToString(vo.window) + " window, weights: " + video.weights_source());
   if (!video.warning().empty()) std::fprintf(stderr, "warning: %s\n", video.warning().c_str());
 
+  // A simulated sequence whose objects change carries the truth at each frame's time: every output is scored
+  // against the truth at its newest frame (what a viewer sees then), on the trustworthy crop, with one dynamic
+  // range for the whole movie (the largest of the truths'), so that the scores compare across time.
+  const bool scored = d.truth_frames.size() == d.frames.size();
+  MetricOptions mo;
+  if (scored) {
+    mo.crop_px = int(d.trustworthy_border_px * d.r);
+    if (2 * mo.crop_px + 11 > std::min(d.hr_frame.rows, d.hr_frame.cols)) mo.crop_px = 0;
+    const Index c = mo.crop_px;
+    for (const Image& t : d.truth_frames) {
+      const auto inner = t.block(c, c, t.rows() - 2 * c, t.cols() - 2 * c);
+      mo.peak = std::max(mo.peak, inner.maxCoeff() - inner.minCoeff());
+    }
+    if (!(mo.peak > 0)) mo.peak = 1.0;
+  }
+  std::vector<std::array<double, 2>> scores;  // per output: PSNR [dB], SSIM
+
   std::unique_ptr<VideoFileWriter> writer;
   std::unique_ptr<FitsCubeWriter> cube;
   int outputs = 0;
@@ -140,6 +158,10 @@ void RunVideo(const VideoArgs& a) {
     const int first = *std::min_element(f->frames.begin(), f->frames.end());
     const int last = *std::max_element(f->frames.begin(), f->frames.end());
     rows.push_back({f->time_s, f->window_start_s, double(first), double(last)});
+    if (scored) {
+      const ImageMetrics m = CompareImages(d.truth_frames[std::size_t(last)], f->image, mo);
+      scores.push_back({m.psnr, m.ssim});
+    }
     if (!cube) cube = std::make_unique<FitsCubeWriter>(cube_path, ShapeOf(f->image), outputs_cap, FitsType::kFloat32);
     cube->Append(f->image);
     if (++outputs == 1) first_done_s = run_clock.Seconds();
@@ -149,9 +171,21 @@ void RunVideo(const VideoArgs& a) {
   if (!cube)
     throw InvalidArgument(kVideoCmd, "dataset", a.dataset,
                           "at least one frame of each of the " + std::to_string(d.slot_count) + " phases");
-  times.resize(Index(rows.size()), 4);
-  for (std::size_t k = 0; k < rows.size(); ++k)
+  times.resize(Index(rows.size()), scored ? 6 : 4);
+  for (std::size_t k = 0; k < rows.size(); ++k) {
     for (int c = 0; c < 4; ++c) times(Index(k), c) = rows[k][std::size_t(c)];
+    if (scored) times(Index(k), 4) = scores[k][0], times(Index(k), 5) = scores[k][1];
+  }
+  double psnr_mean = 0, psnr_min = 0, psnr_max = 0, ssim_mean = 0;
+  if (scored) {
+    psnr_min = psnr_max = scores.front()[0];
+    for (const auto& sc : scores) {
+      psnr_mean += sc[0] / double(scores.size());
+      ssim_mean += sc[1] / double(scores.size());
+      psnr_min = std::min(psnr_min, sc[0]);
+      psnr_max = std::max(psnr_max, sc[0]);
+    }
+  }
 
   const VideoSetup& s = video.engine().setup();
   FitsHeader h;
@@ -174,6 +208,12 @@ void RunVideo(const VideoArgs& a) {
   te.header.Set("COL2", std::string("START_S"), "time of its oldest frame [s]");
   te.header.Set("COL3", std::string("FIRST"), "index of its oldest input frame");
   te.header.Set("COL4", std::string("LAST"), "index of its newest input frame");
+  if (scored) {
+    te.header.Set("COL5", std::string("PSNR_DB"), "against the truth at its newest frame's time [dB]");
+    te.header.Set("COL6", std::string("SSIM"), "against the same truth");
+    te.header.Set("CROP", (long long)mo.crop_px, "[HR px] border left out of the scores");
+    te.header.Set("PEAK", mo.peak, "[e-] PSNR dynamic range: the truths' largest");
+  }
   cube->Finish(h, {te});
   if (writer) writer->Close();
 
@@ -198,6 +238,12 @@ void RunVideo(const VideoArgs& a) {
     j["kappa"] = s.kappa;
     j["mu"] = s.mu;
     j["weights"] = video.weights_source();
+    if (scored) {
+      std::vector<double> psnr, ssim;
+      for (const auto& sc : scores) psnr.push_back(sc[0]), ssim.push_back(sc[1]);
+      j["truth_scores"] = {{"psnr_db", psnr}, {"ssim", ssim}, {"psnr_mean_db", psnr_mean}, {"ssim_mean", ssim_mean},
+                           {"crop_px", mo.crop_px}, {"peak", mo.peak}};
+    }
     j["cube"] = cube_path;
     j["video"] = writer ? video_path : "";
     std::printf("%s\n", j.dump(2).c_str());
@@ -214,6 +260,9 @@ void RunVideo(const VideoArgs& a) {
   if (s.mu >= 0) std::printf("  TV mu %.4g, %d iterations per warm-started output\n", s.mu, vo.tv_iterations);
   std::printf("  compute %.3f s (setup %.3f s), wall %.3f s; %.2f ms per output after the first, writing included\n",
               compute_seconds, setup_seconds, wall, wall_per_output_ms);
+  if (scored)
+    std::printf("  against the truth at each output's newest frame: PSNR %.2f dB mean (%.2f .. %.2f), SSIM %.4f mean\n",
+                psnr_mean, psnr_min, psnr_max, ssim_mean);
   std::printf("wrote %s (times in extension TIMES)%s%s\n", cube_path.c_str(), writer ? " and " : "",
               writer ? video_path.c_str() : "");
 }

@@ -34,6 +34,24 @@ constexpr const char* kFieldPsfsFile = "field_psfs.fits";
 constexpr const char* kFieldNominalPsfsFile = "field_nominal_psfs.fits";
 constexpr double kDatasetArcsecPerRad = 180.0 * 3600.0 / M_PI;
 constexpr const char* kExpectedFile = "expected.fits";
+constexpr const char* kTruthFramesFile = "truth_frames.fits";
+constexpr const char* kExposurePsfsFile = "exposure_psfs.fits";
+
+}  // namespace
+
+ImageStack PerPhase(const SceneSpec& scene, const ImageStack& per_exposure) {
+  if (!scene.sequence.enabled()) return per_exposure;
+  ImageStack out(std::size_t(scene.frames));
+  std::vector<int> count(std::size_t(scene.frames), 0);
+  for (std::size_t j = 0; j < per_exposure.size(); ++j) {
+    const std::size_t q = j % std::size_t(scene.frames);
+    out[q] = count[q]++ == 0 ? per_exposure[j] : Image(out[q] + per_exposure[j]);
+  }
+  for (std::size_t q = 0; q < out.size(); ++q) out[q] /= double(count[q]);
+  return out;
+}
+
+namespace {
 
 std::string Join(const std::string& dir, const std::string& name) { return (fs::path(dir) / name).string(); }
 
@@ -165,6 +183,13 @@ OrderedJson BuildManifest(const SceneSpec& scene, const ScenePipeline& pipeline,
     m["psf_field"] = f;
   }
   m["truth"] = kTruthFile;
+  if (!sim.truth_frames.empty()) m["truth_frames"] = kTruthFramesFile;
+  if (scene.sequence.enabled()) {
+    // The phase of each frame and its mid-exposure time (dataset.hpp); the PSFs above are per phase.
+    std::vector<int> slots;
+    for (int j = 0; j < scene.Exposures(); ++j) slots.push_back(j % scene.frames);
+    m["sequence"] = {{"slots", slots}, {"times_s", sim.times_s}};
+  }
   m["expected"] = kExpectedFile;
   m["gain_e_per_adu"] = d.gain_e_per_adu;
   m["bias_adu"] = d.bias_adu;
@@ -255,14 +280,19 @@ void CheckSimulation(const SceneSpec& scene, const Simulation& sim) {
   const auto fail = [](const std::string& what, const std::string& value, const std::string& allowed) {
     throw InvalidArgument("WriteSimulation", what, value, allowed);
   };
-  const std::size_t n = std::size_t(scene.frames);
+  const std::size_t n = std::size_t(scene.Exposures());
   if (sim.geometry.frame != scene.frame || sim.geometry.r != scene.r)
     fail("sim.geometry", ToString(sim.geometry.frame) + ", r " + std::to_string(sim.geometry.r),
          "the scene's frame " + ToString(scene.frame) + " and r " + std::to_string(scene.r));
   if (sim.frames.size() != n || sim.psfs.size() != n || sim.expected_e.size() != n)
     fail("sim", std::to_string(sim.frames.size()) + " frames, " + std::to_string(sim.psfs.size()) + " PSFs, " +
                     std::to_string(sim.expected_e.size()) + " expected frames",
-         "the scene's N = " + std::to_string(n) + " of each (the result of ScenePipeline::Run)");
+         "the scene's " + std::string(scene.sequence.enabled() ? "M = " : "N = ") + std::to_string(n) +
+             " exposures of each (the result of ScenePipeline::Run)");
+  if (!sim.truth_frames.empty() && sim.truth_frames.size() != n)
+    fail("sim.truth_frames", std::to_string(sim.truth_frames.size()) + " images", "one per exposure (" + std::to_string(n) + ")");
+  if (scene.sequence.enabled() && sim.times_s.size() != n)
+    fail("sim.times_s", std::to_string(sim.times_s.size()) + " times", "one per exposure (" + std::to_string(n) + ")");
   if (ShapeOf(sim.truth) != sim.geometry.hr_frame)
     fail("sim.truth", ToString(ShapeOf(sim.truth)), "the HR frame " + ToString(sim.geometry.hr_frame));
   for (std::size_t i = 0; i < n; ++i) {
@@ -365,6 +395,7 @@ std::vector<std::string> SceneInputFiles(const SceneSpec& scene) {
   if (scene.offsets.kind == OffsetsSpec::Kind::kDesign && scene.offsets.source != "inline") add(scene.offsets.source);
   for (const ObjectSpec& o : scene.objects)
     if (o.kind == ObjectSpec::Kind::kImage) add(o.image_path);
+    else if (o.kind == ObjectSpec::Kind::kPlanet) add(o.texture_path);
   add(scene.bad_pixel_file);
   return files;
 }
@@ -373,7 +404,7 @@ void PrepareSimulationOutput(const std::string& dir, const SceneSpec& scene) {
   CheckArgument(!dir.empty(), "PrepareSimulationOutput", "dir", "\"\"", "a folder name");
   const std::vector<std::string> outputs = {kFramesFile, kValidFile,    kWeightsFile,     kTruthFile,
                                             kPsfsFile,   kExpectedFile, kManifestFileName, kNominalPsfsFile,
-                                            kFieldPsfsFile, kFieldNominalPsfsFile};
+                                            kFieldPsfsFile, kFieldNominalPsfsFile, kTruthFramesFile, kExposurePsfsFile};
   // Before touching the disk: no output may be an input of the scene.
   const std::vector<std::string> inputs = SceneInputFiles(scene);
   for (const std::string& o : outputs) CheckNotSameFile(Join(dir, o), inputs);
@@ -419,7 +450,13 @@ void WriteSimulation(const std::string& dir, const SceneSpec& scene, const Scene
   WriteFits(Join(dir, kTruthFile), sim.truth, SimulationHeader(scene, g, "truth", "electron", true, hr_wcs),
             FitsType::kFloat64);
   FitsHeader psf = SimulationHeader(scene, g, "psfs: unit sum, HR sampling", "", true);
-  WriteFitsCube(Join(dir, kPsfsFile), sim.psfs, psf, FitsType::kFloat64);
+  WriteFitsCube(Join(dir, kPsfsFile), PerPhase(scene, sim.psfs), psf, FitsType::kFloat64);
+  if (scene.sequence.enabled() && scene.ao.mode == AoSpec::Mode::kClosedLoop)  // provenance: each exposure's own
+    WriteFitsCube(Join(dir, kExposurePsfsFile), sim.psfs,
+                  SimulationHeader(scene, g, "each exposure's psf (closed loop): unit sum, HR sampling", "", true), FitsType::kFloat64);
+  if (!sim.truth_frames.empty())
+    WriteFitsCube(Join(dir, kTruthFramesFile), sim.truth_frames,
+                  SimulationHeader(scene, g, "truth at each exposure's mid-time", "electron", true, hr_wcs), FitsType::kFloat64);
   if (!sim.nominal_psfs.empty())
     WriteFitsCube(Join(dir, kNominalPsfsFile), sim.nominal_psfs,
                   SimulationHeader(scene, g, "nominal psfs (analytic AO): unit sum, HR sampling", "", true), FitsType::kFloat64);
@@ -445,9 +482,12 @@ void WriteSimulation(const std::string& dir, const SceneSpec& scene, const Scene
       }
       return h;
     };
-    auto flat = [](const std::vector<ImageStack>& nodes) {
+    auto flat = [&scene](const std::vector<ImageStack>& nodes) {
       ImageStack planes;
-      for (const ImageStack& node : nodes) planes.insert(planes.end(), node.begin(), node.end());
+      for (const ImageStack& node : nodes) {
+        const ImageStack phases = PerPhase(scene, node);
+        planes.insert(planes.end(), phases.begin(), phases.end());
+      }
       return planes;
     };
     WriteFitsCube(Join(dir, kFieldPsfsFile), flat(sim.field_psfs),
@@ -524,6 +564,7 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   const std::string valid_path = root.Has("valid") ? FileField(root, "valid") : std::string();
   const std::string weights_path = root.Has("weights") ? FileField(root, "weights") : std::string();
   const std::string truth_path = root.Has("truth") ? FileField(root, "truth") : std::string();
+  const std::string truth_frames_path = root.Has("truth_frames") ? FileField(root, "truth_frames") : std::string();
   const std::string nominal_path = root.Has("nominal_psfs") ? FileField(root, "nominal_psfs") : std::string();
   if (root.Has("expected")) ds.expected_file = FileField(root, "expected");
   std::optional<Shape> frame_shape, hr_shape;
@@ -807,6 +848,8 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
     ds.weights = std::move(w);
   }
   if (!truth_path.empty()) ds.truth = ReadCube(root, "truth", truth_path, 1, ds.hr_frame, "one HR image").front();
+  if (!truth_frames_path.empty())
+    ds.truth_frames = ReadCube(root, "truth_frames", truth_frames_path, n, ds.hr_frame, "one HR image per frame");
   if (ds.camera_pixel_rad == 0.0 && scene) ds.camera_pixel_rad = scene->CameraPixelRad();
   return ds;
 }
@@ -834,6 +877,8 @@ Dataset SelectFrames(const Dataset& d, const std::vector<int>& frames) {
   w.gain_e_per_adu = d.gain_e_per_adu;
   w.bias_adu = d.bias_adu;
   w.truth = d.truth;
+  for (int f : frames)
+    if (!d.truth_frames.empty()) w.truth_frames.push_back(d.truth_frames[std::size_t(f)]);
   w.expected_file = d.expected_file;
   w.stars = d.stars;
   w.trustworthy_border_px = d.trustworthy_border_px;

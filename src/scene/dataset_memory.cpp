@@ -52,9 +52,9 @@ void CheckStack(const ImageStack& s, std::size_t n, Shape shape, const std::stri
 Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim) {
   const SceneGeometry& g = sim.geometry;
   const std::size_t n = sim.frames.size();
-  CheckArgument(int(n) == scene.frames && sim.psfs.size() == n && g.frame == scene.frame && g.r == scene.r,
+  CheckArgument(int(n) == scene.Exposures() && sim.psfs.size() == n && g.frame == scene.frame && g.r == scene.r,
                 "DatasetFromSimulation", "sim", std::to_string(n) + " frames of " + ToString(g.frame),
-                "the simulation of the scene (" + std::to_string(scene.frames) + " frames of " + ToString(scene.frame) + ")");
+                "the simulation of the scene (" + std::to_string(scene.Exposures()) + " frames of " + ToString(scene.frame) + ")");
   Dataset ds;
   ds.r = g.r;
   ds.frame = g.frame;
@@ -68,7 +68,8 @@ Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim) {
   ds.weights = std::move(weights);
   ds.gain_e_per_adu = scene.detector.gain_e_per_adu;
   ds.bias_adu = scene.detector.bias_adu;
-  ds.psfs = sim.psfs;
+  // A sequence: per-phase PSFs, as WriteSimulation writes them (PerPhase), expanded to the frames below.
+  ds.psfs = PerPhase(scene, sim.psfs);
   NormalisePsfs(&ds.psfs, "DatasetFromSimulation", "psfs");
   ds.nominal_psfs = sim.nominal_psfs;
   NormalisePsfs(&ds.nominal_psfs, "DatasetFromSimulation", "nominal_psfs");
@@ -76,7 +77,7 @@ Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim) {
     // The field-varying PSF, as LoadDataset reads it from the manifest's psf_field section.
     ds.psf_field.emplace();
     ds.psf_field->grid = sim.field_grid;
-    ds.psf_field->psfs = sim.field_psfs;
+    for (const ImageStack& node : sim.field_psfs) ds.psf_field->psfs.push_back(PerPhase(scene, node));
     ds.psf_field->nominal_psfs = sim.field_nominal_psfs;
     for (ImageStack& node : ds.psf_field->psfs) NormalisePsfs(&node, "DatasetFromSimulation", "field_psfs");
     for (ImageStack& node : ds.psf_field->nominal_psfs) NormalisePsfs(&node, "DatasetFromSimulation", "field_nominal_psfs");
@@ -85,7 +86,29 @@ Dataset DatasetFromSimulation(const SceneSpec& scene, const Simulation& sim) {
   }
   ds.offsets = scene.offsets.frames;
   if (ds.offsets.empty()) ds.offsets.assign(n, DmOffset{});
+  if (scene.sequence.enabled()) {
+    // As LoadDataset reads the manifest's sequence: the per-phase inputs become per-frame (frame j: phase j mod N).
+    for (int j = 0; j < int(n); ++j) ds.slots.push_back(j % scene.frames);
+    ds.slot_count = scene.frames;
+    ds.times_s = sim.times_s;
+    auto expand = [&](ImageStack* v) {
+      if (v->empty()) return;
+      const ImageStack per_phase = *v;
+      v->clear();
+      for (int slot : ds.slots) v->push_back(per_phase[std::size_t(slot)]);
+    };
+    expand(&ds.psfs);
+    expand(&ds.nominal_psfs);
+    if (ds.psf_field) {
+      for (ImageStack& node : ds.psf_field->psfs) expand(&node);
+      for (ImageStack& node : ds.psf_field->nominal_psfs) expand(&node);
+    }
+    const std::vector<DmOffset> per_phase = ds.offsets;
+    ds.offsets.clear();
+    for (int slot : ds.slots) ds.offsets.push_back(per_phase[std::size_t(slot)]);
+  }
   ds.truth = sim.truth;
+  ds.truth_frames = sim.truth_frames;
   ds.stars = sim.stars;
   // The provenance a reconstruction reads from a manifest on disk: the detector model (background weights) and
   // the scene's telescope (the diffraction target), so memory and disk give the same reconstruction.

@@ -15,8 +15,10 @@
 #include "aosr/core/error.hpp"
 #include "aosr/core/fft.hpp"
 #include "aosr/core/memory.hpp"
+#include "aosr/core/metrics.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/optics/psf.hpp"
+#include "aosr/io/image_io.hpp"
 #include "aosr/optics/zernike.hpp"
 #include "aosr/scene/dead_leaves.hpp"
 #include "aosr/scene/galaxy.hpp"
@@ -76,6 +78,7 @@ bool IsSurfaceBrightness(const ObjectSpec& o) {
     case ObjectSpec::Kind::kDemo:
     case ObjectSpec::Kind::kDeadLeaves:
     case ObjectSpec::Kind::kSlantedEdge:
+    case ObjectSpec::Kind::kPlanet:
       return true;
     case ObjectSpec::Kind::kImage:
       return o.image.values == PixelValues::kSurfaceBrightness;
@@ -102,6 +105,23 @@ double FluxScale(const SceneSpec& scene, const ObjectSpec& o, std::size_t index,
     }
   }
   return 1.0;
+}
+
+// A planet component's disc on the HR frame at time t: its camera-pixel geometry in HR pixels (camera pixel
+// centre c is HR coordinate (c + 0.5) r − 0.5), moved by its velocity.
+PlanetOptions PlanetOnHr(const SceneSpec& scene, const ObjectSpec& o, Shape hr, double t) {
+  const double r = scene.r;
+  PlanetOptions p = o.planet;
+  p.radius_px *= r;
+  p.centre_y = std::isnan(p.centre_y) ? 0.5 * double(hr.rows - 1) : (p.centre_y + 0.5) * r - 0.5;
+  p.centre_x = std::isnan(p.centre_x) ? 0.5 * double(hr.cols - 1) : (p.centre_x + 0.5) * r - 0.5;
+  p.centre_y += o.variation.velocity_y_px_per_s * t * r;
+  p.centre_x += o.variation.velocity_x_px_per_s * t * r;
+  return p;
+}
+
+Image PlanetTextureOf(const ObjectSpec& o) {
+  return o.texture_path.empty() ? PlanetTexture(o.planet_texture, o.seed) : ReadImage(o.texture_path);
 }
 
 // Renders one extended component on the HR frame, in electrons per frame per HR pixel before FluxScale.
@@ -140,6 +160,9 @@ Image RenderExtended(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
       img = SlantedEdgeTarget(hr, e);
       break;
     }
+    case ObjectSpec::Kind::kPlanet:
+      img = RenderPlanet(hr, PlanetOnHr(scene, o, hr, 0.0), PlanetTextureOf(o), 0.0);
+      break;
     case ObjectSpec::Kind::kStars:
       throw InvalidArgument("RenderExtended: stars are point sources");
   }
@@ -216,6 +239,82 @@ Image WithoutTilt(const Image& opd, const Image& amplitude) {
   return out - c[1] * z2 - c[2] * z3;
 }
 
+// The components of a sequence that change in time (ObjectVariation, a rotating planet), rendered at any t:
+// each is normalised once, at t = 0, as a static component is, then moved and scaled. An extended component
+// that moves is Fourier-shifted on a grid padded by its largest displacement over the sequence, so that
+// nothing wraps around into the frame; a planet is re-rendered at its moved centre (exact, no shift).
+class ChangingComponents {
+ public:
+  ChangingComponents(const SceneSpec& scene, Shape hr, int flux_binning) : scene_(scene), hr_(hr) {
+    double t_max = 0;
+    for (int j = 0; j < scene.Exposures(); ++j) t_max = std::max(t_max, std::abs(scene.ExposureTime(j)));
+    for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+      const ObjectSpec& o = scene.objects[i];
+      if (!o.IsTimeVarying()) continue;
+      Item c;
+      c.spec = &o;
+      if (o.IsPointSources()) {
+        c.stars = StarsOf(scene, o, hr);
+        double sum = 0, peak = 0;
+        for (const PointSource& p : c.stars) sum += p.flux, peak = std::max(peak, p.flux);
+        const double scale = FluxScale(scene, o, i, sum, peak);
+        for (PointSource& p : c.stars) p.flux *= scale;
+      } else {
+        Image base = RenderExtended(scene, o, hr);
+        if (!AllFinite(base)) throw NumericalError("ScenePipeline: objects[" + std::to_string(i) + "] rendered non-finite values");
+        c.scale = FluxScale(scene, o, i, base.sum(), flux_binning > 1 ? BlockSum(base, flux_binning).maxCoeff() : base.maxCoeff());
+        if (o.kind == ObjectSpec::Kind::kPlanet) {
+          c.texture = PlanetTextureOf(o);
+        } else if (o.variation.Moves()) {
+          const double r = scene.r;
+          c.margin_y = Index(std::ceil(std::abs(o.variation.velocity_y_px_per_s) * t_max * r)) + 2;
+          c.margin_x = Index(std::ceil(std::abs(o.variation.velocity_x_px_per_s) * t_max * r)) + 2;
+          c.base = Image::Zero(hr.rows + 2 * c.margin_y, hr.cols + 2 * c.margin_x);
+          c.base.block(c.margin_y, c.margin_x, hr.rows, hr.cols) = c.scale * base;
+        } else {
+          c.base = c.scale * base;
+        }
+      }
+      items_.push_back(std::move(c));
+    }
+  }
+
+  // Adds the changing components at time t to the extended image (HR frame) and the stars (HR coordinates).
+  void AddAt(double t, Image* extended, std::vector<PointSource>* stars) const {
+    const double r = scene_.r;
+    for (const Item& c : items_) {
+      const ObjectVariation& v = c.spec->variation;
+      const double f = v.FluxFactor(t);
+      const double dy = v.velocity_y_px_per_s * t * r, dx = v.velocity_x_px_per_s * t * r;
+      if (c.spec->IsPointSources()) {
+        for (PointSource p : c.stars) {
+          p.y += dy, p.x += dx, p.flux *= f;
+          stars->push_back(p);
+        }
+      } else if (c.spec->kind == ObjectSpec::Kind::kPlanet) {
+        *extended += (f * c.scale) * RenderPlanet(hr_, PlanetOnHr(scene_, *c.spec, hr_, t), c.texture, t);
+      } else if (v.Moves()) {
+        *extended += f * FourierShiftImage(c.base, dy, dx).block(c.margin_y, c.margin_x, hr_.rows, hr_.cols);
+      } else {
+        *extended += f * c.base;
+      }
+    }
+  }
+
+ private:
+  struct Item {
+    const ObjectSpec* spec = nullptr;
+    double scale = 1.0;
+    Image base;       // extended (not planets): normalised, on the padded shift grid when it moves
+    Index margin_y = 0, margin_x = 0;
+    Image texture;    // planets
+    std::vector<PointSource> stars;  // normalised, at t = 0
+  };
+  const SceneSpec& scene_;
+  Shape hr_;
+  std::vector<Item> items_;
+};
+
 }  // namespace
 
 Image ExposureOpd(const SceneSpec& scene, const DmOffset& offset, const Image& static_opd_m, const DeformableMirror* dm) {
@@ -257,16 +356,21 @@ double EstimatePeakBytes(const SceneSpec& s, const SceneGeometry& g) {
   double stars = 0;
   for (const ObjectSpec& o : s.objects)
     if (o.IsPointSources()) stars += o.catalogue.empty() ? o.stars.count : double(o.catalogue.size());
-  // Distinct PSFs are at most the frame count; the count itself is known only after compiling, so the bound.
-  const double distinct = s.frames;
+  // Distinct PSFs are at most the exposure count; the count itself is known only after compiling, so the bound.
+  const double exposures = s.Exposures();
+  const double distinct = exposures;
   const double layers = s.telescope.atmosphere ? double(s.telescope.atmosphere->layers.size()) : 0.0;
   const double pupil_work = 4 * 16 * (4 * n2) + (loop ? (layers + 4) * 8 * (4 * n2) : 0.0) + 2 * 16 * k2 * std::sqrt(n2);
   const double nodes = s.psf_field.enabled ? double(s.psf_field.grid_y) * s.psf_field.grid_x : 0.0;
   // psf_field: every node's PSFs (and the nominal ones), one weighted object image and the spectra summed
   // per distinct PSF.
-  const double field = nodes * 8 * k2 * s.frames * (loop ? 2 : 1) + (nodes > 0 ? 8 * padded + 16 * half * distinct : 0.0);
-  return field + 8 * 3 * hr + 8 * k2 * s.frames * (loop ? 2 : 1) + 16 * 3 * half + 8 * 2 * padded + 8 * distinct * hr +
-         8 * lr * (distinct + 6.0 * s.frames) + 2 * sizeof(PointSource) * stars + pupil_work;
+  const double field = nodes * 8 * k2 * exposures * (loop ? 2 : 1) + (nodes > 0 ? 8 * padded + 16 * half * distinct : 0.0);
+  // A sequence whose objects change: the truth at every exposure, and per exposure the object (its spectrum and
+  // a shift grid) instead of one spectrum per distinct PSF.
+  const double varying = s.TimeVarying() ? 8 * hr * exposures + 8 * 2 * padded : 0.0;
+  return field + varying + 8 * 3 * hr + 8 * k2 * exposures * (loop ? 2 : 1) + 16 * 3 * half + 8 * 2 * padded +
+         8 * (s.TimeVarying() ? 1.0 : distinct) * hr + 8 * lr * (distinct + 6.0 * exposures) +
+         2 * sizeof(PointSource) * stars + pupil_work;
 }
 }  // namespace
 
@@ -315,7 +419,7 @@ void ScenePipeline::Compile() {
     estimated_peak_bytes_ = std::max(estimated_peak_bytes_, p->estimated_peak_bytes_);
     fine_ = std::move(p);
   }
-  CheckMemory(estimated_peak_bytes_, s.source + ": simulating " + std::to_string(s.frames) + " frames of " +
+  CheckMemory(estimated_peak_bytes_, s.source + ": simulating " + std::to_string(s.Exposures()) + " frames of " +
                                          ToString(g.frame) + " at r = " + std::to_string(s.r) + " (HR " +
                                          ToString(g.hr_frame) + ", convolution grid " + ToString(g.padded) +
                                          ", PSF " + std::to_string(g.psf_size) + "^2, pupil " +
@@ -338,16 +442,18 @@ void ScenePipeline::Compile() {
 
   // Distinct pupil OPDs: exposures with the same offset share one PSF, except in the closed loop, where
   // every exposure is its own stretch of turbulence.
-  distinct_.assign(s.frames, 0);
+  // (A sequence's M exposures cycle through the N offsets: at most N distinct PSFs.)
+  const int exposures = s.Exposures();
+  distinct_.assign(exposures, 0);
   distinct_count_ = 0;
   if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
-    for (int i = 0; i < s.frames; ++i) distinct_[i] = distinct_count_++;
+    for (int i = 0; i < exposures; ++i) distinct_[i] = distinct_count_++;
   } else {
     std::vector<int> first;  // exposure index of each distinct group
-    for (int i = 0; i < s.frames; ++i) {
+    for (int i = 0; i < exposures; ++i) {
       int found = -1;
-      for (int d = 0; d < int(first.size()); ++d)
-        if (s.offsets.frames[i] == s.offsets.frames[first[d]]) found = d;
+      for (int d = 0; d < int(first.size()) && found < 0; ++d)
+        if (s.ExposureOffset(i) == s.ExposureOffset(first[d])) found = d;
       if (found < 0) {
         found = int(first.size());
         first.push_back(i);
@@ -388,7 +494,7 @@ void ScenePipeline::Compile() {
   if (any_offset)
     add("dm-offsets", std::string(s.offsets.kind == OffsetsSpec::Kind::kRaster ? "tip/tilt raster" : "designed offsets") +
                           ", " + std::to_string(distinct_count_) + " distinct pupil OPDs",
-        s.frames, 1e-7 * n * n * s.frames);
+        s.frames, 1e-7 * n * n * s.frames);  // the N phases' OPDs (a sequence repeats them)
   const double psf_each = s.ao.mode == AoSpec::Mode::kAnalytic ? 2 * FftSeconds({2 * n, 2 * n}) + MftSeconds(2 * n, k)
                                                                : MftSeconds(n, k);
   if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
@@ -401,12 +507,13 @@ void ScenePipeline::Compile() {
     const int runs = s.ao.antithetic && s.telescope.atmosphere ? 2 : 1;
     add("ao-loop", atmosphere + ", " + sensor + " WFS, " + std::to_string(steps) + " steps per exposure (" +
                        std::to_string(psf_steps) + " PSF frames) at " + Fmt("%g", rate) + " Hz" +
-                       (runs == 2 ? ", twice (antithetic pair)" : ""),
-        s.frames * runs, runs * s.frames * (steps * kLoopStepS128 * (n * n) / (128.0 * 128.0) + psf_steps * psf_each));
+                       (runs == 2 ? ", twice (antithetic pair)" : "") +
+                       (s.sequence.enabled() ? ", one loop through the sequence's " + std::to_string(exposures) + " exposures" : ""),
+        exposures * runs, runs * exposures * (steps * kLoopStepS128 * (n * n) / (128.0 * 128.0) + psf_steps * psf_each));
   }
   add("psf", std::string(ModeName(s.ao.mode)) + " PSF, " + std::to_string(k) + "^2 at " + Fmt("%.3g", g.hr_pixel_lambda_over_d) +
                  " lambda/D from a " + std::to_string(n) + "^2 pupil; " + std::to_string(distinct_count_) + " distinct of " +
-                 std::to_string(s.frames) + " exposures",
+                 std::to_string(exposures) + " exposures",
       distinct_count_, s.ao.mode == AoSpec::Mode::kClosedLoop ? 0.0 : distinct_count_ * psf_each);
   if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
     // Closed-loop PSFs are one realisation each; a reconstructor cannot know them. The analytic long-exposure
@@ -452,17 +559,31 @@ void ScenePipeline::Compile() {
         distinct_count_,
         8.0 * stars * double(g.padded.rows) * (g.padded.cols / 2 + 1) / kGemmFlopsPerS + (has_extended_ ? 0.0 : fft * 2 * distinct_count_));
   }
+  if (s.TimeVarying()) {
+    int changing = 0, shifted = 0, planets = 0;
+    for (const ObjectSpec& o : s.objects) {
+      changing += o.IsTimeVarying() ? 1 : 0;
+      shifted += o.variation.Moves() && !o.IsPointSources() && o.kind != ObjectSpec::Kind::kPlanet ? 1 : 0;
+      planets += o.kind == ObjectSpec::Kind::kPlanet && o.IsTimeVarying() ? 1 : 0;
+    }
+    add("sequence", std::to_string(changing) + " changing component(s) rendered at each of the " + std::to_string(exposures) +
+                        " exposures' mid-times (" + std::to_string(shifted) + " Fourier-shifted, " + std::to_string(planets) +
+                        " planet(s) re-rendered); per exposure " + std::to_string(weighted) + " object r2c, " +
+                        std::to_string(weighted) + " PSF r2c and one c2r instead of one per distinct PSF",
+        exposures,
+        exposures * (fft * (2 * weighted + 1 + 2 * shifted) + planets * kRenderSPerPixel * hr_pixels * 16));
+  }
   add("pixel-integration", "crop to " + ToString(g.hr_frame) + ", D_" + std::to_string(s.r) + " to " + ToString(g.frame) +
                                (s.detector.fill_factor < 1 ? ", fill factor " + Fmt("%g", s.detector.fill_factor) : std::string()),
-      s.frames, 3e-9 * hr_pixels * distinct_count_);
+      exposures, 3e-9 * hr_pixels * (s.TimeVarying() ? exposures : distinct_count_));
   {
     const Detector detector(s.detector);
     std::string detail;
     for (const std::string& line : detector.Plan()) detail += (detail.empty() ? "" : "; ") + line;
     const bool noisy = s.detector.noise_model == NoiseModel::kPeakFraction ? s.detector.peak_noise_fraction > 0
                                                                             : s.detector.enable_photon_noise || s.detector.enable_read_noise;
-    add("detector", detail, s.frames,
-        s.frames * double(g.frame.rows) * g.frame.cols * (noisy ? kDetectorNoiseSPerPixel : kDetectorPlainSPerPixel));
+    add("detector", detail, exposures,
+        exposures * double(g.frame.rows) * g.frame.cols * (noisy ? kDetectorNoiseSPerPixel : kDetectorPlainSPerPixel));
   }
   if (fine_) {
     // The fine grid does the work: its stages, marked as such.
@@ -477,7 +598,9 @@ void ScenePipeline::Compile() {
 }
 
 std::string ScenePipeline::PlanReport() const {
-  std::string out = "scene " + scene_.name + ": N = " + std::to_string(scene_.frames) + ", r = " + std::to_string(scene_.r) +
+  std::string out = "scene " + scene_.name + ": N = " + std::to_string(scene_.frames) +
+                    (scene_.sequence.enabled() ? " (a sequence of " + std::to_string(scene_.sequence.frames) + " exposures)" : "") +
+                    ", r = " + std::to_string(scene_.r) +
                     ", frames " + ToString(geometry_.frame) + " -> HR " + ToString(geometry_.hr_frame) + ", PSF " +
                     std::to_string(geometry_.psf_size) + "^2, border " + std::to_string(geometry_.trustworthy_border_px) + " px" +
                     (fine_ ? ", sky rendered on the " + ToString(fine_->geometry_.hr_frame) + " grid (sky_oversampling " +
@@ -517,8 +640,10 @@ Image ScenePipeline::RenderObject(std::vector<PointSource>* stars) const {
   const Shape hr = geometry_.hr_frame;
   Image extended = Image::Zero(hr.rows, hr.cols);
   std::vector<PointSource> all;
+  const bool sequence = scene_.TimeVarying();
   for (std::size_t i = 0; i < scene_.objects.size(); ++i) {
     const ObjectSpec& o = scene_.objects[i];
+    if (sequence && o.IsTimeVarying()) continue;  // rendered per exposure (ChangingComponents)
     if (o.IsPointSources()) {
       std::vector<PointSource> s = StarsOf(scene_, o, hr);
       double sum = 0, peak = 0;
@@ -582,11 +707,11 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
     lo.dm_gain = s.ao.dm_gain;
     lo.offset_calibration = s.ao.offset_calibration;
     std::vector<Image> offsets;
-    for (const DmOffset& o : s.offsets.frames) offsets.push_back(ExposureOpd(s, o, Image(), dm.get()));
+    for (int i = 0; i < s.Exposures(); ++i) offsets.push_back(ExposureOpd(s, s.ExposureOffset(i), Image(), dm.get()));
     // One continuous run over the exposures, or (antithetic) two: the atmosphere and its negation, each
     // exposure's PSF and Strehl averaged over the pair (scene_spec.hpp, AoSpec::antithetic).
     const int runs = s.ao.antithetic && spec.atmosphere ? 2 : 1;
-    if (tilt_gain) tilt_gain->assign(s.frames, {0.0, 0.0});
+    if (tilt_gain) tilt_gain->assign(s.Exposures(), {0.0, 0.0});
     for (int run = 0; run < runs; ++run) {
       if (run == 1) spec.atmosphere->antithetic = true;
       AoSystem system = BuildAoSystem(spec);
@@ -597,7 +722,7 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
           step ? std::function<bool(int)>([&](int) { return go = step(1); }) : std::function<bool(int)>());
       if (!go) return {};
       const double w = 1.0 / runs;
-      for (int i = 0; i < s.frames; ++i) {
+      for (int i = 0; i < s.Exposures(); ++i) {
         if (tilt_gain) {
           (*tilt_gain)[i][0] += w * results[i].tilt_gain[0];
           (*tilt_gain)[i][1] += w * results[i].tilt_gain[1];
@@ -618,7 +743,7 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
     const double residual_strehl = analytic ? analytic->Compute(amplitude, Image::Zero(n, n)).strehl : 1.0;
     for (int d = 0; d < distinct_count_; ++d) {
       const int i = int(std::find(distinct_.begin(), distinct_.end(), d) - distinct_.begin());
-      const Image opd = ExposureOpd(s, s.offsets.frames[i], static_opd, dm.get());
+      const Image opd = ExposureOpd(s, s.ExposureOffset(i), static_opd, dm.get());
       if (analytic) {
         AnalyticAoPsf p = analytic->Compute(amplitude, opd);
         raw[d] = std::move(p.psf);
@@ -635,7 +760,7 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
   ImageStack psfs;
   if (window_fraction) window_fraction->clear();
   if (strehl) strehl->clear();
-  for (int i = 0; i < s.frames; ++i) {
+  for (int i = 0; i < s.Exposures(); ++i) {
     const Image& p = raw[distinct_[i]];
     if (p.size() == 0 || !AllFinite(p) || !(p.sum() > 0))
       throw NumericalError("ScenePipeline: the PSF of exposure " + std::to_string(i) + " is empty, not finite or has no light");
@@ -677,6 +802,7 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
     Simulation sim = fine_->Run(progress);
     sim.geometry = geometry_;
     if (sim.truth.size()) sim.truth = BlockSum(sim.truth, so);
+    for (Image& x : sim.truth_frames) x = BlockSum(x, so);
     for (PointSource& p : sim.stars) p = StarToHr(p, so);
     for (Image& p : sim.psfs) p = SubsamplePsf(p, so);
     for (Image& p : sim.nominal_psfs) p = SubsamplePsf(p, so);
@@ -692,6 +818,8 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   const bool closed_loop = scene_.ao.mode == AoSpec::Mode::kClosedLoop;
   const int loop_runs = closed_loop && scene_.ao.antithetic && scene_.telescope.atmosphere ? 2 : 1;
   const int nodes = field_grid_.nodes();
+  const int exposures = scene_.Exposures();
+  const bool varying = scene_.TimeVarying();
   const int total = 4 + (1 + nodes) * distinct_count_ * loop_runs + (closed_loop ? 1 + nodes : 0);
   ProgressReporter reporter(progress, "simulate", total, "");
   int done = 0;
@@ -710,13 +838,16 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   const SceneGeometry& g = geometry_;
   Simulation sim;
   sim.geometry = g;
+  if (scene_.sequence.enabled())
+    for (int i = 0; i < exposures; ++i) sim.times_s.push_back(scene_.ExposureTime(i));
   SimulationCounters& c = sim.counters;
   auto timed = [&sim](const std::string& name, Clock::time_point start) { sim.timings.push_back({name, Seconds(start)}); };
 
   auto t = Clock::now();
+  // (A sequence's changing components are not in it: they are added per exposure below.)
   const Image extended = RenderObject(&sim.stars);
   // The truth holds the stars deposited bilinearly (StarTruth); the frames below use the catalogue itself.
-  sim.truth = sim.stars.empty() ? extended : Image(extended + StarTruth(g.hr_frame, sim.stars));
+  if (!varying) sim.truth = sim.stars.empty() ? extended : Image(extended + StarTruth(g.hr_frame, sim.stars));
   c.object_components = int(scene_.objects.size());
   timed("object", t);
   if (!advance(1)) {
@@ -770,83 +901,134 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   // Convolution on the padded grid: the object's spectrum (extended part by FFT, stars exactly), times each
   // distinct transfer function, back to the image domain. With a psf_field, the object weighted by each
   // node's interpolation weight through that node's PSF, summed (core/psf_field.hpp): y = Σ_k h_k ⊛ (w_k x).
+  // A sequence whose objects change: the same per exposure, for the object at the exposure's mid-time.
   t = Clock::now();
   const Shape P = g.padded;
-  // The object's spectrum on the padded grid, weighted by `weight` (extended part) and `star_weight` (stars,
-  // at their positions) when given.
-  auto object_spectrum = [&](const Image* weight, const std::function<double(const PointSource&)>& star_weight) {
+  // The spectrum on the padded grid of the object (`ext`, `stars`), weighted by `weight` (extended part) and
+  // `star_weight` (stars, at their positions) when given.
+  auto object_spectrum = [&](const Image& ext, const std::vector<PointSource>& stars, const Image* weight,
+                             const std::function<double(const PointSource&)>& star_weight) {
     ComplexImage spectrum;
     if (has_extended_) {
       Image padded = Image::Zero(P.rows, P.cols);
-      padded.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols) =
-          weight ? Image(extended.cwiseProduct(*weight)) : extended;
+      padded.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols) = weight ? Image(ext.cwiseProduct(*weight)) : ext;
       spectrum = FftR2C(padded);
       ++c.object_transforms;
     }
-    if (!sim.stars.empty()) {
+    if (!stars.empty()) {
       std::vector<PointSource> shifted;
-      for (PointSource p : sim.stars) {
+      for (PointSource p : stars) {
         if (star_weight) p.flux *= star_weight(p);
         if (p.flux == 0.0 && star_weight) continue;
         p.y += double(g.pad_top), p.x += double(g.pad_left);
         shifted.push_back(p);
       }
-      const ComplexImage stars = PointSourceSpectrum(P, shifted);
-      spectrum = spectrum.size() ? ComplexImage(spectrum + stars) : stars;
+      const ComplexImage spectrum_stars = PointSourceSpectrum(P, shifted);
+      spectrum = spectrum.size() ? ComplexImage(spectrum + spectrum_stars) : spectrum_stars;
     }
     if (spectrum.size() == 0) spectrum = ComplexImage::Zero(P.rows, P.cols / 2 + 1);
     return spectrum;
   };
   auto transfer = [&](const Image& psf) { return HermitianProjection(TransferFunction(P, psf), P.cols); };
-  std::vector<int> first(distinct_count_);  // an exposure of each distinct PSF
-  for (int d = 0; d < distinct_count_; ++d)
-    first[d] = int(std::find(sim.distinct_psf.begin(), sim.distinct_psf.end(), d) - sim.distinct_psf.begin());
-  // Each distinct PSF's product of spectra; without a field made one at a time below (one spectrum held).
-  std::vector<ComplexImage> products(distinct_count_);
-  ComplexImage spectrum;
-  if (nodes == 0) {
-    spectrum = object_spectrum(nullptr, {});
-  } else {
-    // Node by node, so that only one weighted spectrum is held; the sum over nodes in node order.
-    const int so = field_scale_;
-    for (int k = 0; k < nodes; ++k) {
-      const Image weight = has_extended_ ? field_grid_.WeightMap(k, so) : Image();
-      const ComplexImage spectrum = object_spectrum(has_extended_ ? &weight : nullptr, [&](const PointSource& p) {
-        // The star's HR-grid position (a fine grid's pixel centres: pipeline.hpp) and its weight at node k.
-        const double half = 0.5 * double(so - 1);
-        for (const PsfFieldGrid::Weight& w : field_grid_.Weights((p.y - half) / so, (p.x - half) / so))
-          if (w.node == k) return w.weight;
-        return 0.0;
-      });
-      for (int d = 0; d < distinct_count_; ++d) {
-        const ComplexImage term = spectrum * transfer(sim.field_psfs[k][first[d]]);
-        products[d] = k == 0 ? term : ComplexImage(products[d] + term);
+  // Node k's interpolation weight of a star (its HR-grid position: a fine grid's pixel centres, pipeline.hpp).
+  const int so = field_scale_;
+  auto node_weight = [&](int k) {
+    return [this, k, so](const PointSource& p) {
+      const double half = 0.5 * double(so - 1);
+      for (const PsfFieldGrid::Weight& w : field_grid_.Weights((p.y - half) / so, (p.x - half) / so))
+        if (w.node == k) return w.weight;
+      return 0.0;
+    };
+  };
+  // The product spectrum to a convolved HR image: c2r, crop, clip at 0. Clipped: FFT rounding (~1e-16 of the
+  // peak) and, for stars, the ringing of a window-truncated PSF shifted by a fraction of a pixel (~1e-6 of the
+  // star's flux per pixel) dip below 0; an intensity cannot, and the detector rejects negative signal.
+  auto to_image = [&](const ComplexImage& product) {
+    const Image full = FftC2R(product, P.cols);
+    ++c.frame_transforms;
+    return Image(full.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols).cwiseMax(0.0));
+  };
+  const OperatorPtr pixels = PixelResponse(g.hr_frame, g.r, scene_.detector.fill_factor);
+  auto integrate = [&](const Image& convolved) { return ToImage(pixels->Apply(AsVector(convolved)), g.frame); };
+  double pixel_seconds = 0;
+  if (!varying) {
+    std::vector<int> first(distinct_count_);  // an exposure of each distinct PSF
+    for (int d = 0; d < distinct_count_; ++d)
+      first[d] = int(std::find(sim.distinct_psf.begin(), sim.distinct_psf.end(), d) - sim.distinct_psf.begin());
+    // Each distinct PSF's product of spectra; without a field made one at a time below (one spectrum held).
+    std::vector<ComplexImage> products(distinct_count_);
+    ComplexImage spectrum;
+    if (nodes == 0) {
+      spectrum = object_spectrum(extended, sim.stars, nullptr, {});
+    } else {
+      // Node by node, so that only one weighted spectrum is held; the sum over nodes in node order.
+      for (int k = 0; k < nodes; ++k) {
+        const Image weight = has_extended_ ? field_grid_.WeightMap(k, so) : Image();
+        const ComplexImage spectrum_k = object_spectrum(extended, sim.stars, has_extended_ ? &weight : nullptr, node_weight(k));
+        for (int d = 0; d < distinct_count_; ++d) {
+          const ComplexImage term = spectrum_k * transfer(sim.field_psfs[k][first[d]]);
+          products[d] = k == 0 ? term : ComplexImage(products[d] + term);
+        }
       }
     }
+    std::vector<Image> convolved(distinct_count_);
+    for (int d = 0; d < distinct_count_; ++d) {
+      if (nodes == 0) products[d] = spectrum * transfer(sim.psfs[first[d]]);
+      convolved[d] = to_image(products[d]);
+      products[d] = ComplexImage();
+    }
+    timed(has_extended_ ? "convolution" : "point-sources", t);
+    if (!advance(1)) {
+      stop(&sim);
+      return sim;
+    }
+    t = Clock::now();
+    std::vector<Image> lr(distinct_count_);
+    for (int d = 0; d < distinct_count_; ++d) lr[d] = integrate(convolved[d]);
+    for (int i = 0; i < exposures; ++i) sim.expected_e.push_back(lr[sim.distinct_psf[i]]);
+    pixel_seconds = Seconds(t);
+  } else {
+    // Exposure by exposure: the object at its mid-time, its truth, and its frame. Without a field the
+    // transfer function of each distinct PSF is made once (at most N of them; the closed loop's are all
+    // distinct and made as they come).
+    const ChangingComponents changing(scene_, g.hr_frame, flux_binning_);
+    const bool cache = nodes == 0 && distinct_count_ < exposures;
+    std::vector<ComplexImage> transfers(cache ? distinct_count_ : 0);
+    Image truth_sum = Image::Zero(g.hr_frame.rows, g.hr_frame.cols);
+    for (int i = 0; i < exposures; ++i) {
+      const double time = scene_.ExposureTime(i);
+      Image ext = extended;
+      std::vector<PointSource> stars = sim.stars;
+      changing.AddAt(time, &ext, &stars);
+      Image truth_i = stars.empty() ? ext : Image(ext + StarTruth(g.hr_frame, stars));
+      truth_sum += truth_i;
+      sim.truth_frames.push_back(std::move(truth_i));
+      ComplexImage product;
+      if (nodes == 0) {
+        const int d = sim.distinct_psf[i];
+        if (cache && transfers[d].size() == 0) transfers[d] = transfer(sim.psfs[i]);
+        product = object_spectrum(ext, stars, nullptr, {}) * (cache ? transfers[d] : transfer(sim.psfs[i]));
+      } else {
+        for (int k = 0; k < nodes; ++k) {
+          const Image weight = has_extended_ ? field_grid_.WeightMap(k, so) : Image();
+          const ComplexImage term =
+              object_spectrum(ext, stars, has_extended_ ? &weight : nullptr, node_weight(k)) * transfer(sim.field_psfs[k][i]);
+          product = k == 0 ? term : ComplexImage(product + term);
+        }
+      }
+      const auto t_pixels = Clock::now();
+      sim.expected_e.push_back(integrate(to_image(product)));
+      pixel_seconds += Seconds(t_pixels);
+    }
+    // The time-averaged object: what a reconstruction of the whole sequence at once estimates.
+    sim.truth = truth_sum / double(exposures);
+    timed("sequence", t);
+    if (!advance(1)) {
+      stop(&sim);
+      return sim;
+    }
   }
-  std::vector<Image> convolved(distinct_count_);
-  for (int d = 0; d < distinct_count_; ++d) {
-    if (nodes == 0) products[d] = spectrum * transfer(sim.psfs[first[d]]);
-    const Image full = FftC2R(products[d], P.cols);
-    products[d] = ComplexImage();
-    ++c.frame_transforms;
-    // Clipped at 0: FFT rounding (~1e-16 of the peak) and, for stars, the ringing of a window-truncated PSF
-    // shifted by a fraction of a pixel (~1e-6 of the star's flux per pixel) dip below 0; an intensity
-    // cannot, and the detector rejects negative signal.
-    convolved[d] = full.block(g.pad_top, g.pad_left, g.hr_frame.rows, g.hr_frame.cols).cwiseMax(0.0);
-  }
-  timed(has_extended_ ? "convolution" : "point-sources", t);
-  if (!advance(1)) {
-    stop(&sim);
-    return sim;
-  }
-
-  t = Clock::now();
-  const OperatorPtr pixels = PixelResponse(g.hr_frame, g.r, scene_.detector.fill_factor);
-  std::vector<Image> lr(distinct_count_);
-  for (int d = 0; d < distinct_count_; ++d) lr[d] = ToImage(pixels->Apply(AsVector(convolved[d])), g.frame);
-  for (int i = 0; i < scene_.frames; ++i) sim.expected_e.push_back(lr[sim.distinct_psf[i]]);
-  timed("pixel-integration", t);
+  sim.timings.push_back({"pixel-integration", pixel_seconds});
   if (!advance(1)) {
     stop(&sim);
     return sim;
@@ -872,6 +1054,7 @@ SceneSpec NominalScene(const SceneSpec& scene) {
   SceneSpec analytic = scene;
   analytic.ao.mode = AoSpec::Mode::kAnalytic;
   analytic.ao.dm_gain = 1.0;  // the stroke error is the hardware's, unknown to the model (and analytic has none)
+  analytic.sequence = SequenceSpec{};  // one model PSF per phase (N), whatever the sequence's length
   // Only the diffractive sensor simulates photon and read noise (shack_hartmann.hpp): with the others the
   // truth's WFS is noiseless, and so is the model (TelescopePreset::ToAnalyticAo measures the noise otherwise).
   if (scene.ao.sensor != SensorKind::kDiffractive && analytic.telescope.ao) {

@@ -1,5 +1,6 @@
 #include "aosr/scene/scene_spec.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -82,13 +83,83 @@ void CheckOptions(const ConfigNode& n, const Options& o) {
   if (!o.IsValid(&why)) n.Fail("", "(inconsistent)", why);
 }
 
+ObjectVariation ParseVariation(const ConfigNode& n) {
+  ObjectVariation v;
+  if (n.Has("velocity_px_per_s")) {  // camera pixels per second, [v_y, v_x]
+    const std::vector<double> a = n.Numbers("velocity_px_per_s", -1e6, 1e6, 2, 2);
+    v.velocity_y_px_per_s = a[0];
+    v.velocity_x_px_per_s = a[1];
+  }
+  if (n.Has("light_curve")) {
+    const ConfigNode c = n.Child("light_curve");
+    const std::string kind = c.Choice("kind", {"sine", "table"});
+    if (kind == "sine") {
+      v.curve = ObjectVariation::Curve::kSine;
+      v.period_s = c.Number("period_s", 1e-9, 1e12);
+      v.amplitude = c.Number("amplitude", 0.0, 1.0);  // a flux never negative: |a| <= 1
+      v.phase_deg = c.NumberOr("phase_deg", 0.0, -360.0, 360.0);
+    } else {
+      v.curve = ObjectVariation::Curve::kTable;
+      v.times_s = c.Numbers("times_s", -1e12, 1e12, 1, 100000);
+      v.factors = c.Numbers("factors", 0.0, 1e12, 1, 100000);
+      if (v.factors.size() != v.times_s.size())
+        c.Fail("factors", std::to_string(v.factors.size()) + " entries", "one per time (" + std::to_string(v.times_s.size()) + ")");
+      for (std::size_t i = 1; i < v.times_s.size(); ++i)
+        if (!(v.times_s[i] > v.times_s[i - 1]))
+          c.Fail("times_s", "[" + std::to_string(i) + "] = " + ToString(v.times_s[i]) + " after " + ToString(v.times_s[i - 1]),
+                 "increasing times");
+    }
+    c.CheckNoOtherFields();
+  }
+  n.CheckNoOtherFields();
+  return v;
+}
+
 ObjectSpec ParseObject(const ConfigNode& n, const SceneSpec& scene, std::size_t index, bool* needs_magnitudes) {
   ObjectSpec o;
-  o.type = n.Choice("type", {"usaf", "demo", "stars", "galaxies", "dead-leaves", "image", "slanted-edge"});
+  o.type = n.Choice("type", {"usaf", "demo", "stars", "galaxies", "dead-leaves", "image", "slanted-edge", "planet"});
   o.flux = ParseFlux(n);
   o.seed = SeedOr(n, DeriveSeed(scene.seed, kObjectStream + index));
   if (o.flux.kind == FluxSpec::Kind::kMagnitude) *needs_magnitudes = true;
-  if (o.type == "usaf") {
+  if (n.Has("variation")) {
+    if (!scene.sequence.enabled())
+      n.Fail("variation", "(given)", "a variation only in a scene with a \"sequence\" section (objects change in time only there)");
+    o.variation = ParseVariation(n.Child("variation"));
+  }
+  if (o.type == "planet") {
+    o.kind = ObjectSpec::Kind::kPlanet;
+    PlanetOptions& p = o.planet;
+    // Camera pixels here; the pipeline converts them to HR pixels.
+    p.radius_px = n.Number("radius_px", 1e-3, 1e5);
+    if (n.Has("centre_px")) {
+      const std::vector<double> c = n.Numbers("centre_px", -1e6, 1e6, 2, 2);
+      p.centre_y = c[0];
+      p.centre_x = c[1];
+    }
+    p.rotation_period_s = n.NumberOr("rotation_period_s", 0.0, -1e12, 1e12);
+    if (p.rotation_period_s != 0.0 && std::abs(p.rotation_period_s) < 1e-9)
+      n.Fail("rotation_period_s", ToString(p.rotation_period_s), "0 (no rotation) or |period| >= 1e-9 s");
+    p.pole_angle_deg = n.NumberOr("pole_angle_deg", 0.0, -360.0, 360.0);
+    p.sub_observer_latitude_deg = n.NumberOr("sub_observer_latitude_deg", 0.0, -90.0, 90.0);
+    p.longitude0_deg = n.NumberOr("longitude0_deg", 0.0, -360.0, 360.0);
+    p.limb_darkening = n.NumberOr("limb_darkening", 0.0, 0.0, 1.0);
+    p.supersample = int(n.IntegerOr("supersample", p.supersample, 1, 16));
+    if (n.Has("texture") && n.Has("texture_path")) n.Fail("texture", "(both given)", "one of texture and texture_path");
+    if (n.Has("texture_path")) {
+      o.texture_path = ResolvePath(scene.source, n.String("texture_path"));
+      if (!IsRegularFile(o.texture_path)) n.Fail("texture_path", "\"" + o.texture_path + "\"", "an existing FITS/PNG/TIFF file");
+    }
+    if (n.Has("texture")) {
+      const ConfigNode t = n.Child("texture");
+      PlanetTextureOptions& x = o.planet_texture;
+      x.bands = int(t.IntegerOr("bands", x.bands, 0, 64));
+      x.band_contrast = t.NumberOr("band_contrast", x.band_contrast, 0.0, 0.99);
+      x.spots = int(t.IntegerOr("spots", x.spots, 0, 1000));
+      x.spot_radius_deg = t.NumberOr("spot_radius_deg", x.spot_radius_deg, 0.1, 90.0);
+      x.spot_contrast = t.NumberOr("spot_contrast", x.spot_contrast, 0.0, 100.0);
+      t.CheckNoOtherFields();
+    }
+  } else if (o.type == "usaf") {
     o.kind = ObjectSpec::Kind::kUsaf;
     o.usaf_fill = n.NumberOr("fill", o.usaf_fill, 1e-3, 1.0);
     o.usaf.first_group = int(n.IntegerOr("first_group", o.usaf.first_group, -10, 12));
@@ -590,6 +661,20 @@ SceneSpec ParseScene(const nlohmann::json& json, const std::string& source) {
     ParsePsfField(root.Child("psf_field"), &s);
   }
 
+  if (root.Has("sequence")) {
+    const ConfigNode q = root.Child("sequence");
+    s.sequence.frames = int(q.Integer("frames", 1, 100000));
+    if (s.sequence.frames < s.frames)
+      q.Fail("frames", std::to_string(s.sequence.frames), "at least the N = " + std::to_string(s.frames) + " phases (frames)");
+    const double frame_s = s.detector.exposure_time_s;
+    s.sequence.frame_interval_s = q.NumberOr("frame_interval_s", frame_s, 0.0, 1e9);
+    if (s.sequence.frame_interval_s < frame_s * (1 - 1e-12))
+      q.Fail("frame_interval_s", ToString(s.sequence.frame_interval_s),
+             "at least the frame time total_exposure_s / frames = " + ToString(frame_s) + " s (exposures do not overlap)");
+    s.sequence.start_s = q.NumberOr("start_s", 0.0, -1e12, 1e12);
+    q.CheckNoOtherFields();
+  }
+
   bool needs_magnitudes = false;
   const std::vector<ConfigNode> objects = root.Array("objects");
   if (objects.empty()) root.Fail("objects", "[]", "at least one object");
@@ -621,6 +706,36 @@ std::vector<DmOffset> LoadDesignFile(const std::string& path) {
   std::vector<DmOffset> frames = ParseDesignFrames(root);
   root.CheckNoOtherFields();
   return frames;
+}
+
+double ObjectVariation::FluxFactor(double t) const {
+  switch (curve) {
+    case Curve::kNone:
+      return 1.0;
+    case Curve::kSine:
+      return 1.0 + amplitude * std::sin(2 * M_PI * t / period_s + phase_deg * M_PI / 180.0);
+    case Curve::kTable: {
+      if (t <= times_s.front()) return factors.front();
+      if (t >= times_s.back()) return factors.back();
+      const std::size_t i = std::size_t(std::upper_bound(times_s.begin(), times_s.end(), t) - times_s.begin());
+      const double w = (t - times_s[i - 1]) / (times_s[i] - times_s[i - 1]);
+      return (1 - w) * factors[i - 1] + w * factors[i];
+    }
+  }
+  return 1.0;
+}
+
+double SceneSpec::ExposureTime(int j) const {
+  const double frame_s = detector.exposure_time_s;
+  const double interval = sequence.enabled() ? sequence.frame_interval_s : frame_s;
+  return sequence.start_s + j * interval + 0.5 * frame_s;
+}
+
+bool SceneSpec::TimeVarying() const {
+  if (!sequence.enabled()) return false;
+  for (const ObjectSpec& o : objects)
+    if (o.IsTimeVarying()) return true;
+  return false;
 }
 
 PsfFieldGrid SceneSpec::FieldGrid() const {

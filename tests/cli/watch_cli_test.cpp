@@ -76,7 +76,9 @@ TEST_F(WatchCliTest, ReconstructsFramesAsTheCameraWritesThem) {
   // Latencies: the first written output apart, then percentiles of the others (none when a slow machine, e.g.
   // under the sanitizers, superseded all but the last).
   EXPECT_GT(j["first_latency_ms"].get<double>(), 0.0);
-  if (j["written"].get<int>() > 1) EXPECT_GT(j["latency_ms"]["p50"].get<double>(), 0.0);
+  if (j["written"].get<int>() > 1) {
+    EXPECT_GT(j["latency_ms"]["p50"].get<double>(), 0.0);
+  }
   // One log line per file, complete JSON each.
   std::ifstream log(P("out/watch.jsonl"));
   std::vector<nlohmann::json> lines;

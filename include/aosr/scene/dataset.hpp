@@ -45,6 +45,8 @@
 //                                               the psfs are realisations it cannot know (closed-loop simulations
 //                                               write the analytic-AO PSFs of the same offsets); unit-sum normalised
 //   truth                  no                   the object on the HR grid (r·rows × r·cols), e⁻ per frame per HR px
+//   truth_frames           no                   one such object per frame (M planes): the truth at each frame's
+//                                               time, for a sequence whose objects change (truth is then their mean)
 //   expected               no                   noiseless frames, e⁻ (simulations); must exist, not loaded
 //   stars                  no                   [{"y_hr_px", "x_hr_px", "flux_e"}] (HR-frame coordinates, e⁻ per
 //                                               frame), optionally with the camera-pixel "y_px", "x_px" (checked
@@ -91,6 +93,12 @@
 //   weights.fits   N × rows × cols, ADU⁻², float64         truth.fits    HR frame, e⁻ per frame per HR pixel
 //   psfs.fits      N × K × K, unit sum, HR sampling        expected.fits N × rows × cols, noiseless e⁻
 //   manifest.json  the above, all of it referenced by name
+// A scene with a sequence (scene_spec.hpp, SequenceSpec) of M exposures writes M frames (frames, valid, weights,
+// expected) and the manifest's "sequence" (each frame's phase j mod N and mid-exposure time); psfs.fits (and
+// the psf_field's) stay one per phase, N: the mean over the phase's exposures (exact without a closed loop,
+// where they are equal; with one, the phase's long exposure, and each exposure's own PSF is in
+// exposure_psfs.fits, provenance). When objects change, truth_frames.fits holds the truth at each exposure
+// (M × HR frame) and truth.fits their mean.
 // Each FITS header carries ORIGIN, the scene name, r, gain, bias, BUNIT, the frame time and the pixel scale
 // of its own sampling (camera or HR), in mas. Sky coordinates (io/wcs.hpp, the scene's "sky" pointing): the
 // truth carries the HR grid's TAN WCS with the sky position at its centre; frames, valid, weights and expected
@@ -179,6 +187,7 @@ struct Dataset {
   int slot_count = 0;
   std::vector<double> times_s;
   std::optional<Image> truth;     // the HR object, e⁻ per frame per HR pixel, when given
+  ImageStack truth_frames;        // the truth at each frame's time (manifest truth_frames), or empty
   std::string expected_file;      // resolved path of the noiseless frames, empty when absent
   std::vector<PointSource> stars;  // HR-frame coordinates, e⁻ per frame
   Index trustworthy_border_px = 0;
@@ -200,6 +209,12 @@ struct Dataset {
   // The frames in electrons: (ADU − bias) · gain.
   ImageStack FramesElectrons() const;
 };
+
+// A sequence's per-exposure PSFs (M, e.g. Simulation::psfs) as the dataset's per-phase ones (N): the mean over
+// each phase's exposures (exposure j has phase j mod N). Without a closed loop these are all equal (the same
+// offset, the same PSF); with one, the mean is the phase's long exposure over the sequence, what a star in the
+// data would show. Without a sequence: the PSFs as given.
+ImageStack PerPhase(const SceneSpec& scene, const ImageStack& per_exposure);
 
 // Reads a dataset from a manifest path, or from a folder holding manifest.json. Validates the manifest and
 // every file's shape (see the top of the file) before returning. Errors: IoError naming the path for a

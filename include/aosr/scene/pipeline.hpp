@@ -124,8 +124,15 @@ struct Simulation {
   Image truth;                     // the object on the HR frame, electrons per frame per HR pixel; stars are
                                    // deposited bilinearly (non-negative, flux and centroid kept)
   std::vector<PointSource> stars;  // stars in HR-frame pixel coordinates, electrons per frame: the exact truth
-  ImageStack psfs;                 // h_i, psf_size², centred (image.hpp), unit sum; one per exposure
-  ImageStack nominal_psfs;         // closed loop only: NominalPsfs(scene), the model a reconstructor would use
+                                   // (a sequence's changing stars are only in truth_frames)
+  // A sequence (scene_spec.hpp, SequenceSpec): each exposure's mid-time [s]; and when objects change, the
+  // truth at each exposure (as `truth`, which is then their mean: what one reconstruction of the whole
+  // sequence estimates). Empty otherwise.
+  std::vector<double> times_s;
+  ImageStack truth_frames;
+  ImageStack psfs;                 // h_i, psf_size², centred (image.hpp), unit sum; one per exposure (M of a sequence)
+  ImageStack nominal_psfs;         // closed loop only: NominalPsfs(scene), the model a reconstructor would use (one
+                                   // per phase: N)
   std::vector<int> distinct_psf;   // exposure i used distinct PSF distinct_psf[i]
   std::vector<double> psf_window_fraction;  // light of h_i inside its window before normalisation
   // Strehl of h_i about its own centre: diffraction and analytic modes exclude the OPD's tip/tilt (a designed

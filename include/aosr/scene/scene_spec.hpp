@@ -35,6 +35,7 @@
 #include "aosr/scene/image_object.hpp"
 #include "aosr/scene/objects.hpp"
 #include "aosr/scene/photometry.hpp"
+#include "aosr/scene/planet.hpp"
 #include "aosr/scene/star_field.hpp"
 #include "aosr/scene/telescope.hpp"
 
@@ -51,12 +52,35 @@ struct FluxSpec {
   double value = 0.0;
 };
 
+// How a component changes during a sequence (JSON object field "variation"; only with a scene `sequence`).
+// The component is rendered at each exposure's mid-time t (SceneSpec::ExposureTime; the motion within one
+// exposure is not smeared):
+//  * velocity: it moves by (v_y, v_x)·t camera pixels from where its fields put it (stars exactly, as
+//    catalogue positions; extended components by a band-limited Fourier shift on the padded convolution grid,
+//    so light that leaves the frame is gone and light from outside never arrives: the padded grid's dark
+//    border comes in);
+//  * light curve: its flux is multiplied by f(t) ≥ 0: "sine" 1 + a·sin(2π t / period + phase), or a table
+//    of (times_s, factors) interpolated linearly and held beyond its ends.
+// The flux normalisation (`flux`) applies to the component at t = 0 before f(t).
+struct ObjectVariation {
+  double velocity_y_px_per_s = 0.0, velocity_x_px_per_s = 0.0;
+  enum class Curve { kNone, kSine, kTable };
+  Curve curve = Curve::kNone;
+  double period_s = 0.0, amplitude = 0.0, phase_deg = 0.0;  // kSine
+  std::vector<double> times_s, factors;                      // kTable
+  bool Moves() const { return velocity_y_px_per_s != 0.0 || velocity_x_px_per_s != 0.0; }
+  bool IsStatic() const { return !Moves() && curve == Curve::kNone; }
+  double FluxFactor(double t) const;
+};
+
 // One object component. Only the fields of its kind are used.
 struct ObjectSpec {
-  enum class Kind { kUsaf, kDemo, kStars, kGalaxies, kDeadLeaves, kImage, kSlantedEdge };
+  enum class Kind { kUsaf, kDemo, kStars, kGalaxies, kDeadLeaves, kImage, kSlantedEdge, kPlanet };
   Kind kind = Kind::kDemo;
-  std::string type;  // the JSON name: "usaf", "demo", "stars", "galaxies", "dead-leaves", "image", "slanted-edge"
+  // the JSON name: "usaf", "demo", "stars", "galaxies", "dead-leaves", "image", "slanted-edge", "planet"
+  std::string type;
   FluxSpec flux;
+  ObjectVariation variation;
   std::uint64_t seed = 0;  // random components: the component's seed (derived from the scene's if not given)
 
   // usaf: the target's bounding box fills this fraction of the smaller frame side, (0, 1].
@@ -85,7 +109,17 @@ struct ObjectSpec {
   std::string image_path;
   ImageObjectOptions image;
 
+  // planet (planet.hpp): a rotating textured sphere; radius and centre in camera pixels here (converted at
+  // render time), the procedural texture's options, or `texture_path`, an equirectangular map (latitude +90
+  // at row 0, longitude 0..360 along the columns) read as an image file. Its surface brightness is the
+  // texture's value (e⁻ per frame per camera-pixel area) times the limb darkening.
+  PlanetOptions planet;
+  PlanetTextureOptions planet_texture;
+  std::string texture_path;
+
   bool IsPointSources() const { return kind == Kind::kStars; }
+  // Whether the component looks different at different times: a variation, or a planet that rotates.
+  bool IsTimeVarying() const { return !variation.IsStatic() || (kind == Kind::kPlanet && planet.rotation_period_s != 0.0); }
 };
 
 // One exposure's DM offset w_dm,i: an image shift made with tip/tilt, plus Zernike terms, plus optional
@@ -180,6 +214,21 @@ struct PsfFieldSpec {
   int grid_y = 3, grid_x = 3;
 };
 
+// A video (issue 34; JSON "sequence": {"frames": M, "frame_interval_s": Δ, "start_s": t0}): M exposures
+// while the DM cycles through the N offsets (exposure j has offset j mod N, phase j mod N). Exposure j starts
+// at t0 + j·Δ and lasts the frame time (total_exposure_s / N: total_exposure_s stays one cycle's exposure);
+// Δ ≥ the frame time (default: equal, back to back). Objects with a `variation` (or a rotating planet) are
+// rendered at each exposure's mid-time. The closed loop runs once, continuously, through all M exposures, as
+// it does through N without a sequence: the residual of exposure j + N is not that of exposure j (the loop's
+// simulated stretch per exposure is still ao.time_per_frame_s; set it to Δ for the real cadence). The
+// dataset records each frame's phase and time (dataset.hpp, "sequence") and the truth at each exposure.
+struct SequenceSpec {
+  int frames = 0;  // M; 0: no sequence
+  double frame_interval_s = 0.0;
+  double start_s = 0.0;
+  bool enabled() const { return frames > 0; }
+};
+
 struct SceneSpec {
   std::string name;
   std::string source;  // the scene file ("<string>" when parsed from memory)
@@ -197,6 +246,7 @@ struct SceneSpec {
   SkySpec sky;
   PhotometrySpec photometry;
   PsfFieldSpec psf_field;
+  SequenceSpec sequence;
 
   DetectorOptions detector;        // exposure_time_s = total exposure / N (the frame time)
   double total_exposure_s = 1.0;   // the whole sequence; each frame gets total / N
@@ -215,6 +265,14 @@ struct SceneSpec {
   // grid: the truth is the fine sky integrated over each HR pixel, the PSFs are the same PSFs sampled at the
   // HR pitch (what a reconstructor uses). Cost: the object, PSF and convolution stages at s² times the pixels.
   int sky_oversampling = 1;
+
+  // The exposures the simulator makes: M with a sequence, else N; exposure j's DM offset (phase j mod N)
+  // and its mid-exposure time in seconds (without a sequence: frame j's, though nothing then changes in time).
+  int Exposures() const { return sequence.enabled() ? sequence.frames : frames; }
+  const DmOffset& ExposureOffset(int j) const { return offsets.frames[std::size_t(j % frames)]; }
+  double ExposureTime(int j) const;
+  // Whether any component changes during the sequence (false without one: objects are then rendered at t = 0).
+  bool TimeVarying() const;
 
   // Derived geometry.
   Shape HrFrame() const { return {frame.rows * r, frame.cols * r}; }
