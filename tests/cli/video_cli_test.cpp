@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "aosr/core/forward_model.hpp"
+#include "aosr/core/metrics.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
@@ -200,6 +201,41 @@ TEST_F(VideoCliTest, CycleWindowLinearOnePlanePerCycleEqualsTheBatch) {
   EXPECT_EQ(VideoFramesReadBack(Out("lin") + "/video.avi", &rows, &cols), 2);
   EXPECT_EQ(rows, 2 * kVideoHr.rows);  // --zoom 2
   EXPECT_EQ(cols, 2 * kVideoHr.cols);
+}
+
+// A simulated sequence (a scene's "sequence": `aosr simulate` of data/scenes/video-planet.json, 8 exposures)
+// carries the truth at every frame's time: `aosr video` scores each output against the truth at its newest frame
+// (TIMES columns 5 and 6, the --json truth_scores) with the same numbers as aosr::CompareImages on the cube, and
+// the manifest's phases and times drive the windows.
+TEST_F(VideoCliTest, ASimulatedSequenceIsScoredAgainstTheTruthAtEachTime) {
+  const std::string scene = std::string(AOSR_SOURCE_DIR) + "/data/scenes/video-planet.json";
+  const CliRun sim = RunCli("simulate " + scene + " --set sequence.frames=8 -o " + Out("planet"));
+  ASSERT_EQ(sim.status, 0) << sim.out;
+  EXPECT_THAT(sim.out, HasSubstr("in a sequence of 8 exposures"));
+  const CliRun r = RunCli("video " + Out("planet") + " -o " + Out("planet_video") + " --no-video --json");
+  ASSERT_EQ(r.status, 0) << r.out;
+  const nlohmann::json j = Json(r);
+  ASSERT_EQ(j["outputs"], 5) << r.out;  // sliding: frames 3..7 complete a window of the 4 phases
+  ASSERT_TRUE(j.contains("truth_scores")) << r.out;
+  const std::vector<double> psnr = j["truth_scores"]["psnr_db"];
+  ASSERT_EQ(psnr.size(), 5u);
+  const aosr::Dataset d = aosr::LoadDataset(Out("planet"));
+  ASSERT_EQ(d.truth_frames.size(), 8u);
+  const aosr::FitsData cube = aosr::ReadFits(Out("planet_video") + "/video.fits");
+  const aosr::FitsData t = aosr::ReadFitsExtension(Out("planet_video") + "/video.fits", "TIMES");
+  ASSERT_EQ(t.planes[0].cols(), 6);
+  aosr::MetricOptions mo;
+  mo.crop_px = j["truth_scores"]["crop_px"];
+  mo.peak = j["truth_scores"]["peak"];
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_EQ(t.planes[0](k, 3), 3 + k);  // the newest frame
+    EXPECT_DOUBLE_EQ(t.planes[0](k, 0), d.times_s[std::size_t(3 + k)]);
+    // The cube is float32: the PSNR of its plane agrees to ~1e-6 dB.
+    const double ref = aosr::CompareImages(d.truth_frames[std::size_t(3 + k)], cube.planes[std::size_t(k)], mo).psnr;
+    EXPECT_NEAR(psnr[std::size_t(k)], ref, 1e-3) << "output " << k;
+    EXPECT_DOUBLE_EQ(t.planes[0](k, 4), psnr[std::size_t(k)]);
+    EXPECT_GT(psnr[std::size_t(k)], 20.0);  // a reconstruction, not noise
+  }
 }
 
 TEST_F(VideoCliTest, BadOptionsAndInputsAreRefusedBeforeAnythingIsWritten) {
