@@ -124,6 +124,12 @@ Image PlanetTextureOf(const ObjectSpec& o) {
   return o.texture_path.empty() ? PlanetTexture(o.planet_texture, o.seed) : ReadImage(o.texture_path);
 }
 
+// A planet component at time t on the HR frame, before FluxScale: surface brightness per camera-pixel area, so an
+// HR pixel holds 1/r² of it (IsSurfaceBrightness).
+Image RenderPlanetAt(const SceneSpec& scene, const ObjectSpec& o, Shape hr, const Image& texture, double t) {
+  return RenderPlanet(hr, PlanetOnHr(scene, o, hr, t), texture, t) / double(scene.r * scene.r);
+}
+
 // Renders one extended component on the HR frame, in electrons per frame per HR pixel before FluxScale.
 Image RenderExtended(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
   const double r = scene.r;
@@ -161,8 +167,7 @@ Image RenderExtended(const SceneSpec& scene, const ObjectSpec& o, Shape hr) {
       break;
     }
     case ObjectSpec::Kind::kPlanet:
-      img = RenderPlanet(hr, PlanetOnHr(scene, o, hr, 0.0), PlanetTextureOf(o), 0.0);
-      break;
+      return RenderPlanetAt(scene, o, hr, PlanetTextureOf(o), 0.0);
     case ObjectSpec::Kind::kStars:
       throw InvalidArgument("RenderExtended: stars are point sources");
   }
@@ -292,7 +297,7 @@ class ChangingComponents {
           stars->push_back(p);
         }
       } else if (c.spec->kind == ObjectSpec::Kind::kPlanet) {
-        *extended += (f * c.scale) * RenderPlanet(hr_, PlanetOnHr(scene_, *c.spec, hr_, t), c.texture, t);
+        *extended += (f * c.scale) * RenderPlanetAt(scene_, *c.spec, hr_, c.texture, t);
       } else if (v.Moves()) {
         *extended += f * FourierShiftImage(c.base, dy, dx).block(c.margin_y, c.margin_x, hr_.rows, hr_.cols);
       } else {
@@ -479,7 +484,9 @@ void ScenePipeline::Compile() {
       if (o.IsPointSources()) {
         stars += o.catalogue.empty() ? o.stars.count : int(o.catalogue.size());
       } else {
-        const int ss = o.kind == ObjectSpec::Kind::kDeadLeaves ? o.dead_leaves.supersample : 1;
+        const int ss = o.kind == ObjectSpec::Kind::kDeadLeaves ? o.dead_leaves.supersample
+                       : o.kind == ObjectSpec::Kind::kPlanet   ? o.planet.supersample
+                                                               : 1;
         est += kRenderSPerPixel * hr_pixels * ss * ss * (o.kind == ObjectSpec::Kind::kGalaxies ? o.galaxies.count : 1);
       }
     }
@@ -561,17 +568,21 @@ void ScenePipeline::Compile() {
   }
   if (s.TimeVarying()) {
     int changing = 0, shifted = 0, planets = 0;
+    double planet_samples = 0;  // per HR pixel, over the changing planets (each re-rendered per exposure)
     for (const ObjectSpec& o : s.objects) {
       changing += o.IsTimeVarying() ? 1 : 0;
       shifted += o.variation.Moves() && !o.IsPointSources() && o.kind != ObjectSpec::Kind::kPlanet ? 1 : 0;
-      planets += o.kind == ObjectSpec::Kind::kPlanet && o.IsTimeVarying() ? 1 : 0;
+      if (o.kind == ObjectSpec::Kind::kPlanet && o.IsTimeVarying()) {
+        ++planets;
+        planet_samples += double(o.planet.supersample) * o.planet.supersample;
+      }
     }
     add("sequence", std::to_string(changing) + " changing component(s) rendered at each of the " + std::to_string(exposures) +
                         " exposures' mid-times (" + std::to_string(shifted) + " Fourier-shifted, " + std::to_string(planets) +
                         " planet(s) re-rendered); per exposure " + std::to_string(weighted) + " object r2c, " +
                         std::to_string(weighted) + " PSF r2c and one c2r instead of one per distinct PSF",
         exposures,
-        exposures * (fft * (2 * weighted + 1 + 2 * shifted) + planets * kRenderSPerPixel * hr_pixels * 16));
+        exposures * (fft * (2 * weighted + 1 + 2 * shifted) + kRenderSPerPixel * hr_pixels * planet_samples));
   }
   add("pixel-integration", "crop to " + ToString(g.hr_frame) + ", D_" + std::to_string(s.r) + " to " + ToString(g.frame) +
                                (s.detector.fill_factor < 1 ? ", fill factor " + Fmt("%g", s.detector.fill_factor) : std::string()),
