@@ -8,6 +8,7 @@
 
 #include "aosr/core/error.hpp"
 #include "aosr/design/design_empirical.hpp"
+#include "aosr/design/design_field.hpp"
 #include "aosr/design/design_objective.hpp"
 #include "aosr/design/design_parameterisation.hpp"
 #include "aosr/design/power_spectrum_fit.hpp"
@@ -140,7 +141,15 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
                          {"slope", fit.model.slope}, {"residual_rms", fit.residual_rms},  {"patches", fit.patches},
                          {"noise_sigma", o.noise_sigma}, {"lambda", oo.reconstructor.lambda}};
     }
-    criterion = std::make_unique<DesignObjective>(optics, scene.frames, oo);
+    if (scene.psf_field.enabled) {
+      // A wide field (design_field.hpp): the DM offsets are common to the field, the AO residual is not.
+      const FieldDesignOptics field = DesignOpticsOverField(scene);
+      step("objective A over the field: the mean of " + std::to_string(field.optics.size()) + " field points (" +
+           std::to_string(field.grid_y) + " x " + std::to_string(field.grid_x) + " psf_field grid)");
+      criterion = std::make_unique<FieldDesignObjective>(field, scene.frames, oo);
+    } else {
+      criterion = std::make_unique<DesignObjective>(optics, scene.frames, oo);
+    }
   } else {
     const Shape hr{optics.grid, optics.grid};
     eo.training_scenes = o.training.empty() ? DefaultTrainingScenes(hr, o.training_scenes, o.seed)
@@ -179,10 +188,59 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   // The expected gain over the raster comes from that sample (DesignGain, design_study.hpp), and the raster
   // is kept unless the advice is to use the design.
   nlohmann::json validation;
+  nlohmann::json field_report;  // a psf_field with objective A: per point and on axis (design_field.hpp)
   DesignGain gain;
   gain.threshold_db = o.min_gain_db;
   const std::uint64_t fresh = o.seed + 1000003;
   const Vector raster_theta = parameterisation.RasterParameters();
+  // Objective A's check sample: fresh AO realisations, or the exact nominal model (R = 0, or no validation
+  // realisations asked for); one check per field point with a psf_field (seeded per point as the objective's),
+  // else the one on axis. It judges the design against the raster (below) and makes the field's per-point table.
+  DesignObjectiveOptions vo = oo;
+  vo.realisations = oo.realisations == 0 ? 0 : o.validation_realisations;
+  vo.seed = fresh;
+  const FieldDesignOptics field = o.objective == "A" ? DesignOpticsOverField(scene) : FieldDesignOptics{};
+  std::vector<std::unique_ptr<DesignObjective>> checks;
+  auto make_checks = [&] {
+    if (!checks.empty()) return;
+    if (field.optics.empty()) {
+      checks.push_back(std::make_unique<DesignObjective>(optics, scene.frames, vo));
+    } else {
+      for (std::size_t k = 0; k < field.optics.size(); ++k) {
+        DesignObjectiveOptions node = vo;
+        node.seed = fresh + k;
+        checks.push_back(std::make_unique<DesignObjective>(field.optics[k], scene.frames, node));
+      }
+    }
+  };
+  DesignParameterisationOptions ro = po;
+  ro.kind = DesignParameterisationKind::kRaster;
+  const DesignParameterisation exact_raster(DesignPupilFromScene(scene), scene.frames, scene.r, ro);
+  // J per realisation of one check (one value, exact, without realisations: the nominal model is then the truth).
+  auto per_realisation_of = [&](const DesignObjective& check, const std::vector<Image>& w) {
+    std::vector<double> j;
+    const MultiFrameModel nominal = check.NominalModel(w);
+    if (check.realisations() == 0) {
+      j.push_back(ExpectedTikhonovMse(nominal, {}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
+    } else {
+      for (const MultiFrameModel& m : check.RealisedModels(w))
+        j.push_back(ExpectedTikhonovMse(nominal, {m}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
+    }
+    return j;
+  };
+  // Per realisation, the mean over the checks (the field's points, or the one); each check's own in `nodes`.
+  std::vector<std::vector<double>> node_raster, node_design;
+  auto per_realisation = [&](const std::vector<Image>& w, std::vector<std::vector<double>>* nodes) {
+    make_checks();
+    nodes->clear();
+    std::vector<double> mean;
+    for (const auto& check : checks) {
+      nodes->push_back(per_realisation_of(*check, w));
+      if (mean.empty()) mean.assign(nodes->back().size(), 0.0);
+      for (std::size_t q = 0; q < mean.size(); ++q) mean[q] += nodes->back()[q] / double(checks.size());
+    }
+    return mean;
+  };
   if (result.summary.termination == Termination::kUserCancelled) {
     // Cancelled: the best design so far is returned as it is, without the fresh-sample check.
     gain.FromPairs({result.summary.raster_objective}, {result.summary.final_objective}, /*exact=*/false);
@@ -195,28 +253,9 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   } else if (o.objective == "A" && (oo.realisations == 0 || o.validation_realisations > 0)) {
     // Objective A per realisation: J_k = ExpectedTikhonovMse(nominal, {realisation k}); their mean is J. With
     // R = 0 the frames follow the nominal model and J is exact (no sampling error).
-    DesignObjectiveOptions vo = oo;
-    vo.realisations = oo.realisations == 0 ? 0 : o.validation_realisations;
-    vo.seed = fresh;
-    const DesignObjective check(optics, scene.frames, vo);
-    // Without an AO residual (ao mode none) there is nothing to sample: the nominal model is the truth.
-    const int sampled = check.realisations();
-    DesignParameterisationOptions ro = po;
-    ro.kind = DesignParameterisationKind::kRaster;
-    const DesignParameterisation exact_raster(DesignPupilFromScene(scene), scene.frames, scene.r, ro);
-    auto per_realisation = [&](const std::vector<Image>& w) {
-      std::vector<double> j;
-      const MultiFrameModel nominal = check.NominalModel(w);
-      if (sampled == 0) {
-        j.push_back(ExpectedTikhonovMse(nominal, {}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
-      } else {
-        for (const MultiFrameModel& m : check.RealisedModels(w))
-          j.push_back(ExpectedTikhonovMse(nominal, {m}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
-      }
-      return j;
-    };
-    const std::vector<double> jr = per_realisation(exact_raster.RasterOpds());
-    const std::vector<double> jd = per_realisation(result.opds);
+    const std::vector<double> jr = per_realisation(exact_raster.RasterOpds(), &node_raster);
+    const std::vector<double> jd = per_realisation(result.opds, &node_design);
+    const int sampled = checks.front()->realisations();
     gain.FromPairs(jr, jd, /*exact=*/sampled == 0);
     gain.basis = sampled == 0
                      ? "objective A, expected MSE of the nominal model (no AO realisations: exact)"
@@ -248,6 +287,47 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   }
   gain.Decide();
   if (!validation.is_null()) validation["kept"] = gain.advice;
+  if (!field.optics.empty() && result.summary.termination != Termination::kUserCancelled) {
+    // The table of issue 31 item 7: each point's gain of the design found (the raster's own when none beat it)
+    // on the check sample, and the advice the on-axis objective alone would give on the same sample.
+    if (node_raster.empty()) {
+      per_realisation(exact_raster.RasterOpds(), &node_raster);
+      per_realisation(result.opds, &node_design);
+    }
+    const bool exact = checks.front()->realisations() == 0;
+    nlohmann::json points = nlohmann::json::array();
+    for (std::size_t k = 0; k < field.optics.size(); ++k) {
+      DesignGain g;
+      g.threshold_db = o.min_gain_db;
+      g.FromPairs(node_raster[k], node_design[k], exact);
+      g.Decide();
+      points.push_back({{"direction_arcsec", {field.directions[k].x_rad * 180 * 3600 / M_PI,
+                                              field.directions[k].y_rad * 180 * 3600 / M_PI}},
+                        {"objective_raster", g.objective_raster}, {"objective_design", g.objective_design},
+                        {"gain_db", g.db}, {"advice", g.advice}});
+    }
+    const DesignObjective on_axis(optics, scene.frames, vo);
+    DesignGain g;
+    g.threshold_db = o.min_gain_db;
+    g.FromPairs(per_realisation_of(on_axis, exact_raster.RasterOpds()), per_realisation_of(on_axis, result.opds), exact);
+    g.Decide();
+    field_report = {{"points", field.optics.size()}, {"grid", {field.grid_y, field.grid_x}},
+                    {"guide_star_arcsec", {scene.psf_field.guide_star_x_arcsec, scene.psf_field.guide_star_y_arcsec}},
+                    {"per_point", points},
+                    {"on_axis", {{"objective_raster", g.objective_raster}, {"objective_design", g.objective_design},
+                                 {"gain_db", g.db}, {"stderr_db", g.stderr_db}, {"advice", g.advice}}}};
+  }
+  if (!field_report.is_null()) {
+    field_report["advice"] = gain.advice;
+    field_report["advice_changes"] = field_report["on_axis"]["advice"] != gain.advice;
+    step("over the field: " + gain.advice + "; on axis alone: " + field_report["on_axis"]["advice"].get<std::string>() +
+         " (" + ToString(field_report["on_axis"]["gain_db"].get<double>()) + " dB there)");
+  } else if (scene.psf_field.enabled) {
+    // Objective B designs on axis: the field is not averaged (or the run was cancelled).
+    field_report = {{"points", field.optics.empty() ? std::size_t(1) : field.optics.size()},
+                    {"note", o.objective == "A" ? "cancelled: no per-point table"
+                                                : "objective B designs on axis: the field is not averaged"}};
+  }
   step("expected gain over the raster: " + gain.BriefReport());
   if (result.summary.improved && gain.advice == "raster" &&
       result.summary.termination != Termination::kUserCancelled) {
@@ -270,6 +350,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
                                                  {"rms_over_frames_nm", mc["rms_over_frames_nm"]}};
   }
   if (!validation.is_null()) file["design"]["validation"] = validation;
+  if (!field_report.is_null()) file["design"]["field"] = field_report;
   if (!spectrum_record.is_null()) file["design"]["object_spectrum"] = spectrum_record;
   file["design"]["gain"] = gain.ToJson();
 
@@ -296,6 +377,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   j["objective_final"] = s.final_objective;
   j["improved"] = s.improved;
   j["validation"] = validation;
+  if (!field_report.is_null()) j["field"] = field_report;
   j["gain"] = gain.ToJson();
   j["object_spectrum"] = spectrum_record;
   j["starts"] = s.start_objectives;
