@@ -48,3 +48,22 @@ def test_design_reports_the_gain_and_advice():
     assert high["gain"]["advice"] == "raster" and not high["improved"]
     with pytest.raises(aosr.InvalidArgument, match="min_gain"):
         aosr.design(aosr.data_path("scenes", "paper-sim-r2.json"), min_gain=-1.0)
+
+
+def test_design_over_the_field():
+    # Issue 31 item 7: a scene with a psf_field is designed over its points; the report gives each point's gain and
+    # the on-axis advice, the same numbers as `aosr design --json`'s "field".
+    scene = aosr.read_json(aosr.data_path("scenes", "paper-sim-j-r2.json"))
+    scene["detector"]["frame_px"] = [100, 200]
+    scene["psf_field"] = {"guide_star_arcsec": [-10.0, 0.0], "grid": [1, 3]}
+    j = aosr.design(aosr.Scene(scene, "field.json"), param="tiptilt", starts=1, iterations=4, realisations=0, threads=1)
+    f = j["field"]
+    assert f["points"] == 3 and len(f["per_point"]) == 3
+    far = [p["direction_arcsec"][0] for p in f["per_point"]]
+    assert far == sorted(far)
+    # Anisoplanatism: the raster's expected MSE grows away from the guide star; the field mean is what was judged.
+    raster = [p["objective_raster"] for p in f["per_point"]]
+    assert raster == sorted(raster) and f["on_axis"]["objective_raster"] < raster[0]
+    assert j["gain"]["objective_raster"] == pytest.approx(sum(raster) / 3, rel=1e-12)
+    assert f["advice_changes"] == (f["on_axis"]["advice"] != j["gain"]["advice"])
+    assert j["design"]["design"]["field"] == f
