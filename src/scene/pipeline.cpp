@@ -271,9 +271,15 @@ class ChangingComponents {
         if (o.kind == ObjectSpec::Kind::kPlanet) {
           c.texture = PlanetTextureOf(o);
         } else if (o.variation.Moves()) {
+          // Padded by its largest displacement, but never by more than the frame: a component moved farther
+          // than that has left the frame entirely (AddAt skips it), and a shift of at most the frame's side
+          // on this grid wraps nothing into the frame.
           const double r = scene.r;
-          c.margin_y = Index(std::ceil(std::abs(o.variation.velocity_y_px_per_s) * t_max * r)) + 2;
-          c.margin_x = Index(std::ceil(std::abs(o.variation.velocity_x_px_per_s) * t_max * r)) + 2;
+          auto margin = [&](double v, Index side) {
+            return Index(std::min(std::ceil(std::abs(v) * t_max * r), double(side))) + 2;
+          };
+          c.margin_y = margin(o.variation.velocity_y_px_per_s, hr.rows);
+          c.margin_x = margin(o.variation.velocity_x_px_per_s, hr.cols);
           c.base = Image::Zero(hr.rows + 2 * c.margin_y, hr.cols + 2 * c.margin_x);
           c.base.block(c.margin_y, c.margin_x, hr.rows, hr.cols) = c.scale * base;
         } else {
@@ -292,13 +298,17 @@ class ChangingComponents {
       const double f = v.FluxFactor(t);
       const double dy = v.velocity_y_px_per_s * t * r, dx = v.velocity_x_px_per_s * t * r;
       if (c.spec->IsPointSources()) {
+        // A star is on the sky while it is on the frame, as a catalogue's must be (scene_spec.cpp: camera pixel
+        // centres within half a pixel of the edge); once it has left, its light is gone (on the periodic padded
+        // grid it would otherwise come back from the other side).
         for (PointSource p : c.stars) {
           p.y += dy, p.x += dx, p.flux *= f;
-          stars->push_back(p);
+          if (p.y >= -0.5 && p.y <= double(hr_.rows) - 0.5 && p.x >= -0.5 && p.x <= double(hr_.cols) - 0.5) stars->push_back(p);
         }
       } else if (c.spec->kind == ObjectSpec::Kind::kPlanet) {
         *extended += (f * c.scale) * RenderPlanetAt(scene_, *c.spec, hr_, c.texture, t);
       } else if (v.Moves()) {
+        if (std::abs(dy) >= double(hr_.rows) || std::abs(dx) >= double(hr_.cols)) continue;  // off the frame
         *extended += f * FourierShiftImage(c.base, dy, dx).block(c.margin_y, c.margin_x, hr_.rows, hr_.cols);
       } else {
         *extended += f * c.base;

@@ -132,6 +132,28 @@ TEST(SequencePhysics, MovingExtendedComponentIsItsTruthShifted) {
   }
 }
 
+// What leaves the frame is gone: a star past the edge is neither deposited on the border of the truth nor brought
+// back from the other side by the periodic grid, and an extended component moved farther than the frame is
+// nothing (its padding is bounded by the frame, so a huge displacement costs no memory).
+TEST(SequencePhysics, WhatLeavesTheFrameIsGone) {
+  nlohmann::json j = Scene({{{"type", "stars"}, {"catalogue", {{{"y_px", 16.25}, {"x_px", 28.25}, {"flux_e", 1e4}}}},
+                             {"variation", {{"velocity_px_per_s", {0.0, 8.0}}}}}});
+  j["sequence"] = {{"frames", 8}};  // x = 28.25 + 8 t: off the frame (x > 31.5) from t = 0.41 s, exposure 2 on
+  const Simulation sim = ScenePipeline(ParseScene(j, "<test>")).Run();
+  for (int i = 0; i < 8; ++i) {
+    const bool on = 28.25 + 8 * sim.times_s[i] <= 31.5;
+    EXPECT_EQ(on, i < 2) << "exposure " << i;
+    EXPECT_NEAR(sim.truth_frames[i].sum(), on ? 1e4 : 0.0, 1e-9 * 1e4) << "exposure " << i;
+    if (!on) EXPECT_EQ(sim.expected_e[i].abs().maxCoeff(), 0.0) << "exposure " << i << ": nothing comes back";
+  }
+  nlohmann::json edge = {{"type", "slanted-edge"}, {"variation", {{"velocity_px_per_s", {0.0, 100.0}}}}};
+  j = Scene({edge});
+  j["sequence"] = {{"frames", 5}, {"frame_interval_s", 1e9}};
+  const Simulation far = ScenePipeline(ParseScene(j, "<test>")).Run();
+  EXPECT_GT(far.truth_frames[0].sum(), 0.0) << "exposure 0 (t = 0.125 s) has moved 12.5 camera px: still there";
+  for (int i = 1; i < 5; ++i) EXPECT_EQ(far.truth_frames[i].abs().maxCoeff(), 0.0) << "exposure " << i << ": gone";
+}
+
 // A rotating planet: exposures one period apart see the same face (and, in the same phase, give the same
 // frame), exposures in between do not; its flux normalisation holds at t = 0 and the limb-darkened disc's
 // light is constant for a texture of bands only (rotation moves nothing then).
