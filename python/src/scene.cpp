@@ -218,7 +218,9 @@ void BindScene(py::module_& m) {
       },
       py::arg("scene"), py::kw_only(), py::arg("seed") = py::none(), py::arg("calibration") = py::none(),
       py::arg("output") = py::none(), py::arg("progress") = py::none(),
-      R"doc(Simulates the scene's N frames (object, optics, AO, DM offsets, detector) and returns the dataset.
+      R"doc(Simulates the scene's N frames (object, optics, AO, DM offsets, detector) and returns the dataset; a scene
+with a `sequence` gives its M frames cycling through the N phases, with Dataset.times_s, .slots and (when objects
+move or vary) .truth_frames, the truth at each frame's time.
 
 seed         replaces the scene's seed (as `aosr simulate --set seed=S`); None keeps it. Same scene and seed:
              the same bytes.
