@@ -11,8 +11,11 @@
 
 #include "../io/temp_dir.hpp"
 #include "aosr/scene/dataset.hpp"
+#include "aosr/io/fits.hpp"
+#include "aosr/io/image_io.hpp"
 #include "aosr/scene/dataset_memory.hpp"
 #include "aosr/scene/pipeline.hpp"
+#include "aosr/scene/planet.hpp"
 #include "dataset_fixture.hpp"
 #include "support/testing.hpp"
 
@@ -183,6 +186,30 @@ TEST(SequencePhysics, PlanetRepeatsAfterItsPeriod) {
   const Simulation still = ScenePipeline(ParseScene(j, "<test>")).Run();
   EXPECT_NEAR(still.truth.sum(), 2e5, 1e-9 * 2e5);
   EXPECT_LT(MaxAbs(still.truth - bands.truth_frames[0]), 1e-9 * MaxAbs(still.truth)) << "the same face at every time";
+}
+
+// A planet's map from a file (texture_path, an equirectangular image): the truth is RenderPlanet of that map on
+// the HR frame, at the camera-pixel geometry converted to HR pixels, in surface brightness per camera-pixel area.
+TEST(SequencePhysics, PlanetMapFromAFile) {
+  TempDir dir;
+  Image map(18, 36);
+  for (Index i = 0; i < map.rows(); ++i)
+    for (Index k = 0; k < map.cols(); ++k) map(i, k) = 1.0 + 0.5 * std::sin(0.7 * double(k)) + 0.02 * double(i);
+  WriteFits(dir.File("map.fits"), map);
+  nlohmann::json j = Scene({{{"type", "planet"}, {"radius_px", 6.0}, {"centre_px", {15.0, 17.5}},
+                             {"rotation_period_s", 2.0}, {"texture_path", dir.File("map.fits")}}});
+  j["sequence"] = {{"frames", 4}};
+  const Simulation sim = ScenePipeline(ParseScene(j, "<test>")).Run();
+  PlanetOptions p;
+  p.radius_px = 12.0;  // r = 2
+  p.centre_y = 30.5, p.centre_x = 35.5;
+  p.rotation_period_s = 2.0;
+  const Image stored = ReadImage(dir.File("map.fits"));  // the map as the file holds it (float32)
+  EXPECT_LT(MaxAbs(stored - map), 1e-6 * MaxAbs(map));
+  for (int i = 0; i < 4; ++i) {
+    const Image expected = RenderPlanet({64, 64}, p, stored, sim.times_s[i]) / 4.0;
+    EXPECT_LT(MaxAbs(sim.truth_frames[i] - expected), 1e-12 * MaxAbs(expected)) << "exposure " << i;
+  }
 }
 
 // The closed loop runs once, continuously, through the M exposures: its first N exposures are the single
