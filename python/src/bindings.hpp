@@ -7,6 +7,7 @@
 
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
+#include "aosr/solvers/reconstruct.hpp"
 #include "common.hpp"
 
 namespace aosr::python {
@@ -29,5 +30,10 @@ FitsHeader HeaderFromDict(py::handle header, py::handle comments);
 
 // The keyword options of aosr.reconstruct with their defaults (solvers.cpp).
 py::dict ReconstructOptionsHelp();
+// aosr.reconstruct's keyword table, the CLI's defaults it starts from, and a solver summary as a dict
+// (solvers.cpp); the streaming bindings (streaming.cpp) take the same options.
+const OptionTable<ReconstructOptions>& ReconstructTable();
+ReconstructOptions CliDefaults();
+py::dict SummaryDict(const SolverSummary& summary);
 
 }  // namespace aosr::python
