@@ -40,6 +40,9 @@ constexpr const char* kExposurePsfsFile = "exposure_psfs.fits";
 }  // namespace
 
 ImageStack PerPhase(const SceneSpec& scene, const ImageStack& per_exposure) {
+  CheckArgument(per_exposure.size() == std::size_t(scene.Exposures()), "PerPhase", "per_exposure",
+                std::to_string(per_exposure.size()) + " images",
+                "one per exposure of the scene (" + std::to_string(scene.Exposures()) + ")");
   if (!scene.sequence.enabled()) return per_exposure;
   ImageStack out(std::size_t(scene.frames));
   std::vector<int> count(std::size_t(scene.frames), 0);

@@ -725,7 +725,18 @@ double ObjectVariation::FluxFactor(double t) const {
   return 1.0;
 }
 
+const DmOffset& SceneSpec::ExposureOffset(int j) const {
+  // Checked without building the message first: Compile calls this M x N times.
+  if (j < 0 || j >= Exposures() || frames <= 0 || offsets.frames.size() != std::size_t(frames))
+    throw InvalidArgument("SceneSpec::ExposureOffset", "j", std::to_string(j),
+                          "0.." + std::to_string(Exposures() - 1) + " (the exposures; one offset per phase)");
+  return offsets.frames[std::size_t(j % frames)];
+}
+
 double SceneSpec::ExposureTime(int j) const {
+  if (j < 0 || j >= Exposures())
+    throw InvalidArgument("SceneSpec::ExposureTime", "j", std::to_string(j),
+                          "0.." + std::to_string(Exposures() - 1) + " (the exposures)");
   const double frame_s = detector.exposure_time_s;
   const double interval = sequence.enabled() ? sequence.frame_interval_s : frame_s;
   return sequence.start_s + j * interval + 0.5 * frame_s;

@@ -209,5 +209,30 @@ TEST_F(DatasetErrorsTest, NeverWritesOverAnInput) {
   EXPECT_FALSE(fs::exists(t.File("out")));
 }
 
+
+// A simulated sequence's per-exposure truth: a manifest naming a truth_frames cube of the wrong plane count or
+// shape is refused with the field; PerPhase refuses a stack that is not one image per exposure.
+TEST(DatasetSequenceErrorsTest, TruthFramesAndPerPhase) {
+  TempDir dir;
+  nlohmann::json j = test::SmallDatasetScene();  // N = 2
+  j["sequence"] = {{"frames", 3}};
+  j["objects"][1]["variation"] = {{"velocity_px_per_s", {1.0, 0.0}}};
+  const test::WrittenSimulation w = test::SimulateInto(dir.File("scene.json"), j, dir.File("sim"));
+  ASSERT_EQ(w.sim.truth_frames.size(), 3u);
+  nlohmann::json m = ReadJsonFile(dir.File("sim/manifest.json"));
+  WriteFitsCube(dir.File("sim/two.fits"), {w.sim.truth_frames[0], w.sim.truth_frames[1]}, FitsHeader{});
+  m["truth_frames"] = "two.fits";
+  test::WriteJson(dir.File("sim/manifest.json"), m);
+  EXPECT_THAT(ErrorOf([&] { LoadDataset(dir.File("sim")); }),
+              AllOf(HasSubstr("truth_frames"), HasSubstr("2 x"), HasSubstr("one HR image per frame")));
+  WriteFitsCube(dir.File("sim/small.fits"), {Image::Zero(8, 8), Image::Zero(8, 8), Image::Zero(8, 8)}, FitsHeader{});
+  m["truth_frames"] = "small.fits";
+  test::WriteJson(dir.File("sim/manifest.json"), m);
+  EXPECT_THAT(ErrorOf([&] { LoadDataset(dir.File("sim")); }), AllOf(HasSubstr("truth_frames"), HasSubstr("8x8")));
+  EXPECT_THAT(ErrorOf([&] { PerPhase(w.scene, {w.sim.psfs[0]}); }),
+              AllOf(HasSubstr("PerPhase"), HasSubstr("1 images"), HasSubstr("one per exposure of the scene (3)")));
+  EXPECT_EQ(PerPhase(w.scene, w.sim.psfs).size(), 2u);
+}
+
 }  // namespace
 }  // namespace aosr

@@ -213,7 +213,7 @@ struct Dataset {
 // A sequence's per-exposure PSFs (M, e.g. Simulation::psfs) as the dataset's per-phase ones (N): the mean over
 // each phase's exposures (exposure j has phase j mod N). Without a closed loop these are all equal (the same
 // offset, the same PSF); with one, the mean is the phase's long exposure over the sequence, what a star in the
-// data would show. Without a sequence: the PSFs as given.
+// data would show. Without a sequence: the PSFs as given. InvalidArgument unless there is one per exposure.
 ImageStack PerPhase(const SceneSpec& scene, const ImageStack& per_exposure);
 
 // Reads a dataset from a manifest path, or from a folder holding manifest.json. Validates the manifest and

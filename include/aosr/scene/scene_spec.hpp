@@ -268,8 +268,9 @@ struct SceneSpec {
 
   // The exposures the simulator makes: M with a sequence, else N; exposure j's DM offset (phase j mod N)
   // and its mid-exposure time in seconds (without a sequence: frame j's, though nothing then changes in time).
+  // InvalidArgument for j outside 0..Exposures()-1.
   int Exposures() const { return sequence.enabled() ? sequence.frames : frames; }
-  const DmOffset& ExposureOffset(int j) const { return offsets.frames[std::size_t(j % frames)]; }
+  const DmOffset& ExposureOffset(int j) const;
   double ExposureTime(int j) const;
   // Whether any component changes during the sequence (false without one: objects are then rendered at t = 0).
   bool TimeVarying() const;
