@@ -265,12 +265,12 @@ class ChangingComponents {
         const double scale = FluxScale(scene, o, i, sum, peak);
         for (PointSource& p : c.stars) p.flux *= scale;
       } else {
-        Image base = RenderExtended(scene, o, hr);
+        // A planet's map is read (or made) once, for its t = 0 normalisation and every exposure.
+        if (o.kind == ObjectSpec::Kind::kPlanet) c.texture = PlanetTextureOf(o);
+        Image base = o.kind == ObjectSpec::Kind::kPlanet ? RenderPlanetAt(scene, o, hr, c.texture, 0.0) : RenderExtended(scene, o, hr);
         if (!AllFinite(base)) throw NumericalError("ScenePipeline: objects[" + std::to_string(i) + "] rendered non-finite values");
         c.scale = FluxScale(scene, o, i, base.sum(), flux_binning > 1 ? BlockSum(base, flux_binning).maxCoeff() : base.maxCoeff());
-        if (o.kind == ObjectSpec::Kind::kPlanet) {
-          c.texture = PlanetTextureOf(o);
-        } else if (o.variation.Moves()) {
+        if (o.kind != ObjectSpec::Kind::kPlanet && o.variation.Moves()) {
           // Padded by its largest displacement, but never by more than the frame: a component moved farther
           // than that has left the frame entirely (AddAt skips it), and a shift of at most the frame's side
           // on this grid wraps nothing into the frame.
@@ -282,7 +282,7 @@ class ChangingComponents {
           c.margin_x = margin(o.variation.velocity_x_px_per_s, hr.cols);
           c.base = Image::Zero(hr.rows + 2 * c.margin_y, hr.cols + 2 * c.margin_x);
           c.base.block(c.margin_y, c.margin_x, hr.rows, hr.cols) = c.scale * base;
-        } else {
+        } else if (o.kind != ObjectSpec::Kind::kPlanet) {  // a planet is re-rendered per exposure from c.texture
           c.base = c.scale * base;
         }
       }

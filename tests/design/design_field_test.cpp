@@ -108,10 +108,9 @@ TEST(DesignFieldTest, StudyReportsEachPointAndTheOnAxisAdvice) {
     design += q["objective_design"].get<double>() / 3;
     EXPECT_TRUE(q["advice"] == "design" || q["advice"] == "raster");
   }
-  if (s.result.summary.improved || s.gain.advice == "raster") {
-    EXPECT_NEAR(s.gain.objective_raster, raster, 1e-12 * raster);
-    EXPECT_NEAR(s.gain.objective_design, design, 1e-12 * design);
-  }
+  // Without realisations the check is the nominal model, exact: the gain's J are the points' means.
+  EXPECT_NEAR(s.gain.objective_raster, raster, 1e-12 * raster);
+  EXPECT_NEAR(s.gain.objective_design, design, 1e-12 * design);
   EXPECT_TRUE(f["on_axis"]["advice"] == "design" || f["on_axis"]["advice"] == "raster");
   EXPECT_EQ(f["advice"], s.gain.advice);
   EXPECT_EQ(f["advice_changes"].get<bool>(), f["on_axis"]["advice"] != s.gain.advice);
