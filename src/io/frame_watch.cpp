@@ -236,6 +236,19 @@ struct DirectoryWatcher::Impl {
       pending.erase(name);  // removed between the stat and the open
       return;
     }
+    // The check reads the file after the stat: a writer that appended in between leaves a whole file behind a
+    // stale stamp, and the later stamp would report it again. Report only a file whose stamp held through the
+    // check; otherwise it changed, and the next event or scan looks again.
+    Stamp after;
+    if (complete && !StampOf(name, &after)) {
+      pending.erase(name);
+      return;
+    }
+    if (complete && !(after == s)) {
+      p.stamp = after;
+      p.changed_s = now;
+      return;
+    }
     if (complete) {
       WatchedFile f;
       f.path = dir + "/" + name;
