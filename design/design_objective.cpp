@@ -12,6 +12,8 @@ namespace aosr {
 namespace {
 
 using design_internal::BoxTransfer;
+using design_internal::CheckSpectrumOptions;
+using design_internal::PriorSymbol;
 
 // Objective (A) from full-spectrum OTFs (M x M each): h0[i] nominal, real[ρ][i] realised (empty: A = A0).
 // P: prior symbol, s: object spectrum (0 where left out), w = λ/r², c = σ²/r². Gradients Γ_H (Wirtinger, of J)
@@ -49,16 +51,8 @@ double SpectralObjective(Shape hr, int r, const std::vector<ComplexImage>& h0,
           sk[k] = s(fy, fx);
           for (int i = 0; i < n; ++i) a0(i, k) = b[k] * h0[i](fy, fx);
         }
-      Eigen::MatrixXcd g = a0.adjoint() * a0;
-      g.diagonal().array() += w * pk.array();
-      Eigen::MatrixXcd ginv;
-      const Eigen::LLT<Eigen::MatrixXcd> llt(g);
-      if (llt.info() == Eigen::Success) {
-        ginv = llt.solve(eye_rr);
-      } else {
-        ginv = g.completeOrthogonalDecomposition().pseudoInverse();
-      }
-      const Eigen::MatrixXcd rm = ginv * a0.adjoint();  // r² x N
+      Eigen::MatrixXcd ginv, rm;  // rm: r² x N
+      design_internal::BinReconstructor(a0, pk, w, &ginv, &rm);
       double e = c * rm.squaredNorm();
       Eigen::MatrixXcd gamma_r;
       if (want) gamma_r = 2.0 * c * rm;
@@ -96,19 +90,23 @@ double SpectralObjective(Shape hr, int r, const std::vector<ComplexImage>& h0,
   return total * scale;
 }
 
-Image PriorSymbol(const TikhonovOptions& o, Shape hr) {
-  Image p(hr.rows, hr.cols);
-  for (Index fy = 0; fy < hr.rows; ++fy)
-    for (Index fx = 0; fx < hr.cols; ++fx) p(fy, fx) = TikhonovPriorSymbol(o, hr, fy, fx);
-  return p;
-}
-
 // The object spectrum actually used: given, or (σ²/λ)/P with the P = 0 components left out.
 Image ObjectSpectrum(const Image& given, const Image& p, double lambda, double sigma) {
   if (given.size() > 0) return given;
   Image s(p.rows(), p.cols());
   for (Index k = 0; k < p.size(); ++k) s.data()[k] = p.data()[k] > 0 ? sigma * sigma / (lambda * p.data()[k]) : 0.0;
   return s;
+}
+
+}  // namespace
+
+namespace design_internal {
+
+Image PriorSymbol(const TikhonovOptions& o, Shape hr) {
+  Image p(hr.rows, hr.cols);
+  for (Index fy = 0; fy < hr.rows; ++fy)
+    for (Index fx = 0; fx < hr.cols; ++fx) p(fy, fx) = TikhonovPriorSymbol(o, hr, fy, fx);
+  return p;
 }
 
 void CheckSpectrumOptions(const char* fn, const TikhonovOptions& o, double sigma, const Image& spectrum, Shape hr) {
@@ -126,7 +124,7 @@ void CheckSpectrumOptions(const char* fn, const TikhonovOptions& o, double sigma
   }
 }
 
-}  // namespace
+}  // namespace design_internal
 
 bool DesignObjectiveOptions::IsValid(std::string* why) const {
   auto fail = [why](const std::string& m) {

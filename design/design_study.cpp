@@ -4,9 +4,11 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <utility>
 
 #include "aosr/core/error.hpp"
+#include "aosr/design/design_continuous_sky.hpp"
 #include "aosr/design/design_empirical.hpp"
 #include "aosr/design/design_field.hpp"
 #include "aosr/design/design_objective.hpp"
@@ -86,7 +88,11 @@ nlohmann::json DesignGain::ToJson() const {
                       {"basis", basis},
                       {"threshold_db", threshold_db},
                       {"advice", advice},
-                      {"reason", reason}};
+                      {"reason", reason},
+                      {"sky_oversampling", sky_oversampling}};
+  auto number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  j["hr_grid_sky"] = sky_oversampling > 1 ? nlohmann::json{{"db", number(hr_sky_db)}, {"stderr_db", number(hr_sky_stderr_db)}}
+                                          : nlohmann::json();
   return j;
 }
 
@@ -96,6 +102,8 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
     if (progress) progress(m);
   };
   CheckArgument(o.objective == "A" || o.objective == "B", "RunDesignStudy", "objective", o.objective, "A | B");
+  CheckArgument(o.sky_oversampling >= 1 && o.sky_oversampling <= 16, "RunDesignStudy", "sky_oversampling",
+                o.sky_oversampling, "1 .. 16");
   CheckArgument(std::isfinite(o.min_gain_db) && o.min_gain_db >= 0, "RunDesignStudy", "min_gain_db", o.min_gain_db,
                 ">= 0 and finite [dB]");
   DesignParameterisationOptions po;
@@ -123,6 +131,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   std::unique_ptr<DesignCriterion> criterion;
   const EmpiricalDesignObjective* empirical = nullptr;
   nlohmann::json spectrum_record;  // objective A with --training: the fitted spectrum, for the file and --json
+  std::optional<PowerSpectrumModel> fitted;  // its model, continued beyond the HR band by the continuous-sky check
   EmpiricalDesignOptions eo;       // objective B's options (also its validation's)
   if (o.objective == "A") {
     if (!o.training.empty()) {
@@ -134,6 +143,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
       fo.scale_value = 1.0;
       const PowerSpectrumFit fit = FitPowerSpectrum(LoadTrainingImages(o.training), fo);
       oo.reconstructor = WienerPriorOptions(fit.model, o.noise_sigma, {optics.grid, optics.grid});
+      fitted = fit.model;
       oo.noise_sigma = o.noise_sigma;
       step("objective A, Wiener: spectrum of " + std::to_string(o.training.size()) + " training image(s): " +
                     fit.BriefReport());
@@ -200,44 +210,83 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   vo.realisations = oo.realisations == 0 ? 0 : o.validation_realisations;
   vo.seed = fresh;
   const FieldDesignOptics field = o.objective == "A" ? DesignOpticsOverField(scene) : FieldDesignOptics{};
-  std::vector<std::unique_ptr<DesignObjective>> checks;
+  // The continuous-sky check (design_continuous_sky.hpp, issue 33 item 6): objective A with the frames made from a
+  // sky s times finer than the HR grid, the same realisations' PSFs at θ_hr / t. Objective A optimises on the HR
+  // grid's own sky, where a design that only moves the PSFs against that grid can look worth decibels a real sky
+  // does not give; the advice is judged on the finer sky, and the HR grid's figure is reported beside it.
+  const int sky_s = o.objective == "A" ? o.sky_oversampling : 1;
+  SkySpectrum sky;
+  if (sky_s > 1) sky = fitted ? SkySpectrumOfModel(*fitted) : SkySpectrumOfPrior(vo.reconstructor, vo.noise_sigma);
+  struct Check {
+    std::unique_ptr<DesignObjective> hr, fine;  // fine: at θ_hr / t (none when t = 1 or without the sky check)
+    int t = 1;
+  };
+  auto make_check = [&](const DesignOptics& op, const DesignObjectiveOptions& node) {
+    Check c;
+    c.hr = std::make_unique<DesignObjective>(op, scene.frames, node);
+    if (sky_s > 1) {
+      c.t = std::min(TruthOversamplingFor(op), sky_s);
+      if (c.t > 1) c.fine = std::make_unique<DesignObjective>(OversampledOptics(op, c.t), scene.frames, node);
+    }
+    return c;
+  };
+  std::vector<Check> checks;
   auto make_checks = [&] {
     if (!checks.empty()) return;
     if (field.optics.empty()) {
-      checks.push_back(std::make_unique<DesignObjective>(optics, scene.frames, vo));
+      checks.push_back(make_check(optics, vo));
     } else {
       for (std::size_t k = 0; k < field.optics.size(); ++k) {
         DesignObjectiveOptions node = vo;
         node.seed = fresh + k;
-        checks.push_back(std::make_unique<DesignObjective>(field.optics[k], scene.frames, node));
+        checks.push_back(make_check(field.optics[k], node));
       }
     }
   };
   DesignParameterisationOptions ro = po;
   ro.kind = DesignParameterisationKind::kRaster;
   const DesignParameterisation exact_raster(DesignPupilFromScene(scene), scene.frames, scene.r, ro);
-  // J per realisation of one check (one value, exact, without realisations: the nominal model is then the truth).
-  auto per_realisation_of = [&](const DesignObjective& check, const std::vector<Image>& w) {
-    std::vector<double> j;
-    const MultiFrameModel nominal = check.NominalModel(w);
-    if (check.realisations() == 0) {
-      j.push_back(ExpectedTikhonovMse(nominal, {}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
+  // J per realisation of one check (one value, exact, without realisations: the nominal model is then the truth),
+  // on the HR grid's sky (grid) and, with the sky check, on the finer sky (sky).
+  struct PerRealisation {
+    std::vector<double> grid, sky;
+    const std::vector<double>& judged() const { return sky.empty() ? grid : sky; }
+  };
+  auto per_realisation_of = [&](const Check& check, const std::vector<Image>& w) {
+    PerRealisation j;
+    const MultiFrameModel nominal = check.hr->NominalModel(w);
+    const std::vector<MultiFrameModel> truths = check.hr->RealisedModels(w);
+    if (truths.empty()) {
+      j.grid.push_back(ExpectedTikhonovMse(nominal, {}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
     } else {
-      for (const MultiFrameModel& m : check.RealisedModels(w))
-        j.push_back(ExpectedTikhonovMse(nominal, {m}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
+      for (const MultiFrameModel& m : truths)
+        j.grid.push_back(ExpectedTikhonovMse(nominal, {m}, vo.reconstructor, vo.noise_sigma, vo.object_power_spectrum));
+    }
+    if (sky_s > 1) {
+      std::vector<MultiFrameModel> fine = check.fine ? check.fine->RealisedModels(w) : truths;
+      if (fine.empty()) fine.push_back(check.fine ? check.fine->NominalModel(w) : nominal);
+      for (const MultiFrameModel& m : fine)
+        j.sky.push_back(ExpectedTikhonovMseOnContinuousSky(nominal, {m}, check.t, sky_s, vo.reconstructor,
+                                                           vo.noise_sigma, sky));
     }
     return j;
   };
-  // Per realisation, the mean over the checks (the field's points, or the one); each check's own in `nodes`.
+  // Per realisation, the mean over the checks (the field's points, or the one); each check's judged values in
+  // `nodes`.
   std::vector<std::vector<double>> node_raster, node_design;
   auto per_realisation = [&](const std::vector<Image>& w, std::vector<std::vector<double>>* nodes) {
     make_checks();
     nodes->clear();
-    std::vector<double> mean;
-    for (const auto& check : checks) {
-      nodes->push_back(per_realisation_of(*check, w));
-      if (mean.empty()) mean.assign(nodes->back().size(), 0.0);
-      for (std::size_t q = 0; q < mean.size(); ++q) mean[q] += nodes->back()[q] / double(checks.size());
+    PerRealisation mean;
+    auto add = [&](const std::vector<double>& v, std::vector<double>* to) {
+      if (to->empty()) to->assign(v.size(), 0.0);
+      for (std::size_t q = 0; q < v.size(); ++q) (*to)[q] += v[q] / double(checks.size());
+    };
+    for (const Check& check : checks) {
+      const PerRealisation j = per_realisation_of(check, w);
+      nodes->push_back(j.judged());
+      add(j.grid, &mean.grid);
+      if (!j.sky.empty()) add(j.sky, &mean.sky);
     }
     return mean;
   };
@@ -253,17 +302,25 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
   } else if (o.objective == "A" && (oo.realisations == 0 || o.validation_realisations > 0)) {
     // Objective A per realisation: J_k = ExpectedTikhonovMse(nominal, {realisation k}); their mean is J. With
     // R = 0 the frames follow the nominal model and J is exact (no sampling error).
-    const std::vector<double> jr = per_realisation(exact_raster.RasterOpds(), &node_raster);
-    const std::vector<double> jd = per_realisation(result.opds, &node_design);
-    const int sampled = checks.front()->realisations();
-    gain.FromPairs(jr, jd, /*exact=*/sampled == 0);
+    const PerRealisation jr = per_realisation(exact_raster.RasterOpds(), &node_raster);
+    const PerRealisation jd = per_realisation(result.opds, &node_design);
+    const int sampled = checks.front().hr->realisations();
+    gain.FromPairs(jr.judged(), jd.judged(), /*exact=*/sampled == 0);
     gain.basis = sampled == 0
                      ? "objective A, expected MSE of the nominal model (no AO realisations: exact)"
                      : "objective A, expected MSE on " + std::to_string(sampled) +
                            " fresh AO realisations (seed " + std::to_string(fresh) + ")";
-    if (sampled > 0)
+    if (sky_s > 1) {
+      DesignGain on_grid;
+      on_grid.FromPairs(jr.grid, jd.grid, /*exact=*/sampled == 0);
+      gain.sky_oversampling = sky_s;
+      gain.hr_sky_db = on_grid.db;
+      gain.hr_sky_stderr_db = on_grid.stderr_db;
+      gain.basis += ", of a sky " + std::to_string(sky_s) + "x finer than the HR grid";
+    }
+    if (sampled > 0 || sky_s > 1)
       validation = {{"realisations", sampled}, {"seed", fresh}, {"objective_raster", gain.objective_raster},
-                    {"objective_design", gain.objective_design}};
+                    {"objective_design", gain.objective_design}, {"sky_oversampling", sky_s}};
   } else if (o.objective == "B" && o.validation_realisations > 0) {
     EmpiricalDesignOptions ve = eo;
     ve.training_scenes = DefaultTrainingScenes({optics.grid, optics.grid}, 3, fresh);
@@ -294,7 +351,7 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
       per_realisation(exact_raster.RasterOpds(), &node_raster);
       per_realisation(result.opds, &node_design);
     }
-    const bool exact = checks.front()->realisations() == 0;
+    const bool exact = checks.front().hr->realisations() == 0;
     nlohmann::json points = nlohmann::json::array();
     for (std::size_t k = 0; k < field.optics.size(); ++k) {
       DesignGain g;
@@ -306,10 +363,11 @@ DesignStudy RunDesignStudy(const SceneSpec& scene, const DesignStudyOptions& o,
                         {"objective_raster", g.objective_raster}, {"objective_design", g.objective_design},
                         {"gain_db", g.db}, {"advice", g.advice}});
     }
-    const DesignObjective on_axis(optics, scene.frames, vo);
+    const Check on_axis = make_check(optics, vo);
     DesignGain g;
     g.threshold_db = o.min_gain_db;
-    g.FromPairs(per_realisation_of(on_axis, exact_raster.RasterOpds()), per_realisation_of(on_axis, result.opds), exact);
+    g.FromPairs(per_realisation_of(on_axis, exact_raster.RasterOpds()).judged(),
+                per_realisation_of(on_axis, result.opds).judged(), exact);
     g.Decide();
     field_report = {{"points", field.optics.size()}, {"grid", {field.grid_y, field.grid_x}},
                     {"guide_star_arcsec", {scene.psf_field.guide_star_x_arcsec, scene.psf_field.guide_star_y_arcsec}},

@@ -18,7 +18,7 @@ void BindDesign(py::module_& m) {
          const std::string& prior, int iterations, int threads, std::uint64_t seed, const std::string& objective,
          const std::string& loss, int training_scenes, std::vector<std::string> training, double training_zoom,
          double noise_sigma, int validation_realisations, double map_lambda, double epsilon,
-         const std::string& map_prior, double min_gain, py::object progress) {
+         const std::string& map_prior, double min_gain, int sky_oversampling, py::object progress) {
         DesignStudyOptions o;
         o.param = param;
         o.modes = modes;
@@ -43,6 +43,7 @@ void BindDesign(py::module_& m) {
         o.epsilon = epsilon;
         o.map_prior = map_prior;
         o.min_gain_db = min_gain;
+        o.sky_oversampling = sky_oversampling;
         // The CLI's range checks (its CLI11 validators), so that both refuse the same values.
         CheckArgument(param == "raster" || param == "tiptilt" || param == "zernike" || param == "actuators", "aosr.design",
                       "param", param, "raster | tiptilt | zernike | actuators");
@@ -89,7 +90,7 @@ void BindDesign(py::module_& m) {
       py::arg("objective") = "A", py::arg("loss") = "l1", py::arg("training_scenes") = 3,
       py::arg("training") = std::vector<std::string>(), py::arg("training_zoom") = 1.0, py::arg("noise_sigma") = 0.04,
       py::arg("validation_realisations") = 4, py::arg("map_lambda") = -1.0, py::arg("epsilon") = 1e-3,
-      py::arg("map_prior") = "charbonnier-tv", py::arg("min_gain") = 0.2, py::arg("progress") = py::none(),
+      py::arg("map_prior") = "charbonnier-tv", py::arg("min_gain") = 0.2, py::arg("sky_oversampling") = 4, py::arg("progress") = py::none(),
       R"doc(Designs the N per-exposure DM offsets of a scene, as `aosr design SCENE` (include/aosr/design/design_study.hpp).
 
 scene       a scene path or aosr.Scene (its telescope, AO, camera, r and N)
@@ -97,13 +98,14 @@ output      also write the design file (scenes load it with "offsets": {"type": 
 calibration a calibration.json: the file's frames become the commands for the calibrated DM
 param, modes, rms_max [nm], strehl_min, starts, realisations, screens, lambda_, prior, iterations, threads,
 seed, objective ('A' | 'B'), loss, training_scenes, training (image paths), training_zoom, noise_sigma,
-validation_realisations, map_lambda (< 0: automatic), epsilon, map_prior, min_gain [dB]: the CLI's options of the
-same names.
+validation_realisations, map_lambda (< 0: automatic), epsilon, map_prior, min_gain [dB], sky_oversampling: the CLI's
+options of the same names.
 progress    optional callable(dict) called during the optimisation (stage 'design', iteration = L-BFGS iterations
             over all starts, total = starts x iterations, value = J); returning False stops it: the best design
             so far is returned with its termination 'cancelled', unvalidated, and no file is written.
 Returns the dict `aosr design --json` prints (without total_seconds); its "design" is the design file, its "gain"
-the expected gain over the raster ("db", "stderr_db", "advice": "design" | "raster", "reason").
+the expected gain over the raster ("db", "stderr_db", "advice": "design" | "raster", "reason"; with objective A
+judged on a sky sky_oversampling times finer than the HR grid, "hr_grid_sky" holds the HR grid's own figure).
 The GIL is released; Ctrl-C stops the optimisation after the current iteration and raises KeyboardInterrupt.)doc");
 }
 

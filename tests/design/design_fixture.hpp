@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "aosr/core/fft.hpp"
 #include "aosr/design/design_objective.hpp"
 #include "aosr/design/design_parameterisation.hpp"
 #include "aosr/optics/pupil.hpp"
@@ -35,6 +36,15 @@ inline DesignOptics SmallOptics(bool ao, Index grid = 16, int r = 2, Index pupil
     o.ao = a;
   }
   return o;
+}
+
+// An object with E|X(f)|² = M² s(f) (M² the pixel count): white noise filtered by √s.
+inline Image DrawObject(const Image& s, std::mt19937_64& rng) {
+  std::normal_distribution<double> n01;
+  Image white(s.rows(), s.cols());
+  for (Index k = 0; k < white.size(); ++k) white.data()[k] = n01(rng);
+  const ComplexImage w = FftForward(white.cast<Complex>());
+  return FftInverse(w * s.sqrt().cast<Complex>()).real();
 }
 
 inline DesignPupil SmallPupil(const DesignOptics& o) {

@@ -14,17 +14,9 @@
 namespace aosr {
 namespace AOSR_TEST_NS {
 
+using design_test::DrawObject;
 using design_test::SmallOptics;
 using design_test::SmallPupil;
-
-// An object with E|X(f)|² = M² s(f): white noise filtered by √s.
-Image DrawObject(const Image& s, std::mt19937_64& rng) {
-  std::normal_distribution<double> n01;
-  Image white(s.rows(), s.cols());
-  for (Index k = 0; k < white.size(); ++k) white.data()[k] = n01(rng);
-  const ComplexImage w = FftForward(white.cast<Complex>());
-  return FftInverse(w * s.sqrt().cast<Complex>()).real();
-}
 
 // Predicted (objective A) vs measured MSE of Tikhonov reconstructions with the nominal model, frames made by
 // the realised PSFs (mismatch included), objects drawn from the prior, Gaussian noise: 240 realisations

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -48,6 +49,10 @@ struct DesignStudyOptions {
   // termination says "cancelled"). Not a CLI option (the CLI stops on Ctrl-C); Python's aosr.design uses it.
   ProgressCallback progress;
   double min_gain_db = 0.2;       // the smallest expected gain [dB] for which the design is advised (and kept)
+  // Objective A's check judges the design on a sky this many times finer than the HR grid (1 .. 16;
+  // design_continuous_sky.hpp): what a real, continuous sky gets. 1: on the HR grid's own sky, as objective A
+  // optimises (where the HR pixel is coarser than λ/2D that overstates a design's gain, up to 2x in J band).
+  int sky_oversampling = 4;
 };
 
 // The expected gain of a design over the classic raster and the advice that follows.
@@ -71,6 +76,12 @@ struct DesignGain {
   double threshold_db = 0.2;
   std::string advice = "raster";   // "design" | "raster"
   std::string reason;              // one sentence: why
+  // Objective A checked on a finer sky (DesignStudyOptions::sky_oversampling s > 1): db and stderr_db are that
+  // sky's, and the same sample's gain on the HR grid's own sky (what the optimiser saw) is hr_sky_db +-
+  // hr_sky_stderr_db. s = 1: no such check (NaN).
+  int sky_oversampling = 1;
+  double hr_sky_db = std::numeric_limits<double>::quiet_NaN();
+  double hr_sky_stderr_db = std::numeric_limits<double>::quiet_NaN();
 
   // Sets db, stderr_db, per_realisation_db, realisations and the means from paired samples (> 0, finite).
   void FromPairs(const std::vector<double>& raster, const std::vector<double>& design, bool exact);
