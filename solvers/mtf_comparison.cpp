@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <variant>
 
+#include "aosr/core/edge_search.hpp"
 #include "aosr/core/error.hpp"
 #include "aosr/io/fits.hpp"
 
@@ -72,6 +73,30 @@ MtfSubject MtfSubjectFromFits(const std::string& path) {
       }
   s.label = s.method.empty() ? std::filesystem::path(path).stem().string() : s.method;
   return s;
+}
+
+PixelRoi FindMtfRegion(const std::vector<MtfSubject>& subjects, const SlantedEdgeOptions& options, std::string* source) {
+  CheckArgument(!subjects.empty(), "FindMtfRegion", "subjects", "none", "at least one image");
+  std::string first_refusal;
+  for (const MtfSubject& s : subjects) {
+    try {
+      const AutoEdgeMtf found = MeasureSlantedEdgeMtfAuto(s.image, options);
+      if (source) {
+        if (found.whole_image) {
+          *source = "whole image";
+        } else {
+          const EdgeCandidate& e = found.candidates[std::size_t(found.candidate)];
+          *source = "found automatically in " + s.label + ": the " + (e.vertical ? "vertical" : "horizontal") + " edge " +
+                    std::to_string(found.candidate + 1) + " of " + std::to_string(found.candidates.size()) +
+                    " straight edges";
+        }
+      }
+      return found.whole_image ? PixelRoi{} : found.roi;
+    } catch (const InvalidArgument& e) {
+      if (first_refusal.empty()) first_refusal = s.label + ": " + e.what();
+    }
+  }
+  throw InvalidArgument("no image has a usable edge (give a region to read); " + first_refusal);
 }
 
 MtfComparison CompareMtf(const std::vector<MtfSubject>& subjects, const MtfComparisonOptions& options) {

@@ -9,6 +9,7 @@
 #include "aosr/core/memory.hpp"
 #include "aosr/core/metrics.hpp"
 #include "aosr/core/parallel.hpp"
+#include "aosr/core/edge_search.hpp"
 #include "aosr/core/slanted_edge.hpp"
 #include "aosr/scene/telescope.hpp"
 #include "common.hpp"
@@ -256,7 +257,16 @@ void BindCore(py::module_& m) {
         o.curve_step = curve_step;
         std::string why;
         if (!o.IsValid(&why)) throw InvalidArgument("aosr.mtf: " + why);
-        const SlantedEdgeMtf e = WithoutGil([&] { return MeasureSlantedEdgeMtf(x, o); });
+        // No roi: the whole image if it holds one edge, else the first straight edge found that measures.
+        std::string roi_source = "given";
+        PixelRoi used = o.roi;
+        const SlantedEdgeMtf e = WithoutGil([&] {
+          if (!roi.is_none()) return MeasureSlantedEdgeMtf(x, o);
+          const AutoEdgeMtf found = MeasureSlantedEdgeMtfAuto(x, o);
+          roi_source = found.whole_image ? "whole image" : "found automatically";
+          used = found.roi;
+          return found.mtf;
+        });
         auto array = [](const std::vector<double>& v) { return py::array_t<double>(py::ssize_t(v.size()), v.data()); };
         auto crossing = [](const MtfCrossing& c) { return c.reached ? py::object(py::float_(c.frequency)) : py::object(py::none()); };
         py::dict d;
@@ -280,13 +290,17 @@ void BindCore(py::module_& m) {
         d["esf"] = array(e.esf);
         d["lsf"] = array(e.lsf);
         d["report"] = e.BriefReport();
+        d["roi"] = roi.is_none() ? py::make_tuple(used.x0, used.y0, used.width, used.height) : py::tuple(roi);
+        d["roi_source"] = roi_source;
         return d;
       },
       py::arg("image"), py::kw_only(), py::arg("roi") = py::none(), py::arg("r") = 0, py::arg("pixel_lambda_over_d") = 0.0,
       py::arg("frequencies") = std::vector<double>{}, py::arg("window") = "tukey", py::arg("esf_half_width") = 0.0,
       py::arg("min_contrast_to_noise") = 10.0, py::arg("max_angle_deg") = 40.0, py::arg("curve_max") = 1.0,
       py::arg("curve_step") = 0.01, py::arg("smooth_tails") = true,
-      "Slanted-edge MTF (ISO 12233 e-SFR) of a 2-D image, or of roi = (x0, y0, width, height) in it\n"
+      "Slanted-edge MTF (ISO 12233 e-SFR) of a 2-D image, or of roi = (x0, y0, width, height) in it; without roi\n"
+      "the whole image if it holds one edge, else the longest straight edge found that measures\n"
+      "(include/aosr/core/edge_search.hpp; 'roi' and 'roi_source' in the result say which)\n"
       "(include/aosr/core/slanted_edge.hpp). Returns {'frequency', 'mtf' (arrays, cycles/px), 'mtf50', 'mtf10'\n"
       "(cycles/px, None when not reached), 'at' [(f, mtf)] at `frequencies`, 'nyquist' {frequency, mtf} at 1/(2r)\n"
       "when r > 0, 'cutoff' at D/lambda = pixel_lambda_over_d cycles/px when given, 'edge' {orientation,\n"

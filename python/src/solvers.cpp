@@ -954,6 +954,7 @@ detection, too few or only saturated stars, offsets that change the PSF's shape)
         if (!dataset.is_none()) d = DatasetArgument(dataset, "aosr.compare_mtf");
         MtfComparison c;
         WithoutGil([&] {
+          if (roi.is_none()) co.edge.roi = FindMtfRegion(subjects, co.edge);  // as aosr mtf without --roi
           if (d) co.problem = std::make_shared<const ReconstructionProblem>(ProblemFromDataset(*d, dpo).problem);
           c = CompareMtf(subjects, co);
           if (!plot.empty()) WriteFigure(plot, {MtfComparisonPlot(c)});

@@ -52,6 +52,25 @@ def test_mtf_refuses_unusable_edges():
         aosr.mtf(img, window="box")
 
 
+def test_mtf_finds_the_edges_of_a_turned_chart():
+    # No roi: the whole image if it holds one edge, else the longest straight edge found (core/edge_search.hpp).
+    # The turned USAF chart's truth (data/scenes/usaf-tilted.json) is read on a bar's edge: the pixel box's MTF50.
+    j = aosr.read_json(aosr.data_path("scenes", "usaf-tilted.json"))
+    j["detector"]["peak_noise_fraction"] = 0.0
+    truth = aosr.simulate(aosr.scene_from_dict(j, source="usaf-tilted.json")).truth
+    m = aosr.mtf(truth)
+    assert m["roi_source"] == "found automatically" and len(m["roi"]) == 4
+    assert abs(m["edge"]["angle_deg"]) == pytest.approx(5.0, abs=0.2)
+    assert m["mtf50"] == pytest.approx(0.605, abs=0.012)
+    assert aosr.mtf(truth, roi=m["roi"])["mtf50"] == m["mtf50"]
+    one = gaussian_edge(100, 50, 5.0, 1.0)
+    assert aosr.mtf(one)["roi_source"] == "whole image"
+    j["objects"][0]["rotation_deg"] = 0.0
+    flat = aosr.simulate(aosr.scene_from_dict(j, source="usaf-flat.json")).truth
+    with pytest.raises(aosr.InvalidArgument, match="within 1 deg of an axis"):
+        aosr.mtf(flat)
+
+
 def test_slanted_edge_scene_and_usaf_resolving_power(demo_scene_path):
     # A scene's slanted-edge object: its truth is the pixel box's edge (MTF50 0.605 cycles/px at 5 degrees).
     j = aosr.read_json(demo_scene_path)

@@ -158,6 +158,13 @@ void RunMtf(const MtfArgs& a) {
   o.smooth_tails = a.smooth_tails;
   std::string why;
   if (!o.IsValid(&why)) throw InvalidArgument("aosr mtf: " + why);
+  // No region given: found on the images (mtf_comparison.hpp FindMtfRegion); every image is read in it.
+  std::string roi_source = "given";
+  if (a.roi.empty()) {
+    std::vector<MtfSubject> named = subjects;
+    for (std::size_t i = 0; i < named.size(); ++i) named[i].label = a.images[i];
+    o.roi = FindMtfRegion(named, o, &roi_source);
+  }
   co.edge = o;
   if (!a.manifest.empty()) {
     if (a.model_psfs == "nominal") {
@@ -208,12 +215,14 @@ void RunMtf(const MtfArgs& a) {
       }
       j = {{"outputs", outs}};
     }
+    j["roi_source"] = roi_source;
     if (!a.out.empty()) j["plot"] = a.out;
     if (!a.table.empty()) j["table"] = a.table;
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }
   if (a.images.size() > 1) {
+    if (roi_source != "given") std::printf("region: %s\n", roi_source.c_str());
     std::printf("%s", c.BriefReport().c_str());
     for (const MtfComparisonEntry& e : c.entries)
       if (!e.measured) std::fprintf(stderr, "aosr mtf: warning: %s: no usable edge: %s\n", e.label.c_str(), e.refusal.c_str());
@@ -223,6 +232,10 @@ void RunMtf(const MtfArgs& a) {
   }
   const SlantedEdgeMtf& m = c.entries[0].edge;
   std::printf("%s: %s\n", a.images[0].c_str(), m.BriefReport().c_str());
+  if (roi_source != "given")
+    std::printf("  region x %lld..%lld, y %lld..%lld (%s)\n", (long long)o.roi.x0,
+                (long long)(o.roi.width > 0 ? o.roi.x0 + o.roi.width - 1 : subjects[0].image.cols() - 1), (long long)o.roi.y0,
+                (long long)(o.roi.height > 0 ? o.roi.y0 + o.roi.height - 1 : subjects[0].image.rows() - 1), roi_source.c_str());
   std::printf("  edge through (y, x) = (%.2f, %.2f) px, %lld px long, line-fit RMS %.3f px; levels %.4g -> %.4g, noise RMS %.3g\n",
               m.centre_y, m.centre_x, static_cast<long long>(m.edge_length_px), m.fit_rms_px, m.low, m.high, m.noise_rms);
   if (m.has_nyquist)
@@ -258,7 +271,8 @@ void RegisterMtf(CLI::App& app) {
                   "one table, read in the same region")
       ->required()
       ->expected(1, 64);
-  cmd->add_option("--roi", args->roi, "region holding the edge: X0,Y0,W,H in pixels (x = column; default the whole image)")
+  cmd->add_option("--roi", args->roi, "region holding the edge: X0,Y0,W,H in pixels (x = column); default: the whole image if it holds one edge, else "
+                  "the longest straight edge found in the (first) image that measures (core/edge_search.hpp)")
       ->delimiter(',')
       ->expected(4);
   cmd->add_option("--r", args->r,

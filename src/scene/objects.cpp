@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include "aosr/core/error.hpp"
 
@@ -140,6 +142,68 @@ void RenderRect(const PixelRect& rect, double amplitude, int supersample, Image*
   }
 }
 
+// A convex polygon ((x, y) vertices in order) clipped to x (axis 0) or y (axis 1) <= bound (keep_below) or
+// >= bound: one Sutherland-Hodgman step.
+using Polygon = std::vector<std::pair<double, double>>;
+Polygon ClipPolygon(const Polygon& in, int axis, double bound, bool keep_below) {
+  Polygon out;
+  const std::size_t n = in.size();
+  auto inside = [&](const std::pair<double, double>& p) {
+    const double v = axis == 0 ? p.first : p.second;
+    return keep_below ? v <= bound : v >= bound;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto& a = in[i];
+    const auto& b = in[(i + 1) % n];
+    const bool ia = inside(a), ib = inside(b);
+    if (ia) out.push_back(a);
+    if (ia != ib) {
+      const double va = axis == 0 ? a.first : a.second, vb = axis == 0 ? b.first : b.second;
+      const double t = (bound - va) / (vb - va);
+      out.emplace_back(a.first + t * (b.first - a.first), a.second + t * (b.second - a.second));
+    }
+  }
+  return out;
+}
+
+double PolygonArea(const Polygon& p) {
+  double a = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const auto& u = p[i];
+    const auto& v = p[(i + 1) % p.size()];
+    a += u.first * v.second - v.first * u.second;
+  }
+  return 0.5 * std::abs(a);
+}
+
+// A rectangle turned by `angle` [rad] about (cy, cx), added with its exact area coverage of every pixel
+// footprint [i − 1/2, i + 1/2) (the turned rectangle clipped to the pixel's square).
+void RenderTurnedRect(const PixelRect& rect, double angle, double cy, double cx, double amplitude, Image* image) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  Polygon quad;
+  for (const auto& [y, x] : {std::pair{rect.top, rect.left}, std::pair{rect.top, rect.right()},
+                             std::pair{rect.bottom(), rect.right()}, std::pair{rect.bottom(), rect.left}})
+    quad.emplace_back(cx + (x - cx) * c - (y - cy) * s, cy + (x - cx) * s + (y - cy) * c);
+  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+  for (const auto& [x, y] : quad) {
+    x_lo = std::min(x_lo, x);
+    x_hi = std::max(x_hi, x);
+    y_lo = std::min(y_lo, y);
+    y_hi = std::max(y_hi, y);
+  }
+  const Index rows = image->rows(), cols = image->cols();
+  const Index y0 = std::max<Index>(0, Index(std::floor(y_lo + 0.5))), y1 = std::min<Index>(rows - 1, Index(std::floor(y_hi + 0.5)));
+  const Index x0 = std::max<Index>(0, Index(std::floor(x_lo + 0.5))), x1 = std::min<Index>(cols - 1, Index(std::floor(x_hi + 0.5)));
+  for (Index y = y0; y <= y1; ++y)
+    for (Index x = x0; x <= x1; ++x) {
+      Polygon p = ClipPolygon(quad, 0, double(x) - 0.5, false);
+      p = ClipPolygon(p, 0, double(x) + 0.5, true);
+      p = ClipPolygon(p, 1, double(y) - 0.5, false);
+      p = ClipPolygon(p, 1, double(y) + 0.5, true);
+      if (p.size() >= 3) (*image)(y, x) += amplitude * PolygonArea(p);
+    }
+}
+
 // Interpolation weights along one axis: the two pixel indices around coordinate t in [0, n-1] and the
 // weight of the upper one. At t = n - 1 the pair is (n-2, n-1) with weight 1, so both indices stay in range.
 struct Bilinear1D {
@@ -182,6 +246,11 @@ bool UsafOptions::IsValid(std::string* why) const {
   if (!std::isfinite(bar_value)) return fail("bar_value = " + ToString(bar_value) + " (must be finite)");
   if (supersample < 0 || supersample > kMaxSupersample)
     return fail("supersample = " + std::to_string(supersample) + " (must be in [0, 64])");
+  if (!(rotation_deg >= -45.0 && rotation_deg <= 45.0))
+    return fail("rotation_deg = " + ToString(rotation_deg) + " (must be in [-45, 45])");
+  if (rotation_deg != 0.0 && supersample != 0)
+    return fail("supersample = " + std::to_string(supersample) + " with rotation_deg " + ToString(rotation_deg) +
+                " (a turned chart is rendered with exact coverage: supersample 0)");
   return true;
 }
 
@@ -220,7 +289,14 @@ Image UsafTarget(Shape shape, const UsafOptions& options) {
   CheckOptions("UsafTarget", options);
   Image image = Image::Constant(shape.rows, shape.cols, options.background);
   const double amplitude = options.bar_value - options.background;
-  for (const UsafBar& bar : UsafBars(shape, options)) RenderRect(bar.rect, amplitude, options.supersample, &image);
+  const double cy = 0.5 * double(shape.rows - 1), cx = 0.5 * double(shape.cols - 1);
+  for (const UsafBar& bar : UsafBars(shape, options)) {
+    if (options.rotation_deg == 0.0) {
+      RenderRect(bar.rect, amplitude, options.supersample, &image);
+    } else {
+      RenderTurnedRect(bar.rect, options.rotation_deg * M_PI / 180.0, cy, cx, amplitude, &image);
+    }
+  }
   return image;
 }
 

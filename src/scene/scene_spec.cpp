@@ -167,6 +167,7 @@ ObjectSpec ParseObject(const ConfigNode& n, const SceneSpec& scene, std::size_t 
     o.usaf.background = n.NumberOr("background", o.usaf.background, -1e30, 1e30);
     o.usaf.bar_value = n.NumberOr("bar", o.usaf.bar_value, -1e30, 1e30);
     o.usaf.supersample = int(n.IntegerOr("supersample", o.usaf.supersample, 0, 64));
+    o.usaf.rotation_deg = n.NumberOr("rotation_deg", o.usaf.rotation_deg, -45.0, 45.0);
     CheckOptions(n, o.usaf);
   } else if (o.type == "slanted-edge") {
     o.kind = ObjectSpec::Kind::kSlantedEdge;

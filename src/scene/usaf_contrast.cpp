@@ -76,6 +76,9 @@ UsafResolvingPower MeasureUsafResolvingPower(const Image& image, const UsafOptio
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument(std::string(kUsafContrastFn) + ": invalid options: " + why);
   if (!target.IsValid(&why)) throw InvalidArgument(std::string(kUsafContrastFn) + ": invalid target: " + why);
+  CheckArgument(target.rotation_deg == 0.0, kUsafContrastFn, "target.rotation_deg", target.rotation_deg,
+                "0: the bar contrasts are read along the image's axes (a turned chart is for the slanted-edge MTF, "
+                "aosr mtf)");
   CheckArgument(image.size() > 0, kUsafContrastFn, "image", ToString(ShapeOf(image)), "a non-empty image");
   if (!AllFinite(image)) throw InvalidArgument(kUsafContrastFn, "image", "(NaN or Inf)", "finite pixels");
   const Shape shape = ShapeOf(image);

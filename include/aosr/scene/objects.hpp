@@ -75,6 +75,13 @@ struct UsafOptions {
   // s x s point samples at the sub-pixel centres (s = 1 is aliased point sampling); its coverage error is
   // below 2/s per pixel. Kept to compare against, not because it is better. Must be in [0, 64].
   int supersample = 0;
+  // The chart turned about the field's centre by this angle [deg], in [-45, 45], positive from +x toward +y
+  // (clockwise on a display with y down). Default 0. A test bench tilts its chart by a few degrees so that
+  // the bars' edges can be read by the slanted-edge MTF (core/slanted_edge.hpp, core/edge_search.hpp). A turned
+  // chart is rendered with exact area coverage of each turned bar (needs supersample 0); UsafBars and
+  // UsafElements stay in the chart's own, untilted placement, and the contrast reading (usaf_contrast.hpp)
+  // refuses a turned chart.
+  double rotation_deg = 0.0;
 
   // True if every field is in range; otherwise false and, if why != nullptr, *why names the field.
   bool IsValid(std::string* why) const;

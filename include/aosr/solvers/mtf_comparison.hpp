@@ -77,6 +77,14 @@ struct MtfComparison {
 
 MtfComparison CompareMtf(const std::vector<MtfSubject>& subjects, const MtfComparisonOptions& options);
 
+// The region to read the subjects in when none is given (`aosr mtf` and aosr.mtf / compare_mtf without a roi):
+// the whole image if it holds one edge, else the first straight edge found that measures
+// (core/edge_search.hpp), in the first subject that has one; the default PixelRoi for the whole image. `source`,
+// when given, says which ("whole image", or "found automatically in <label>: ..."). InvalidArgument saying why
+// ("no image has a usable edge", with the first subject's reasons) when none has one.
+PixelRoi FindMtfRegion(const std::vector<MtfSubject>& subjects, const SlantedEdgeOptions& options,
+                       std::string* source = nullptr);
+
 // The table as CSV: a header line, then one row per frequency of the measured curves (cycles/px): a column per
 // measured curve ("<label> edge") and per exact curve ("<label> exact"; empty past the HR Nyquist).
 std::string MtfComparisonCsv(const MtfComparison& comparison);
