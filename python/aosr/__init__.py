@@ -61,6 +61,7 @@ from ._aosr import (  # noqa: F401  (re-exported API)
     simulate,
     stars_psf,
     synthesize_calibration,
+    tradeoff,
     threads,
     usaf_resolving_power,
     video,
@@ -78,7 +79,7 @@ __all__ = [
     "evaluate", "fourier_shift", "load_scene",
     "methods", "mtf", "open_dataset", "psf", "psnr", "read_fits", "read_json", "reconstruct", "reconstruct_options",
     "scene_from_dict", "set_fft_planner", "fft_wisdom_loaded", "allocator_tuned", "tune_allocator", "set_memory_limit", "set_threads", "simulate", "stars_psf",
-    "synthesize_calibration", "threads", "usaf_resolving_power", "video", "VideoStream", "watch", "QuickLook", "write_figure", "write_fits", "write_image",
+    "synthesize_calibration", "threads", "tradeoff", "usaf_resolving_power", "video", "VideoStream", "watch", "QuickLook", "write_figure", "write_fits", "write_image",
 ]
 
 

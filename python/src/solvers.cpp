@@ -18,6 +18,7 @@
 #include "aosr/solvers/target_psf.hpp"
 #include "aosr/solvers/psf_field_model.hpp"
 #include "aosr/solvers/tiling.hpp"
+#include "aosr/solvers/tradeoff.hpp"
 #include "bindings.hpp"
 #include "common.hpp"
 
@@ -915,6 +916,44 @@ detection, too few or only saturated stars, offsets that change the PSF's shape)
       "The reconstruction methods aosr.reconstruct accepts: the library's list (solvers/reconstruct.hpp,\n"
       "ReconstructionMethods), the one ParseReconstructionMethod checks names against.");
 
+  m.def(
+      "tradeoff",
+      [](py::object dataset, py::object methods, std::vector<int> iterations, std::vector<double> lambda_factors,
+         std::vector<double> target_factors, const std::string& weights, py::object progress) {
+        TradeoffOptions o;
+        if (!methods.is_none()) o.methods = methods.cast<std::vector<std::string>>();
+        o.iterations = std::move(iterations);
+        o.lambda_factors = std::move(lambda_factors);
+        o.target_factors = std::move(target_factors);
+        o.weights = ParseDatasetWeights(weights);
+        CheckTradeoffOptions(o, [](const char* f) { return std::string(f); }, "aosr.tradeoff");
+        const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, "aosr.tradeoff");
+        PythonProgress poll(progress);
+        const TradeoffSweep sweep = WithoutGil([&] { return RunTradeoffSweep(*d, o, {}, poll.Callback()); });
+        poll.RaiseIfPending();
+        nlohmann::json j = {{"methods", sweep.methods},
+                            {"weights", sweep.weights_source},
+                            {"weights_linear_methods", sweep.weights_source_linear},
+                            {"has_truth", sweep.has_truth},
+                            {"metric_crop_px", sweep.has_truth ? nlohmann::json(sweep.metric_crop_px) : nlohmann::json()},
+                            {"cancelled", sweep.cancelled},
+                            {"rows", nlohmann::json::array()}};
+        for (const TradeoffRow& r : sweep.rows) j["rows"].push_back(TradeoffRowJson(r));
+        return FromJson(j);
+      },
+      py::arg("dataset"), py::kw_only(), py::arg("methods") = py::none(),
+      py::arg("iterations") = std::vector<int>{10, 30, 100, 300},
+      py::arg("lambda_factors") = std::vector<double>{0.01, 0.1, 10, 100},
+      py::arg("target_factors") = std::vector<double>{0.9, 1.25, 1.5, 2.0}, py::arg("weights") = "auto",
+      py::arg("progress") = py::none(),
+      R"doc(The accuracy/time trade-off of every reconstructor on a dataset, as `aosr tradeoff DATASET --json` gives
+its rows (include/aosr/solvers/tradeoff.hpp: each method with the defaults of aosr.reconstruct over its knob:
+tikhonov lambda = factor x GCV's, linear Gaussian targets of factor x the automatic FWHM, tv and map iteration
+caps). dataset: a path or aosr.Dataset; methods: a list (None: all); weights as aosr.reconstruct. Returns
+{"methods", "weights", "weights_linear_methods", "has_truth", "metric_crop_px", "cancelled", "rows": [{"method",
+"knob", "seconds", "psnr_db", "ssim", "misfit", "change", ...}]} (PSNR/SSIM None without a truth). progress: an
+optional callable(dict) per solver report; returning False stops the sweep after that run ("cancelled").
+The GIL is released; Ctrl-C stops it and raises KeyboardInterrupt.)doc");
   m.def(
       "compare_mtf",
       [](py::sequence images, py::object dataset, py::object roi, int r, const std::string& weights, py::object model_psfs,

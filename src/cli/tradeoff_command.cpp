@@ -52,6 +52,7 @@
 #include "aosr/scene/evaluation.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/tradeoff.hpp"
 #include "cli_util.hpp"
 #include "commands.hpp"
 #include "progress_bar.hpp"
@@ -60,9 +61,9 @@ namespace aosr::cli {
 namespace {
 
 namespace fs = std::filesystem;
+using Row = TradeoffRow;
 constexpr const char* kCmd = "aosr tradeoff";
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-const char* const kAllMethods[] = {"shift-add", "shift-add-median", "drizzle", "tikhonov", "linear", "tv", "map"};
 
 struct TradeoffArgs {
   std::string dataset;
@@ -78,25 +79,6 @@ struct TradeoffArgs {
   ExecutionArgs exec;
 };
 
-struct Row {
-  std::string method;
-  std::string knob;             // human-readable knob setting, "-" for none
-  double lambda_factor = kNaN;  // tikhonov: λ / λ_GCV (1 for the GCV row)
-  int iteration_cap = 0;        // tv, map
-  double target_factor = kNaN;  // linear: target FWHM / the automatic target's (1 for the automatic row)
-  // linear: the target's and the effective PSF's FWHM [HR px], the output's noise RMS (frame units per HR
-  // pixel) and its leakage U (target_psf.hpp).
-  double target_fwhm = kNaN, effective_fwhm = kNaN, noise_rms = kNaN, leakage = kNaN;
-  int iterations = 0;
-  std::string termination, message;
-  double seconds = 0, regularisation = 0;
-  double psnr = kNaN, ssim = kNaN, rmse = kNaN;
-  // After removing the global sub-pixel offset (scene/evaluation.hpp), and the offset [HR px, mas].
-  double aligned_psnr = kNaN, aligned_ssim = kNaN, offset_dy = kNaN, offset_dx = kNaN, offset_dy_mas = kNaN,
-         offset_dx_mas = kNaN;
-  double objective = kNaN, misfit = kNaN, change = kNaN;
-};
-
 std::string Fmt(const char* f, double v) {
   if (!std::isfinite(v)) return "—";
   char buf[64];
@@ -104,42 +86,19 @@ std::string Fmt(const char* f, double v) {
   return buf;
 }
 
-nlohmann::json Number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-// Reduced χ²: Σ w (y − A x)² over the number of weighted pixels.
-double ReducedChiSquare(const ReconstructionProblem& p, const Image& x) {
-  Index n = 0;
-  for (int i = 0; i < p.frame_count(); ++i) n += (p.Weight(i).array() > 0).count();
-  return n > 0 ? 2.0 * WeightedDataMisfit(p, x) / double(n) : kNaN;
-}
-
-std::vector<std::string> Methods(const TradeoffArgs& a) {
-  std::vector<std::string> out;
-  const std::vector<std::string> asked =
-      a.methods.empty() ? std::vector<std::string>(std::begin(kAllMethods), std::end(kAllMethods))
-                        : a.methods;
-  for (const std::string& m : asked) {
-    if (std::find(std::begin(kAllMethods), std::end(kAllMethods), m) == std::end(kAllMethods))
-      throw InvalidArgument(
-          kCmd, "--methods", m,
-          "a comma-separated list of shift-add, shift-add-median, drizzle, tikhonov, linear, tv, map");
-    if (std::find(out.begin(), out.end(), m) == out.end()) out.push_back(m);
-  }
-  return out;
-}
-
-std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProblem& dp,
-                     const DatasetProblem& dp_photometric, int crop_px,
+std::string Markdown(const TradeoffArgs& a, const Dataset& d, const TradeoffSweep& sweep,
                      const std::vector<Row>& rows) {
   const bool truth = d.truth.has_value();
+  const int crop_px = sweep.metric_crop_px;
   std::ostringstream os;
   os << "# Accuracy against time: " << a.dataset << "\n\n"
      << "Command: `" << CommandLine() << "` (aosr " << AOSR_VERSION << ", " << DefaultThreads()
      << " thread(s)).\n\n"
      << "Dataset: " << d.size() << " frames of " << ToString(d.frame) << " camera px, r = " << d.r << " (HR "
-     << ToString(d.hr_frame) << "); weights: " << dp.weights_source
-     << (dp_photometric.weights_source != dp.weights_source
-             ? " (shift-add, drizzle, tikhonov: " + dp_photometric.weights_source + ")"
+     << ToString(d.hr_frame) << "); weights: " << sweep.weights_source
+     << (sweep.weights_source_linear != sweep.weights_source
+             ? " (shift-add, drizzle, tikhonov: " + sweep.weights_source_linear + ")"
              : std::string())
      << "; "
      << (truth ? "truth given: PSNR/SSIM (core/metrics.hpp, L = the cropped truth's range) on the truth " +
@@ -208,38 +167,6 @@ std::string Markdown(const TradeoffArgs& a, const Dataset& d, const DatasetProbl
   return os.str();
 }
 
-nlohmann::json RowJson(const Row& r) {
-  nlohmann::json j = {{"method", r.method},
-                      {"knob", r.knob},
-                      {"iterations", r.iterations},
-                      {"termination", r.termination},
-                      {"message", r.message},
-                      {"seconds", r.seconds},
-                      {"regularisation", r.regularisation},
-                      {"psnr_db", Number(r.psnr)},
-                      {"ssim", Number(r.ssim)},
-                      {"rmse", Number(r.rmse)},
-                      {"aligned", {{"psnr_db", Number(r.aligned_psnr)}, {"ssim", Number(r.aligned_ssim)}}},
-                      {"offset_hr_px", {{"dy", Number(r.offset_dy)}, {"dx", Number(r.offset_dx)}}},
-                      {"offset_mas", std::isfinite(r.offset_dy_mas)
-                                         ? nlohmann::json{{"dy", r.offset_dy_mas}, {"dx", r.offset_dx_mas}}
-                                         : nlohmann::json(nullptr)},
-                      {"objective", Number(r.objective)},
-                      {"misfit", Number(r.misfit)},
-                      {"change", Number(r.change)}};
-  if (std::isfinite(r.lambda_factor)) j["lambda_factor"] = r.lambda_factor;
-  if (r.iteration_cap > 0) j["iteration_cap"] = r.iteration_cap;
-  if (r.method == "linear") {
-    j["target_factor"] = Number(r.target_factor);
-    j["target_fwhm_hr_px"] = Number(r.target_fwhm);
-    j["effective_fwhm_hr_px"] = Number(r.effective_fwhm);
-    j["noise_rms"] = Number(r.noise_rms);
-    j["leakage"] = Number(r.leakage);
-    j["scored_through"] = "its effective PSF";
-  }
-  return j;
-}
-
 std::vector<LinePlot> Panels(const std::string& name, bool truth, const std::vector<std::string>& methods,
                              const std::vector<Row>& rows) {
   LinePlot a, b;
@@ -298,25 +225,18 @@ void RunTradeoff(const TradeoffArgs& a) {
   ApplyExecution(a.exec);
   const Progress progress(!a.json, a.progress);
   ProgressBar bar(ProgressBar::Choose(a.json, a.progress));
-  // Options, checked before anything is read or computed.
-  const std::vector<std::string> methods = Methods(a);
-  std::vector<int> caps =
-      a.iterations;  // increasing: the change column compares each cap with the one before
-  for (int cap : caps)
-    if (cap < 1 || cap > 1000000)
-      throw InvalidArgument(kCmd, "--iterations", std::to_string(cap), "caps in 1..1000000");
-  std::sort(caps.begin(), caps.end());
-  caps.erase(std::unique(caps.begin(), caps.end()), caps.end());
-  for (double f : a.lambda_factors)
-    if (!(std::isfinite(f) && f > 0) || f == 1.0)
-      throw InvalidArgument(kCmd, "--lambda-factors", ToString(f),
-                            "finite factors > 0 other than 1 (the GCV row is always run)");
-  for (double f : a.target_factors)
-    if (!(std::isfinite(f) && f > 0 && f <= 10) || f == 1.0)
-      throw InvalidArgument(kCmd, "--target-factors", ToString(f),
-                            "finite factors in (0, 10] other than 1 (the automatic target's row is always run)");
-  DatasetProblemOptions dpo;
-  dpo.weights = ParseDatasetWeights(a.weights);
+  // Options, checked before anything is read or computed (in the CLI's words).
+  TradeoffOptions to;
+  to.methods = a.methods;
+  to.iterations = a.iterations;
+  to.lambda_factors = a.lambda_factors;
+  to.target_factors = a.target_factors;
+  to.weights = ParseDatasetWeights(a.weights);
+  CheckTradeoffOptions(to, [](const char* field) {
+    std::string n = std::string("--") + field;
+    std::replace(n.begin(), n.end(), '_', '-');
+    return n;
+  }, kCmd);
   const std::string md_path = JoinPath(a.out_dir, "tradeoff.md"),
                     json_path = JoinPath(a.out_dir, "tradeoff.json"),
                     png_path = JoinPath(a.out_dir, "tradeoff.png");
@@ -338,158 +258,17 @@ void RunTradeoff(const TradeoffArgs& a) {
     if (inputs.count(fs::weakly_canonical(p)))
       throw InvalidArgument(kCmd, "-o", a.out_dir,
                             "a folder where no output (" + p + ") is one of the dataset's input files");
-  // As `aosr reconstruct` does: `--weights auto` means background (source-independent) weights for the
-  // linear methods (shift-add, drizzle, tikhonov) and the dataset's weights for tv and map (dataset_problem.hpp).
-  DatasetProblemOptions dpo_model = dpo, dpo_photometric = dpo;
-  dpo_model.method = ReconstructionMethod::kTotalVariation;
-  dpo_photometric.method = ReconstructionMethod::kDrizzle;
-  const DatasetProblem dp = ProblemFromDataset(d, dpo_model);
-  const DatasetProblem dp_photometric = ProblemFromDataset(d, dpo_photometric);
   EnsureDirectory(a.out_dir);
-
-  MetricOptions mo;
-  mo.crop_px = int(d.trustworthy_border_px) * d.r;  // bench/reconstruct_bench.cpp's crop
-  if (2 * mo.crop_px + kSsimWindow > std::min(d.hr_frame.rows, d.hr_frame.cols)) mo.crop_px = 0;
-
-  std::vector<Row> rows;
-  const double hr_mas = DatasetHrPixelMas(d);
-  // One run: the row (without the change column) and its estimate.
-  const auto run = [&](const std::string& method, ReconstructOptions o, Row row, Image* image) {
-    o.method = ParseReconstructionMethod(method);
-    const ReconstructionProblem& p = IsLinearMethod(o.method) ? dp_photometric.problem : dp.problem;
-    progress.Step(method + " " + row.knob);
-    o.progress = bar.Callback();
-    Reconstruction rec = Reconstruct(p, o);
-    bar.Clear();
-    row.method = method;
-    row.iterations = rec.summary.iterations;
-    row.termination = ToString(rec.summary.termination);
-    row.message = rec.summary.message;
-    row.seconds = rec.seconds_total;
-    row.regularisation = rec.regularisation;
-    // The baselines minimise nothing: their final_cost is a placeholder 0.
-    const bool has_objective = method == "tikhonov" || method == "tv" || method == "map";
-    row.objective = has_objective ? rec.summary.final_cost : kNaN;
-    if (AllFinite(rec.image)) {
-      row.misfit = ReducedChiSquare(p, rec.image);
-      if (rec.linear) {
-        row.target_fwhm = rec.linear->target_fwhm_hr_px;
-        row.effective_fwhm = rec.linear->effective_fwhm_hr_px;
-        row.noise_rms = rec.linear->noise_rms;
-        row.leakage = rec.linear->leakage;
-      }
-      if (d.truth) {
-        EvaluationOptions eo;
-        eo.crop_px = mo.crop_px;
-        eo.hr_pixel_mas = hr_mas;
-        // The linear output estimates the truth seen through its effective PSF, sky included: scored against
-        // that, its sky level subtracted (as `aosr reconstruct` scores it: against_truth_through_psf).
-        eo.subtract_sky = rec.linear.has_value();
-        const Image seen = rec.effective_psf.size() > 0
-                               ? ToImage(PeriodicConvolutionFromKernel(d.hr_frame, rec.effective_psf)
-                                             ->Apply(AsVector(*d.truth)),
-                                         d.hr_frame)
-                               : *d.truth;
-        const Evaluation ev = EvaluateReconstruction(seen, rec.image, {}, eo);
-        row.psnr = ev.metrics.psnr;
-        row.ssim = ev.metrics.ssim;
-        row.rmse = ev.metrics.rmse;
-        row.aligned_psnr = ev.aligned.psnr;
-        row.aligned_ssim = ev.aligned.ssim;
-        row.offset_dy = ev.offset.dy;
-        row.offset_dx = ev.offset.dx;
-        if (ev.offset_mas_known) row.offset_dy_mas = ev.offset_mas[0], row.offset_dx_mas = ev.offset_mas[1];
-      }
-    }
-    *image = std::move(rec.image);
-    return row;
-  };
-  // Appends a row of a knob sweep, with its change from the sweep's previous estimate (empty: the first).
-  const auto append = [&](Row row, Image image, Image* previous) {
-    if (previous->size() > 0 && previous->size() == image.size() && AllFinite(image) &&
-        AllFinite(*previous)) {
-      const double norm = image.matrix().norm();
-      if (norm > 0) row.change = (image - *previous).matrix().norm() / norm;
-    }
-    rows.push_back(std::move(row));
-    *previous = std::move(image);
-  };
-
-  for (const std::string& m : methods) {
-    const ReconstructOptions o;
-    Image previous, image;
-    if (m == "tikhonov") {
-      // GCV first: its λ anchors the sweep. Rows in increasing λ, the GCV row among them (factor 1).
-      Row gcv_row;
-      gcv_row.lambda_factor = 1.0;
-      gcv_row.knob = "λ by GCV";
-      Image gcv_image;
-      gcv_row = run(m, o, gcv_row, &gcv_image);
-      const double lambda_gcv = gcv_row.regularisation;
-      gcv_row.knob = "λ by GCV = " + Fmt("%.3g", lambda_gcv);
-      std::vector<double> factors = a.lambda_factors;
-      factors.push_back(1.0);
-      std::sort(factors.begin(), factors.end());
-      factors.erase(std::unique(factors.begin(), factors.end()), factors.end());
-      for (double f : factors) {
-        if (f == 1.0) {
-          append(gcv_row, gcv_image, &previous);
-          continue;
-        }
-        ReconstructOptions fixed = o;
-        fixed.tikhonov.lambda_rule = TikhonovLambdaRule::kFixed;
-        fixed.tikhonov.lambda = f * lambda_gcv;
-        Row row;
-        row.lambda_factor = f;
-        row.knob = "λ = " + Fmt("%g", f) + " × GCV = " + Fmt("%.3g", f * lambda_gcv);
-        row = run(m, fixed, row, &image);
-        append(row, std::move(image), &previous);
-      }
-    } else if (m == "linear") {
-      // The automatic target first: its FWHM anchors the sweep. Rows in increasing target width.
-      Row auto_row;
-      auto_row.target_factor = 1.0;
-      auto_row.knob = "target auto";
-      Image auto_image;
-      auto_row = run(m, o, auto_row, &auto_image);
-      const double fwhm_auto = auto_row.target_fwhm;
-      auto_row.knob = "target auto (FWHM " + Fmt("%.2f", fwhm_auto) + " HR px)";
-      std::vector<double> factors = a.target_factors;
-      factors.push_back(1.0);
-      std::sort(factors.begin(), factors.end());
-      factors.erase(std::unique(factors.begin(), factors.end()), factors.end());
-      for (double f : factors) {
-        if (f == 1.0 || !(fwhm_auto > 0)) {
-          if (f == 1.0) append(auto_row, auto_image, &previous);
-          continue;
-        }
-        ReconstructOptions gaussian = o;
-        gaussian.linear.kind = TargetPsfKind::kGaussian;
-        gaussian.linear.fwhm_hr_px = f * fwhm_auto;
-        Row row;
-        row.target_factor = f;
-        row.knob = "Gaussian FWHM " + Fmt("%g", f) + " × auto = " + Fmt("%.2f", f * fwhm_auto) + " HR px";
-        row = run(m, gaussian, row, &image);
-        append(row, std::move(image), &previous);
-      }
-    } else if (m == "tv" || m == "map") {
-      for (int cap : caps) {
-        ReconstructOptions capped = o;
-        capped.tv.max_iterations = capped.map.max_iterations = cap;
-        Row row;
-        row.iteration_cap = cap;
-        row.knob = "cap " + std::to_string(cap);
-        row = run(m, capped, row, &image);
-        append(row, std::move(image), &previous);
-      }
-    } else {
-      Row row;
-      row.knob = "—";
-      row = run(m, o, row, &image);
-      append(row, std::move(image), &previous);
-    }
-  }
-
+  const TradeoffSweep sweep = RunTradeoffSweep(
+      d, to,
+      [&](const std::string& m) {
+        bar.Clear();
+        progress.Step(m);
+      },
+      bar.Callback());
+  bar.Clear();
+  const std::vector<Row>& rows = sweep.rows;
+  const std::vector<std::string>& methods = sweep.methods;
   // Outputs: the JSON, the picture, then the table that shows the picture.
   std::string name = fs::path(d.manifest_path).parent_path().filename().string();
   if (name.empty()) name = "dataset";
@@ -498,14 +277,14 @@ void RunTradeoff(const TradeoffArgs& a) {
                       {"frames", d.size()},
                       {"r", d.r},
                       {"hr_shape", {d.hr_frame.rows, d.hr_frame.cols}},
-                      {"weights", dp.weights_source},
-                      {"weights_linear_methods", dp_photometric.weights_source},
+                      {"weights", sweep.weights_source},
+                      {"weights_linear_methods", sweep.weights_source_linear},
                       {"threads", DefaultThreads()},
                       {"has_truth", d.truth.has_value()},
-                      {"metric_crop_px", d.truth ? nlohmann::json(mo.crop_px) : nlohmann::json(nullptr)},
+                      {"metric_crop_px", d.truth ? nlohmann::json(sweep.metric_crop_px) : nlohmann::json(nullptr)},
                       {"outputs", {{"markdown", md_path}, {"json", json_path}, {"plot", png_path}}},
                       {"rows", nlohmann::json::array()}};
-  for (const Row& r : rows) j["rows"].push_back(RowJson(r));
+  for (const Row& r : rows) j["rows"].push_back(TradeoffRowJson(r));
   progress.Step("writing " + a.out_dir);
   const std::string json_text = j.dump(2) + "\n";
   AtomicWrite(json_path, [&](const std::string& tmp) {
@@ -517,7 +296,7 @@ void RunTradeoff(const TradeoffArgs& a) {
   FigureOptions fo;
   fo.columns = 2;
   WriteFigure(png_path, Panels(name, d.truth.has_value(), methods, rows), fo);
-  const std::string md = Markdown(a, d, dp, dp_photometric, mo.crop_px, rows);
+  const std::string md = Markdown(a, d, sweep, rows);
   AtomicWrite(md_path, [&](const std::string& tmp) {
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (!f) throw IoError(md_path, "cannot open for writing");
