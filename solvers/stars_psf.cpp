@@ -23,6 +23,10 @@ constexpr double kDropSnr = 3.0;
 constexpr double kDropMove = 1.5;
 // A peak in the residual is a new star only above this fraction of the model there (and the noise).
 constexpr double kResidualFraction = 0.1;
+// A fitted star whose own box's χ² per pixel exceeds kRejectFactor times the stars' median (and kRejectFloor) is
+// not a point source (a nebular knot, a galaxy, a blend): rejected and masked (header).
+constexpr double kRejectFactor = 3.0;
+constexpr double kRejectFloor = 2.0;
 
 Index FloorDiv(Index a, Index b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
@@ -112,6 +116,72 @@ void AddPatch(const Patch& p, double alpha, Image* frame) {
 }
 
 // (Named apart from shift_and_add.cpp's Median(std::vector<double>&): unity batches can put both files in one unit.)
+double StarsMedian(std::vector<double> v);
+
+// The background's structure (header): boxes of `mesh` camera px, each the median of its valid pixels after
+// three rounds of 3σ clipping (σ = 1.4826 MAD: the stars in a box are clipped), bilinear between box centres.
+// No median filter over the boxes, as SExtractor applies: on a few boxes it flattens the structure it should
+// follow (a nebula of 8 px on boxes of 8 px lost its peak). Boxes with fewer than half their pixels valid take the
+// frame's median.
+Image MeshBackground(const Image& y, const Image& valid, int mesh) {
+  const Index rows = y.rows(), cols = y.cols();
+  const Index by = std::max<Index>(1, (rows + mesh / 2) / mesh), bx = std::max<Index>(1, (cols + mesh / 2) / mesh);
+  std::vector<double> all;
+  for (Index p = 0; p < y.size(); ++p)
+    if (valid(p) > 0) all.push_back(y(p));
+  const double global = all.empty() ? 0.0 : StarsMedian(all);
+  Image box(by, bx);
+  for (Index a = 0; a < by; ++a)
+    for (Index b = 0; b < bx; ++b) {
+      const Index y0 = a * rows / by, y1 = (a + 1) * rows / by, x0 = b * cols / bx, x1 = (b + 1) * cols / bx;
+      std::vector<double> v;
+      for (Index yy = y0; yy < y1; ++yy)
+        for (Index xx = x0; xx < x1; ++xx)
+          if (valid(yy, xx) > 0) v.push_back(y(yy, xx));
+      if (2 * v.size() < std::size_t((y1 - y0) * (x1 - x0))) {
+        box(a, b) = global;
+        continue;
+      }
+      double med = StarsMedian(v);
+      for (int it = 0; it < 3 && v.size() > 4; ++it) {
+        std::vector<double> dev;
+        for (double q : v) dev.push_back(std::abs(q - med));
+        const double sig = 1.4826 * StarsMedian(dev);
+        if (!(sig > 0)) break;
+        std::vector<double> kept;
+        for (double q : v)
+          if (std::abs(q - med) <= 3.0 * sig) kept.push_back(q);
+        if (kept.size() == v.size() || kept.size() < 4) break;
+        v.swap(kept);
+        med = StarsMedian(v);
+      }
+      box(a, b) = med;
+    }
+  const Image& filtered = box;
+  // Bilinear between box centres (clamped beyond the outer ones).
+  auto axis = [](Index p, Index n_pix, Index n_box, Index* lo, Index* hi, double* t) {
+    const double c = (double(p) + 0.5) * double(n_box) / double(n_pix) - 0.5;  // in box units, centres at integers
+    const double cc = std::clamp(c, 0.0, double(n_box - 1));
+    *lo = Index(std::floor(cc));
+    *hi = std::min(*lo + 1, n_box - 1);
+    *t = cc - double(*lo);
+  };
+  Image out(rows, cols);
+  for (Index yy = 0; yy < rows; ++yy) {
+    Index a0, a1;
+    double ty;
+    axis(yy, rows, by, &a0, &a1, &ty);
+    for (Index xx = 0; xx < cols; ++xx) {
+      Index b0, b1;
+      double tx;
+      axis(xx, cols, bx, &b0, &b1, &tx);
+      out(yy, xx) = (1 - ty) * ((1 - tx) * filtered(a0, b0) + tx * filtered(a0, b1)) +
+                    ty * ((1 - tx) * filtered(a1, b0) + tx * filtered(a1, b1));
+    }
+  }
+  return out;
+}
+
 double StarsMedian(std::vector<double> v) {
   if (v.empty()) return 0.0;
   const std::size_t h = v.size() / 2;
@@ -381,15 +451,19 @@ bool StarsPsfOptions::IsValid(std::string* why) const {
   if (!(cg_tolerance > 0 && cg_tolerance < 1))
     return fail("cg_tolerance = " + ToString(cg_tolerance) + ", allowed (0, 1)");
   if (max_stars < 1) return fail("max_stars = " + std::to_string(max_stars) + ", allowed >= 1");
+  if (background_mesh_px != 0 && (background_mesh_px < 4 || background_mesh_px > 4096))
+    return fail("background_mesh_px = " + std::to_string(background_mesh_px) + ", allowed 0 (none) or [4, 4096]");
+  if (!(max_chi2_near_stars >= 0) || !std::isfinite(max_chi2_near_stars))
+    return fail("max_chi2_near_stars = " + ToString(max_chi2_near_stars) + ", allowed >= 0 (0: no check)");
   return true;
 }
 
 std::string StarsPsfResult::BriefReport() const {
   char buf[256];
   std::snprintf(buf, sizeof buf,
-                "stars PSF: %d stars (%d saturated, %d dropped), K = %lld HR px, chi2/dof %.3f (%.3f per pixel near the "
-                "stars), %d rounds",
-                used, saturated, dropped, static_cast<long long>(psf.rows()), chi2_per_dof, chi2_near_stars, rounds);
+                "stars PSF: %d stars (%d saturated, %d dropped, %d not point-like), K = %lld HR px, chi2/dof %.3f (%.3f "
+                "per pixel near the stars), %d rounds",
+                used, saturated, dropped, rejected, static_cast<long long>(psf.rows()), chi2_per_dof, chi2_near_stars, rounds);
   return buf;
 }
 
@@ -407,22 +481,22 @@ Image FourierShiftKernel(const Image& k, double dy, double dx) {
   return FftC2R(s, k.cols());
 }
 
-StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in, const ImageStack& weights_in,
+StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_in, const ImageStack& weights_in,
                                 const std::vector<FrameOffset>& offsets, int r, const StarsPsfOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument(kStarsPsfFn, "options", why, "valid StarsPsfOptions");
-  const Index n = Index(y.size());
+  const Index n = Index(y_in.size());
   CheckArgument(n > 0, kStarsPsfFn, "frames", 0, "at least one frame");
   CheckArgument(r >= 1 && r <= 16, kStarsPsfFn, "r", r, "1..16");
-  const Shape lr = ShapeOf(y[0]);
+  const Shape lr = ShapeOf(y_in[0]);
   CheckArgument(Index(valid_in.size()) == n, kStarsPsfFn, "valid count", valid_in.size(), "one per frame (" + std::to_string(n) + ")");
   CheckArgument(weights_in.empty() || Index(weights_in.size()) == n, kStarsPsfFn, "weights count", weights_in.size(),
                 "0 (from the background and the model) or one per frame (" + std::to_string(n) + ")");
   CheckArgument(Index(offsets.size()) == n, kStarsPsfFn, "offsets count", offsets.size(), "one per frame (" + std::to_string(n) + ")");
   for (Index i = 0; i < n; ++i) {
     const std::string tag = "[" + std::to_string(i) + "]";
-    CheckArgument(ShapeOf(y[i]) == lr, kStarsPsfFn, "frames" + tag + " shape", ToString(ShapeOf(y[i])), "frame 0's " + ToString(lr));
+    CheckArgument(ShapeOf(y_in[i]) == lr, kStarsPsfFn, "frames" + tag + " shape", ToString(ShapeOf(y_in[i])), "frame 0's " + ToString(lr));
     CheckArgument(ShapeOf(valid_in[i]) == lr, kStarsPsfFn, "valid" + tag + " shape", ToString(ShapeOf(valid_in[i])), ToString(lr));
     CheckArgument(std::isfinite(offsets[i].dy) && std::isfinite(offsets[i].dx), kStarsPsfFn, "offsets" + tag,
                   ToString(offsets[i].dy) + ", " + ToString(offsets[i].dx), "finite HR px");
@@ -445,12 +519,22 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
   res.offsets = offsets;
   res.min_required = std::max<int>(options.min_stars, int((r * r + n - 1) / n));
 
-  // ---- Frames: valid pixels, background, noise. ---------------------------------------------------------------
-  ImageStack valid(n), mask(n);
+  // ---- Frames: valid pixels, background structure, background, noise. ---------------------------------------------
+  ImageStack valid(n), mask(n), y(n);
+  res.background_mesh_px = options.background_mesh_px;
+  for (Index i = 0; i < n; ++i) {
+    valid[i] = ((valid_in[i] != 0) && y_in[i].isFinite()).cast<double>();
+    if (!weights_in.empty()) valid[i] *= (weights_in[i] > 0).cast<double>();
+    y[i] = (valid[i] > 0).select(y_in[i], 0.0);
+    if (options.background_mesh_px > 0) {
+      // The structure only: its median level stays, and the fitted constant b_i carries it.
+      const Image map = MeshBackground(y[i], valid[i], options.background_mesh_px);
+      std::vector<double> v(map.data(), map.data() + map.size());
+      y[i] -= map - StarsMedian(v);
+    }
+  }
   std::vector<double> sigma(n), bg(n), var_floor(n), sigma_floor(n);
   for (Index i = 0; i < n; ++i) {
-    valid[i] = ((valid_in[i] != 0) && y[i].isFinite()).cast<double>();
-    if (!weights_in.empty()) valid[i] *= (weights_in[i] > 0).cast<double>();
     const Image yi = (valid[i] > 0).select(y[i], 0.0);
     std::vector<double> v;
     for (Index p = 0; p < yi.size(); ++p)
@@ -743,6 +827,44 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
     for (std::size_t j = 0; j < stars.size(); ++j)
       if (keep[j]) kept.push_back(stars[j]);
     stars.swap(kept);
+    if (round > 0) {
+      // Point sources only: each star's χ² per pixel on its own box (every star subtracted), against the stars'
+      // median. A nebular knot or a galaxy leaves a residual no PSF can remove; it is rejected and its box masked
+      // in every frame, so its light enters neither h nor the noise estimate.
+      std::vector<double> c(stars.size(), 0.0);
+      for (std::size_t j = 0; j < stars.size(); ++j) {
+        double sum = 0;
+        Index cnt = 0;
+        for (Index i = 0; i < n; ++i) {
+          const Index cy = Index(std::lround(HrToCamera(stars[j].y + offsets[i].dy, r)));
+          const Index cx = Index(std::lround(HrToCamera(stars[j].x + offsets[i].dx, r)));
+          for (Index yy = std::max<Index>(0, cy - rfit); yy <= std::min<Index>(lr.rows - 1, cy + rfit); ++yy)
+            for (Index xx = std::max<Index>(0, cx - rfit); xx <= std::min<Index>(lr.cols - 1, cx + rfit); ++xx)
+              if (w[i](yy, xx) > 0) {
+                sum += w[i](yy, xx) * resid[i](yy, xx) * resid[i](yy, xx);
+                ++cnt;
+              }
+        }
+        c[j] = cnt > 0 ? sum / double(cnt) : 0.0;
+      }
+      const double limit = std::max(kRejectFloor, kRejectFactor * StarsMedian(c));
+      std::vector<Star> point;
+      for (std::size_t j = 0; j < stars.size(); ++j) {
+        if (c[j] <= limit) {
+          point.push_back(stars[j]);
+          continue;
+        }
+        ++res.rejected;
+        for (Index i = 0; i < n; ++i) {
+          const double cy = HrToCamera(stars[j].y + offsets[i].dy, r), cx = HrToCamera(stars[j].x + offsets[i].dx, r);
+          for (Index yy = std::max<Index>(0, Index(cy) - rmask); yy <= std::min<Index>(lr.rows - 1, Index(cy) + rmask); ++yy)
+            for (Index xx = std::max<Index>(0, Index(cx) - rmask); xx <= std::min<Index>(lr.cols - 1, Index(cx) + rmask); ++xx)
+              mask[i](yy, xx) = 0;
+        }
+      }
+      stars.swap(point);
+      update_weights(&model);
+    }
     std::sort(stars.begin(), stars.end(), by_flux);
     if (int(stars.size()) < res.min_required) throw too_few(stars.size(), "left after fitting");
   }
@@ -774,6 +896,15 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y, const ImageStack& valid_in,
   res.dof = npix - k * k - 3 * Index(stars.size()) - n;
   res.chi2_per_dof = res.dof > 0 ? chi2 / double(res.dof) : 0.0;
   res.chi2_near_stars = nnear > 0 ? chi2_near / double(nnear) : 0.0;
+  if (options.max_chi2_near_stars > 0 && res.chi2_near_stars > options.max_chi2_near_stars)
+    throw InvalidArgument(
+        kStarsPsfFn, "fit",
+        "chi2 per pixel near the stars " + ToString(res.chi2_near_stars) + " (chi2/dof " + ToString(res.chi2_per_dof) +
+            ") with " + std::to_string(stars.size()) + " stars kept (" + std::to_string(res.rejected) +
+            " rejected as not point-like, " + std::to_string(res.dropped) + " dropped): the frames are not point sources "
+            "on a smooth background (structured emission, extended sources, or a PSF that varies across the field)",
+        "<= max_chi2_near_stars = " + ToString(options.max_chi2_near_stars) +
+            ": give model PSFs instead (a file, or nominal), or mask the extended emission");
   // Per-frame PSFs: h shifted by o_i on a window padded so the shift does not wrap the wings.
   double omax = 0;
   for (const FrameOffset& o : offsets) omax = std::max({omax, std::abs(o.dy), std::abs(o.dx)});

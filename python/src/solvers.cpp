@@ -339,10 +339,12 @@ StarsPsfOptions StarsOptionsFrom(py::handle kwargs, const char* fn) {
     else if (key == "cg_iterations") o.cg_iterations = v.cast<int>();
     else if (key == "cg_tolerance") o.cg_tolerance = v.cast<double>();
     else if (key == "max_stars") o.max_stars = v.cast<int>();
+    else if (key == "background_mesh_px") o.background_mesh_px = v.cast<int>();
+    else if (key == "max_chi2_near_stars") o.max_chi2_near_stars = v.cast<double>();
     else
       throw InvalidArgument(fn, "stars option", key,
                             "psf_size_hr_px | detection_sigma | min_stars | rounds | regularisation | fit_radius_px | "
-                            "cg_iterations | cg_tolerance | max_stars");
+                            "cg_iterations | cg_tolerance | max_stars | background_mesh_px | max_chi2_near_stars");
   }
   std::string why;
   if (!o.IsValid(&why)) throw InvalidArgument(fn, "stars options", why, "valid StarsPsfOptions");
@@ -365,6 +367,8 @@ py::dict StarsPsfDict(const StarsPsfResult& s) {
   d["detected"] = s.detected;
   d["saturated"] = s.saturated;
   d["dropped"] = s.dropped;
+  d["rejected"] = s.rejected;
+  d["background_mesh_px"] = s.background_mesh_px;
   d["min_required"] = s.min_required;
   d["chi2_per_dof"] = s.chi2_per_dof;
   d["chi2_near_stars"] = s.chi2_near_stars;

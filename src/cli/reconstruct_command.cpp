@@ -53,6 +53,8 @@ struct ReconstructArgs {
   double stars_threshold = 5.0;  // --stars-threshold [background sigma]
   int stars_min = 4;             // --stars-min
   int stars_rounds = 4;          // --stars-rounds
+  int stars_background_mesh = 0;   // --stars-background-mesh
+  double stars_max_chi2 = 5.0;     // --stars-max-chi2
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
   std::string lambda_rule = "gcv";
@@ -196,7 +198,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                             ToString(a.pixfrac) + "|" + ToString(a.registration_range) + "|" +
                             a.registration_anchor + "|" + ToString(a.registration_rounds) + "|" +
                             ToString(a.stars_psf_size) + "|" + ToString(a.stars_threshold) + "|" +
-                            ToString(a.stars_min) + "|" + ToString(a.stars_rounds);
+                            ToString(a.stars_min) + "|" + ToString(a.stars_rounds) + "|" +
+                            ToString(a.stars_background_mesh) + "|" + ToString(a.stars_max_chi2);
   }
   CheckWritableFile(a.out);
   if (!a.stars_psf_out.empty()) {
@@ -208,6 +211,8 @@ void RunReconstruct(const ReconstructArgs& a) {
   dpo.stars.detection_sigma = a.stars_threshold;
   dpo.stars.min_stars = a.stars_min;
   dpo.stars.rounds = a.stars_rounds;
+  dpo.stars.background_mesh_px = a.stars_background_mesh;
+  dpo.stars.max_chi2_near_stars = a.stars_max_chi2;
   {
     std::string why;
     if (!dpo.stars.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--stars-*", why, "valid stars PSF settings");
@@ -455,6 +460,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                       {"detected", st.detected},
                       {"saturated", st.saturated},
                       {"dropped", st.dropped},
+                      {"rejected", st.rejected},
+                      {"background_mesh_px", st.background_mesh_px},
                       {"min_required", st.min_required},
                       {"psf_size_hr_px", st.psf.rows()},
                       {"chi2_per_dof", st.chi2_per_dof},
@@ -662,6 +669,16 @@ void RegisterReconstruct(CLI::App& app) {
                   "--model-psfs stars: rounds of (PSF solve, star position/flux fits)")
       ->capture_default_str()
       ->check(CLI::Range(1, 50));
+  cmd->add_option("--stars-background-mesh", a->stars_background_mesh,
+                  "--model-psfs stars: box size [camera px] of the mesh on which a structured background (nebula, galaxy "
+                  "disc) is estimated and removed first; 0: a constant per frame")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4096));
+  cmd->add_option("--stars-max-chi2", a->stars_max_chi2,
+                  "--model-psfs stars: refuse the estimate when the chi2 per pixel near the stars exceeds this (the "
+                  "frames are then not point sources on a smooth background); 0: no check")
+      ->capture_default_str()
+      ->check(NonNegativeFinite());
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
   cmd->add_option("--lambda-rule", a->lambda_rule,
                   "Tikhonov (and the TV/MAP pilot) lambda without --lambda: gcv | discrepancy (Morozov, residual = "
