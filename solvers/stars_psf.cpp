@@ -27,6 +27,9 @@ constexpr double kResidualFraction = 0.1;
 // not a point source (a nebular knot, a galaxy, a blend): rejected and masked (header).
 constexpr double kRejectFactor = 3.0;
 constexpr double kRejectFloor = 2.0;
+// ... and whose residual's power on that box is above this fraction of its own model's (a point source under a
+// slightly wrong PSF leaves a few per cent; an extended source much more).
+constexpr double kRejectRelative = 0.1;
 
 Index FloorDiv(Index a, Index b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
 
@@ -829,28 +832,36 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     stars.swap(kept);
     if (round > 0) {
       // Point sources only: each star's χ² per pixel on its own box (every star subtracted), against the stars'
-      // median. A nebular knot or a galaxy leaves a residual no PSF can remove; it is rejected and its box masked
-      // in every frame, so its light enters neither h nor the noise estimate.
-      std::vector<double> c(stars.size(), 0.0);
+      // median, and its residual's power against its own model's there. A nebular knot or a galaxy leaves a
+      // residual no PSF can remove, large against its own light; a bright star under a slightly wrong PSF has a
+      // large χ² but a small relative residual, and stays. A rejected one's box is masked in every frame, so its
+      // light enters neither h nor the noise estimate.
+      std::vector<double> c(stars.size(), 0.0), rel(stars.size(), 0.0);
       for (std::size_t j = 0; j < stars.size(); ++j) {
-        double sum = 0;
+        double sum = 0, res2 = 0, mod2 = 0;
         Index cnt = 0;
         for (Index i = 0; i < n; ++i) {
-          const Index cy = Index(std::lround(HrToCamera(stars[j].y + offsets[i].dy, r)));
-          const Index cx = Index(std::lround(HrToCamera(stars[j].x + offsets[i].dx, r)));
+          const double py = stars[j].y + offsets[i].dy, px = stars[j].x + offsets[i].dx;
+          renderer.Render(py, px, false, &patch);
+          const Index cy = Index(std::lround(HrToCamera(py, r))), cx = Index(std::lround(HrToCamera(px, r)));
           for (Index yy = std::max<Index>(0, cy - rfit); yy <= std::min<Index>(lr.rows - 1, cy + rfit); ++yy)
             for (Index xx = std::max<Index>(0, cx - rfit); xx <= std::min<Index>(lr.cols - 1, cx + rfit); ++xx)
               if (w[i](yy, xx) > 0) {
                 sum += w[i](yy, xx) * resid[i](yy, xx) * resid[i](yy, xx);
                 ++cnt;
+                res2 += resid[i](yy, xx) * resid[i](yy, xx);
+                const Index gy = yy - patch.top, gx = xx - patch.left;
+                if (gy >= 0 && gx >= 0 && gy < patch.g.rows() && gx < patch.g.cols())
+                  mod2 += std::pow(stars[j].f * patch.g(gy, gx), 2);
               }
         }
         c[j] = cnt > 0 ? sum / double(cnt) : 0.0;
+        rel[j] = mod2 > 0 ? res2 / mod2 : 0.0;
       }
       const double limit = std::max(kRejectFloor, kRejectFactor * StarsMedian(c));
       std::vector<Star> point;
       for (std::size_t j = 0; j < stars.size(); ++j) {
-        if (c[j] <= limit) {
+        if (c[j] <= limit || rel[j] <= kRejectRelative) {
           point.push_back(stars[j]);
           continue;
         }

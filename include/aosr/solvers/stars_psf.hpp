@@ -58,8 +58,9 @@
 //
 // Point sources only (issue 31 item 4; PSFEx and photutils select stars by size, shape and residual). From round 1
 // on, each fitted star's χ² per pixel on its own box (every star subtracted) is compared with the stars' median: a
-// star above 3x that median (and above 2) is not a point source (a nebular knot, a galaxy, a blend); it is
-// rejected (counted in `rejected`) and its box masked in every frame. A structured background can be estimated on
+// star above 3x that median (and above 2) whose residual there also holds more than 10 % of its own model's power
+// is not a point source (a nebular knot, a galaxy, a blend; a bright star under a slightly wrong PSF has the χ²
+// but not the relative residual); it is rejected (counted in `rejected`) and its box masked in every frame. A structured background can be estimated on
 // a mesh and removed first (background_mesh_px, opt-in). At the end the fit must be consistent with point
 // sources: a χ² per pixel near the stars above max_chi2_near_stars (default 5; a crowded field on a flat sky
 // fits at 1.1) is refused with InvalidArgument naming χ², the stars kept and the rejected, never returned as a
