@@ -830,7 +830,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     for (std::size_t j = 0; j < stars.size(); ++j)
       if (keep[j]) kept.push_back(stars[j]);
     stars.swap(kept);
-    if (round > 0) {
+    if (round > 0 && options.reject_extended) {
       // Point sources only: each star's χ² per pixel on its own box (every star subtracted), against the stars'
       // median, and its residual's power against its own model's there. A nebular knot or a galaxy leaves a
       // residual no PSF can remove, large against its own light; a bright star under a slightly wrong PSF has a

@@ -341,10 +341,11 @@ StarsPsfOptions StarsOptionsFrom(py::handle kwargs, const char* fn) {
     else if (key == "max_stars") o.max_stars = v.cast<int>();
     else if (key == "background_mesh_px") o.background_mesh_px = v.cast<int>();
     else if (key == "max_chi2_near_stars") o.max_chi2_near_stars = v.cast<double>();
+    else if (key == "reject_extended") o.reject_extended = v.cast<bool>();
     else
       throw InvalidArgument(fn, "stars option", key,
                             "psf_size_hr_px | detection_sigma | min_stars | rounds | regularisation | fit_radius_px | "
-                            "cg_iterations | cg_tolerance | max_stars | background_mesh_px | max_chi2_near_stars");
+                            "cg_iterations | cg_tolerance | max_stars | background_mesh_px | max_chi2_near_stars | reject_extended");
   }
   std::string why;
   if (!o.IsValid(&why)) throw InvalidArgument(fn, "stars options", why, "valid StarsPsfOptions");

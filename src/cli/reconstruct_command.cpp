@@ -55,6 +55,7 @@ struct ReconstructArgs {
   int stars_rounds = 4;          // --stars-rounds
   int stars_background_mesh = 0;   // --stars-background-mesh
   double stars_max_chi2 = 5.0;     // --stars-max-chi2
+  bool stars_reject_extended = false;  // --stars-reject-extended
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
   std::string lambda_rule = "gcv";
@@ -199,7 +200,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                             a.registration_anchor + "|" + ToString(a.registration_rounds) + "|" +
                             ToString(a.stars_psf_size) + "|" + ToString(a.stars_threshold) + "|" +
                             ToString(a.stars_min) + "|" + ToString(a.stars_rounds) + "|" +
-                            ToString(a.stars_background_mesh) + "|" + ToString(a.stars_max_chi2);
+                            ToString(a.stars_background_mesh) + "|" + ToString(a.stars_max_chi2) + "|" +
+                            ToString(int(a.stars_reject_extended));
   }
   CheckWritableFile(a.out);
   if (!a.stars_psf_out.empty()) {
@@ -213,6 +215,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   dpo.stars.rounds = a.stars_rounds;
   dpo.stars.background_mesh_px = a.stars_background_mesh;
   dpo.stars.max_chi2_near_stars = a.stars_max_chi2;
+  dpo.stars.reject_extended = a.stars_reject_extended;
   {
     std::string why;
     if (!dpo.stars.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--stars-*", why, "valid stars PSF settings");
@@ -679,6 +682,9 @@ void RegisterReconstruct(CLI::App& app) {
                   "frames are then not point sources on a smooth background); 0: no check")
       ->capture_default_str()
       ->check(NonNegativeFinite());
+  cmd->add_flag("--stars-reject-extended", a->stars_reject_extended,
+                "--model-psfs stars: reject and mask fitted sources whose residual is not a point source's (nebular "
+                "knots, galaxies); off by default: on real star fields it also drops blended and halo-mismatched stars");
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
   cmd->add_option("--lambda-rule", a->lambda_rule,
                   "Tikhonov (and the TV/MAP pilot) lambda without --lambda: gcv | discrepancy (Morozov, residual = "

@@ -111,6 +111,7 @@ TEST(StarsPsf, StructuredBackgroundIsRemovedOrRefused) {
   StarsPsfOptions o;
   o.psf_size_hr_px = 16;
   o.background_mesh_px = 8;
+  o.reject_extended = true;
   const test::StarFrames nebula = with(false);
   const StarsPsfResult s = EstimateStarsPsf(nebula.y, nebula.valid, {}, nebula.offsets, 2, o);
   std::printf("nebula, mesh 8: %s; RMS / peak %.4f\n", s.BriefReport().c_str(), rms(s));
