@@ -292,12 +292,16 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
                                                *options.method != ReconstructionMethod::kShiftAddMedian &&
                                                *options.method != ReconstructionMethod::kDrizzle);
   const bool own_psfs = !options.stars_psfs && options.model_psfs.empty();
+  // A stars PSF fitted over a field grid (StarsPsfOptions::grid_ny x grid_nx > 1) is a field model of its own.
+  const bool stars_field = out.stars_psf && out.stars_psf->grid.nodes() > 1;
   if (options.psf_field == DatasetPsfField::kTiles || options.psf_field == DatasetPsfField::kOperator) {
     const std::string asked = ToString(options.psf_field);
-    CheckArgument(bool(d.psf_field), kDatasetProblemFn, "psf_field", asked,
-                  "a dataset with a psf_field (simulations of a scene with psf_field write it)");
-    CheckArgument(own_psfs, kDatasetProblemFn, "psf_field", asked + " with model_psfs or stars_psfs",
-                  "the dataset's own (or nominal) PSFs: the field model's PSFs are the dataset's psf_field");
+    CheckArgument(bool(d.psf_field) || stars_field, kDatasetProblemFn, "psf_field", asked,
+                  "a dataset with a psf_field (simulations of a scene with psf_field write it), or stars PSFs fitted "
+                  "over a field grid (stars grid_ny x grid_nx > 1)");
+    CheckArgument(own_psfs || stars_field, kDatasetProblemFn, "psf_field", asked + " with model_psfs or single stars PSFs",
+                  "the dataset's own (or nominal) PSFs, or stars PSFs over a field grid: the field model's PSFs are "
+                  "the dataset's psf_field or the stars' grid");
     CheckArgument(model_based, kDatasetProblemFn, "psf_field", asked,
                   std::string("a method that models the PSF (tikhonov, linear, tv, map), not ") +
                       ToString(*options.method));
@@ -306,7 +310,7 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
                   kDatasetProblemFn, "psf_field", asked + " with the linear method",
                   "tiles: the target-PSF output is a per-frequency design, made tile by tile with local PSFs");
   }
-  if (d.psf_field && own_psfs && model_based && options.psf_field != DatasetPsfField::kNone) {
+  if (((d.psf_field && own_psfs) || stars_field) && model_based && options.psf_field != DatasetPsfField::kNone) {
     // Registration shifts the model's PSFs by each frame's estimated correction; the nodes' PSFs would keep the
     // commanded offsets, and the two models would disagree.
     CheckArgument(options.offsets != DatasetOffsets::kEstimate, kDatasetProblemFn, "offsets",
@@ -315,13 +319,18 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
                   "psf_field none");
     DatasetProblem::Field f;
     f.approach = options.psf_field == DatasetPsfField::kOperator ? DatasetPsfField::kOperator : DatasetPsfField::kTiles;
-    f.grid = d.psf_field->grid;
-    if (options.nominal_psfs) {
-      CheckArgument(!d.psf_field->nominal_psfs.empty(), kDatasetProblemFn, "nominal_psfs", "true with a psf_field",
-                    "a dataset whose psf_field gives nominal_psfs (closed-loop simulations write them), or psf_field none");
-      f.psfs = d.psf_field->nominal_psfs;
+    if (stars_field) {
+      f.grid = out.stars_psf->grid;
+      f.psfs = out.stars_psf->field_psfs;
     } else {
-      f.psfs = d.psf_field->psfs;
+      f.grid = d.psf_field->grid;
+      if (options.nominal_psfs) {
+        CheckArgument(!d.psf_field->nominal_psfs.empty(), kDatasetProblemFn, "nominal_psfs", "true with a psf_field",
+                      "a dataset whose psf_field gives nominal_psfs (closed-loop simulations write them), or psf_field none");
+        f.psfs = d.psf_field->nominal_psfs;
+      } else {
+        f.psfs = d.psf_field->psfs;
+      }
     }
     CheckArgument(f.psfs.size() == std::size_t(f.grid.nodes()) && !f.psfs.empty() && f.psfs.front().size() == n,
                   kDatasetProblemFn, "psf_field psfs", f.psfs.size(), "one stack of N PSFs per node");

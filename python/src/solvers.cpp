@@ -342,10 +342,22 @@ StarsPsfOptions StarsOptionsFrom(py::handle kwargs, const char* fn) {
     else if (key == "background_mesh_px") o.background_mesh_px = v.cast<int>();
     else if (key == "max_chi2_near_stars") o.max_chi2_near_stars = v.cast<double>();
     else if (key == "reject_extended") o.reject_extended = v.cast<bool>();
-    else
+    else if (key == "grid_variation") o.grid_variation = v.cast<double>();
+    else if (key == "grid") {
+      // (ny, nx) nodes of the field grid, or one int for both.
+      if (py::isinstance<py::int_>(v)) {
+        o.grid_ny = o.grid_nx = v.cast<int>();
+      } else {
+        const py::sequence q = v.cast<py::sequence>();
+        if (py::len(q) != 2) throw InvalidArgument(fn, "stars grid", py::str(v).cast<std::string>(), "(ny, nx) or one int");
+        o.grid_ny = q[0].cast<int>();
+        o.grid_nx = q[1].cast<int>();
+      }
+    } else
       throw InvalidArgument(fn, "stars option", key,
                             "psf_size_hr_px | detection_sigma | min_stars | rounds | regularisation | fit_radius_px | "
-                            "cg_iterations | cg_tolerance | max_stars | background_mesh_px | max_chi2_near_stars | reject_extended");
+                            "cg_iterations | cg_tolerance | max_stars | background_mesh_px | max_chi2_near_stars | "
+                            "reject_extended | grid | grid_variation");
   }
   std::string why;
   if (!o.IsValid(&why)) throw InvalidArgument(fn, "stars options", why, "valid StarsPsfOptions");
@@ -377,6 +389,22 @@ py::dict StarsPsfDict(const StarsPsfResult& s) {
   d["rounds"] = s.rounds;
   d["seconds"] = s.seconds;
   d["report"] = s.BriefReport();
+  if (s.grid.nodes() > 1) {
+    d["grid"] = py::make_tuple(s.grid.ny(), s.grid.nx());
+    py::list nodes;
+    for (int g = 0; g < s.grid.nodes(); ++g) {
+      const auto at = s.grid.Node(g);
+      nodes.append(py::make_tuple(at[0], at[1]));
+    }
+    d["grid_nodes_hr_px"] = nodes;
+    d["node_psfs"] = StackToArray(s.node_psfs);
+    py::list field;
+    for (const ImageStack& f : s.field_psfs) field.append(StackToArray(f));
+    d["field_psfs"] = field;
+    d["node_stars"] = s.node_stars;
+  } else {
+    d["grid"] = py::make_tuple(1, 1);
+  }
   return d;
 }
 
@@ -731,7 +759,8 @@ tile        > 0: reconstruct in overlapping tiles of at most tile x tile camera 
             0: the whole grid at once. progress is not called for a tiled run
 tile_overlap  tile > 0: camera px added on each side of a tile; -1: from the PSF's extent and the method's reach
 resume      tile > 0: an existing folder where finished tiles are kept; a rerun reuses them (same bytes)
-psf_field   'auto' (a dataset with a psf_field, with a method that models the PSF: 'tiles') | 'none' (the guide
+psf_field   'auto' (a dataset with a psf_field, or stars={'grid': (ny, nx)} with model_psfs='stars', with a
+            method that models the PSF: 'tiles') | 'none' (the guide
             star's PSF everywhere) | 'tiles' (overlapping tiles, each with the PSFs interpolated at its centre;
             tile sets their size, default half the grid spacing) | 'operator' (one space-variant operator over
             the whole field: exact for the interpolated PSF, slower; not for 'linear';
@@ -901,12 +930,16 @@ neighbours subtracted, the PSF solved by weighted least squares over all their p
 
 dataset   an aosr.Dataset or a dataset folder / manifest path
 options   psf_size_hr_px (0: 32 r), detection_sigma (5), min_stars (4), rounds (4), regularisation (1e-4),
-          fit_radius_px (3), cg_iterations (300), cg_tolerance (1e-5), max_stars (5000)
+          fit_radius_px (3), cg_iterations (300), cg_tolerance (1e-5), max_stars (5000), background_mesh_px (0),
+          max_chi2_near_stars (5), reject_extended (False), grid ((1, 1): one PSF; (ny, nx): a PSF fitted at
+          each node of a grid over the field, bilinear between them, each star seen through the PSF at its
+          position; every node needs its own stars)
 
 Returns {'psf': (K, K), 'psfs': (N, K', K') per frame, 'offsets_hr_px', 'stars': (S, 3) y, x [HR px], flux [e-],
-'background_e', 'stars_used', 'detected', 'saturated', 'dropped', 'min_required', 'chi2_per_dof',
-'chi2_near_stars', 'dof',
-'rounds', 'seconds', 'report'}. InvalidArgument (ValueError) when the frames cannot support an estimate (no
+'background_e', 'stars_used', 'detected', 'saturated', 'dropped', 'rejected', 'min_required', 'chi2_per_dof',
+'chi2_near_stars', 'dof', 'rounds', 'seconds', 'report', 'grid'}; with a grid also 'grid_nodes_hr_px' (y, x per
+node), 'node_psfs' (G, K, K), 'field_psfs' (G arrays (N, K', K')) and 'node_stars' (the stars' weights per node),
+and 'psf'/'psfs' are the field centre's. InvalidArgument (ValueError) when the frames cannot support an estimate (no
 detection, too few or only saturated stars, offsets that change the PSF's shape), naming what is missing.)doc");
 
   m.def("reconstruct_options", &ReconstructOptionsHelp,

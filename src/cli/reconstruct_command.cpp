@@ -56,6 +56,7 @@ struct ReconstructArgs {
   int stars_background_mesh = 0;   // --stars-background-mesh
   double stars_max_chi2 = 5.0;     // --stars-max-chi2
   bool stars_reject_extended = false;  // --stars-reject-extended
+  std::string stars_grid = "1x1";      // --stars-grid NYxNX: a stars PSF varying over the field
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
   std::string lambda_rule = "gcv";
@@ -201,7 +202,7 @@ void RunReconstruct(const ReconstructArgs& a) {
                             ToString(a.stars_psf_size) + "|" + ToString(a.stars_threshold) + "|" +
                             ToString(a.stars_min) + "|" + ToString(a.stars_rounds) + "|" +
                             ToString(a.stars_background_mesh) + "|" + ToString(a.stars_max_chi2) + "|" +
-                            ToString(int(a.stars_reject_extended));
+                            ToString(int(a.stars_reject_extended)) + "|" + a.stars_grid;
   }
   CheckWritableFile(a.out);
   if (!a.stars_psf_out.empty()) {
@@ -216,6 +217,16 @@ void RunReconstruct(const ReconstructArgs& a) {
   dpo.stars.background_mesh_px = a.stars_background_mesh;
   dpo.stars.max_chi2_near_stars = a.stars_max_chi2;
   dpo.stars.reject_extended = a.stars_reject_extended;
+  {
+    int ny = 0, nx = 0;
+    char tail = 0;
+    if (std::sscanf(a.stars_grid.c_str(), "%dx%d%c", &ny, &nx, &tail) != 2)
+      throw InvalidArgument("aosr reconstruct", "--stars-grid", a.stars_grid, "NYxNX, e.g. 3x3 (1x1: one PSF for the field)");
+    dpo.stars.grid_ny = ny;
+    dpo.stars.grid_nx = nx;
+    if (a.model_psfs != "stars" && (ny != 1 || nx != 1))
+      throw InvalidArgument("aosr reconstruct", "--stars-grid", a.stars_grid, "only with --model-psfs stars");
+  }
   {
     std::string why;
     if (!dpo.stars.IsValid(&why)) throw InvalidArgument("aosr reconstruct", "--stars-*", why, "valid stars PSF settings");
@@ -289,7 +300,30 @@ void RunReconstruct(const ReconstructArgs& a) {
     ph.Set("SRFACTOR", static_cast<long long>(d.r), "super-resolution factor r");
     ph.Set("NSTARS", static_cast<long long>(dp.stars_psf->used), "stars in the fit");
     ph.Set("CHI2DOF", dp.stars_psf->chi2_per_dof, "chi2 per degree of freedom of the fit");
-    WriteFitsCube(a.stars_psf_out, dp.stars_psf->psfs, ph, FitsType::kFloat64);
+    const StarsPsfResult& st = *dp.stars_psf;
+    if (st.grid.nodes() > 1) {
+      // The field model beside the centre's PSFs: node-major planes (plane g·N + i: node g, frame i), each node's
+      // position on the HR frame in the header, as a simulation's field_psfs.fits.
+      FitsExtension field;
+      field.name = "FIELD";
+      field.type = FitsType::kFloat64;
+      field.header.Set("FLDNY", static_cast<long long>(st.grid.ny()), "field grid: nodes along y (rows)");
+      field.header.Set("FLDNX", static_cast<long long>(st.grid.nx()), "field grid: nodes along x (columns)");
+      field.header.Set("FLDINTRP", "bilinear", "PSF between nodes (core/psf_field.hpp)");
+      for (int g = 0; g < st.grid.nodes(); ++g) {
+        char digits[8];
+        std::snprintf(digits, sizeof digits, "%04d", g % 10000);
+        const auto node = st.grid.Node(g);
+        field.header.Set(std::string("FY") + digits, node[0], "[HR px] node y");
+        field.header.Set(std::string("FX") + digits, node[1], "[HR px] node x");
+        field.header.Set(std::string("FN") + digits, st.node_stars[std::size_t(g)], "stars at the node (weights)");
+        for (const Image& p : st.field_psfs[std::size_t(g)]) field.planes.push_back(p);
+      }
+      ph.Set("AOSRDATA", "stars model PSFs at the field centre", "per frame; extension FIELD: the grid's nodes");
+      WriteFitsCubeWithExtensions(a.stars_psf_out, st.psfs, ph, {field}, FitsType::kFloat64);
+    } else {
+      WriteFitsCube(a.stars_psf_out, st.psfs, ph, FitsType::kFloat64);
+    }
   }
   // The caution about the weights: on stderr, or under --json in the JSON's "warning" (stdout stays JSON).
   if (!dp.warning.empty() && !a.json) std::fprintf(stderr, "aosr reconstruct: warning: %s\n", dp.warning.c_str());
@@ -352,7 +386,8 @@ void RunReconstruct(const ReconstructArgs& a) {
     h.Set("PSFFIELD",
           std::string(ToString(dp.psf_field->approach)) + " " + std::to_string(dp.psf_field->grid.ny()) + "x" +
               std::to_string(dp.psf_field->grid.nx()),
-          "field-varying model of the dataset's PSF grid (solvers/psf_field_model.hpp)");
+          dp.stars_psf ? "field-varying model of the stars PSFs' grid (solvers/stars_psf.hpp)"
+                       : "field-varying model of the dataset's PSF grid (solvers/psf_field_model.hpp)");
   if (tiled) {
     h.Set("TILE", static_cast<long long>(ts.tile), "[camera px] largest tile core (solvers/tiling.hpp)");
     h.Set("TILEOVER", static_cast<long long>(ts.overlap), "[camera px] tile overlap on each side");
@@ -473,6 +508,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                       {"rounds", st.rounds},
                       {"background_e", st.background_e},
                       {"seconds", st.seconds}};
+    if (st.grid.nodes() > 1)
+      j["stars_psf"]["grid"] = {{"ny", st.grid.ny()}, {"nx", st.grid.nx()}, {"node_stars", st.node_stars}};
     if (!a.stars_psf_out.empty()) j["stars_psf"]["path"] = a.stars_psf_out;
   }
   if (!dp.background_sigma_e.empty()) j["background_sigma_e"] = dp.background_sigma_e;
@@ -641,8 +678,9 @@ void RegisterReconstruct(CLI::App& app) {
                   "commanded offset)")
       ->capture_default_str();
   cmd->add_option("--psf-field", a->psf_field,
-                  "the PSF across the field, for a dataset with a psf_field (simulations of a scene with one): auto "
-                  "(tiles when the dataset has one and the method models the PSF) | none (the guide star's PSF "
+                  "the PSF across the field, for a dataset with a psf_field (simulations of a scene with one) or "
+                  "with --model-psfs stars --stars-grid over a grid: auto (tiles when there is a field model and the "
+                  "method models the PSF) | none (the guide star's PSF "
                   "everywhere) | tiles (overlapping tiles, each with the PSFs interpolated at its centre; --tile "
                   "sets their size, default half the grid spacing) | operator (one space-variant operator over the "
                   "whole field, the interpolated PSF at every pixel: exact, slower; not for linear)")
@@ -685,6 +723,11 @@ void RegisterReconstruct(CLI::App& app) {
   cmd->add_flag("--stars-reject-extended", a->stars_reject_extended,
                 "--model-psfs stars: reject and mask fitted sources whose residual is not a point source's (nebular "
                 "knots, galaxies); off by default: on real star fields it also drops blended and halo-mismatched stars");
+  cmd->add_option("--stars-grid", a->stars_grid,
+                  "--model-psfs stars: NYxNX nodes of a grid over the field at which the PSF is fitted (bilinear between "
+                  "them, each star through the PSF at its position; the result is the field model, --psf-field); each "
+                  "node needs its own stars. 1x1: one PSF for the field")
+      ->capture_default_str();
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
   cmd->add_option("--lambda-rule", a->lambda_rule,
                   "Tikhonov (and the TV/MAP pilot) lambda without --lambda: gcv | discrepancy (Morozov, residual = "

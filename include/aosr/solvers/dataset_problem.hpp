@@ -68,12 +68,13 @@ namespace aosr {
 
 enum class DatasetWeights { kAuto, kDataset, kMask, kBackground };
 // Whether the model varies over the field (Dataset::psf_field; solvers/psf_field_model.hpp):
-//   kAuto   kTiles when the dataset has a psf_field, the model PSFs are the dataset's (or nominal_psfs) and the
-//           method models PSFs (tikhonov, linear, tv, map); else kNone
-//   kNone   the single PSF per frame (the dataset's psfs: the guide star's direction), as without a field
-//   kTiles     the field model by tiles with local PSFs; InvalidArgument for a dataset without a psf_field,
-//              with model_psfs or stars_psfs (the field's PSFs are the dataset's), or for a method that uses no
-//              PSF
+//   kAuto   kTiles when the method models PSFs (tikhonov, linear, tv, map) and either the dataset has a psf_field
+//           and the model PSFs are the dataset's (or nominal_psfs), or the model PSFs are stars PSFs fitted over a
+//           field grid (stars.grid_ny x grid_nx > 1: their grid and nodes are the field model); else kNone
+//   kNone   the single PSF per frame (the dataset's psfs: the guide star's direction; the stars grid's PSF at the
+//           field's centre), as without a field
+//   kTiles     the field model by tiles with local PSFs; InvalidArgument without a field model (a dataset without
+//              a psf_field and no stars grid; model_psfs or single stars PSFs), or for a method that uses no PSF
 //   (Not with DatasetOffsets::kEstimate: registration would shift the centre's PSFs and not the field's.)
 //   kOperator  the field model as one space-variant operator over the whole field (MultiFrameModel::
 //              WithPsfField): exact for the interpolated PSF, solved by the operator paths (Tikhonov's PCG, TV's
@@ -106,7 +107,8 @@ struct DatasetProblemOptions {
   // Use the dataset's nominal_psfs as the model (an error if it has none; not with model_psfs).
   bool nominal_psfs = false;
   // Build the model PSFs from the point sources in the frames (stars_psf.hpp: one shared HR PSF shifted by
-  // each frame's DM tip/tilt offset); not with nominal_psfs or model_psfs. Errors when the frames cannot
+  // each frame's DM tip/tilt offset, or one per node of a field grid: stars.grid_ny/grid_nx, psf_field above);
+  // not with nominal_psfs or model_psfs. Errors when the frames cannot
   // support it (no detection, too few or only saturated stars, offsets that change the PSF's shape).
   bool stars_psfs = false;
   StarsPsfOptions stars;  // with stars_psfs: detection, size and fit settings

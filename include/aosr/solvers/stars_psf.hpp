@@ -70,6 +70,23 @@
 // J-band field it rejected 40 of ~245 stars (halo mismatch, blends) and the linear output's median |flux error| rose
 // from 6.1 % to 9.9 % (K: 0.62 % to 0.54 %); it helps where compact knots are taken for stars (the unit test).
 //
+// A PSF that varies over the field (issue 31 item 4; grid_ny x grid_nx > 1): h is then G = grid_ny · grid_nx
+// PSFs h_g at the nodes of a grid over the HR frame (core/psf_field.hpp: nodes on the frame's edges, bilinear
+// between them), and star j is seen through Σ_g w_g(p_j) h_g, the PSF interpolated at its own position: the
+// frames stay linear in the h_g (S_{i,g} the star field weighted by w_g), so the same joint least-squares solve
+// runs on G K² unknowns (a block-diagonal preconditioner, one block per node). The grid starts from the converged
+// single PSF: `rounds` rounds with one PSF, then `rounds` more with the grid (solved from early rounds' crude
+// stars, the nodes' scales and shifts, nearly degenerate with their stars' fluxes and positions, swing). This is the grid form of PSFEx's
+// polynomial in position and of photutils' GriddedPSFModel, in the interpolation the simulator and the
+// reconstructors use (solvers/psf_field_model.hpp), so the result is a field model as it stands. Each node is
+// normalised and centred on its own (a field-dependent shift is data's astrometry, carried by the stars). A node
+// sees only its share of the stars, so its noise is larger than the single PSF's: a Gaussian prior ties each node
+// to the field's mean, Σ_g ||(h_g − h̄)/τ||² with τ = grid_variation · peak / (1 + (ρ/2r)²) in the weights' units
+// (measured on crowded-stars cut to 64², 100 stars, 2 x 2 grid: each node 7-12 % RMS of the peak from the
+// truth with independent nodes, 1.5-2.2 % with this prior, the single PSF 1.0 %). Each
+// node needs max(min_stars, ⌈r²/N⌉) stars counted by their weights on it (a star on the node counts 1); fewer is
+// an InvalidArgument naming the node, its count, the stars found and the need, advising a coarser grid.
+//
 // Minimum: max(min_stars, ⌈r²/N⌉) usable (unsaturated, fitted) stars. ⌈r²/N⌉ because N frames give each star
 // N of the r² sub-pixel phases an HR PSF needs; min_stars (default 4) so that no single star, blend or cosmic
 // ray defines the PSF on its own. Fewer: InvalidArgument naming the count, the saturated ones, the threshold.
@@ -80,6 +97,7 @@
 
 #include "aosr/core/forward_model.hpp"
 #include "aosr/core/image.hpp"
+#include "aosr/core/psf_field.hpp"
 #include "aosr/scene/dataset.hpp"
 
 namespace aosr {
@@ -122,6 +140,14 @@ struct StarsPsfOptions {
   // Stars known beforehand (a catalogue: HR-frame px, e⁻ per frame, as Dataset::stars): used instead of the
   // round-0 detection as the starting positions and fluxes (still refined; residual detection still adds).
   std::vector<PointSource> known_stars;
+  // The field grid (header): grid_ny x grid_nx nodes over the frame, each in [1, 16]; 1 x 1 (default): one PSF.
+  int grid_ny = 1, grid_nx = 1;
+  // With a grid: the expected difference of a node's PSF from the field's mean, as a fraction of the PSF's peak at
+  // the centre (> 0), falling into the wings as 1/(1 + (ρ/2r)²): a Gaussian prior Σ_g ||(h_g − h̄)/τ||² added to the
+  // χ² of the h solve (header). Stars bright enough to measure a node's difference override it; where a node's
+  // stars are faint (or its wings, where they give little) the node leans on the mean. 0.3: an AO PSF's peak
+  // changes by tens of per cent over a wide field (Strehl 0.6 of on-axis at θ0, issue 31).
+  double grid_variation = 0.3;
   bool IsValid(std::string* why) const;
 };
 
@@ -137,7 +163,14 @@ struct StarsPsfResult {
   int dropped = 0;                    // detections dropped (flux below 3 σ, or moved > 1.5 camera px)
   int rejected = 0;                   // fitted detections rejected as not point-like (their residual), masked
   int background_mesh_px = 0;         // the mesh used (0: none)
-  int min_required = 0;               // max(min_stars, ⌈r²/N⌉)
+  int min_required = 0;               // max(min_stars, ⌈r²/N⌉) (per node with a field grid)
+  // A field grid (grid_ny x grid_nx > 1): the grid, the nodes' PSFs (K x K, unit sum, centred), per node the
+  // per-frame PSFs as `psfs` (field_psfs[g][i]: what DatasetProblem's field model takes), and each node's star
+  // count (Σ_j w_g(p_j)). psf and psfs are then the PSF interpolated at the frame's centre. Empty without a grid.
+  PsfFieldGrid grid;
+  ImageStack node_psfs;
+  std::vector<ImageStack> field_psfs;
+  std::vector<double> node_stars;
   // The fit's quality: Σ w·res² / dof over every pixel of non-zero weight, dof = n − K² − 3·stars − N (0 when
   // dof <= 0), and Σ w·res² / n over the pixels within fit_radius_px of a fitted star (no dof correction): ~1 when
   // the weights are the noise's inverse variances and the model fits; above where the PSF or the stars do not.
