@@ -791,7 +791,10 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     }
   std::unique_ptr<StarFieldModel> field;  // the stars of the current round
   Vector coupling;  // with the grid: 1/τ² per pixel of a node's difference from the mean (header, grid_variation)
-  auto solve_h = [&]() {
+  // `final_solve`: false for the grid's intermediate solves, which stop at a relative residual of 1e-3: their stars
+  // move again after them (measured on a 256² crop of the wide scene, 3 x 3: 40.7 s instead of 54.8, the nodes as
+  // accurate: worst 3.5 % RMS of the peak, against 3.6).
+  auto solve_h = [&](bool final_solve) {
     field = std::make_unique<StarFieldModel>(stars, grid, offsets, pad, hr, int(r), k);
     Vector rhs(gk2 + n);
     ImageStack wy(n);
@@ -821,6 +824,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     ConjugateGradientOptions cg;
     cg.max_iterations = options.cg_iterations;
     cg.tolerance = options.cg_tolerance;
+    if (nodes > 1 && !final_solve) cg.tolerance = std::max(options.cg_tolerance, 1e-3);
     std::vector<double> bdiag(n);
     for (Index i = 0; i < n; ++i) bdiag[i] = std::max(w[i].sum(), 1e-300);
     const PsfPreconditioner pre(k, r, diag, ridge, bdiag);
@@ -915,7 +919,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
   const int total_rounds = field_nodes > 1 ? 2 * options.rounds : options.rounds;
   for (int round = 0;; ++round) {
     if (round == options.rounds) activate_field();
-    solve_h();
+    solve_h(round == total_rounds);
     normalise_and_centre();
     render_model();
     update_weights(&model);

@@ -387,6 +387,7 @@ py::dict StarsPsfDict(const StarsPsfResult& s) {
   d["chi2_near_stars"] = s.chi2_near_stars;
   d["dof"] = s.dof;
   d["rounds"] = s.rounds;
+  d["cg_iterations_last"] = s.cg_iterations_last;
   d["seconds"] = s.seconds;
   d["report"] = s.BriefReport();
   if (s.grid.nodes() > 1) {
