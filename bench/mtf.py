@@ -38,6 +38,7 @@ import time
 import numpy as np
 
 import aosr
+from results_file import write_keeping_analysis
 
 METHODS = ("drizzle", "tikhonov", "linear", "tv", "map")
 
@@ -222,14 +223,7 @@ def main():
                       f"exact {fmt(w.get('exact_at_nyq'))} gap {fmt(w.get('worst_gap'))} {w['status']}",
                       file=sys.stderr)
             results.append(res)
-    keep = ""  # the hand-written part after the marker survives a rerun
-    if os.path.exists(args.out):
-        old = open(args.out).read()
-        if "<!-- analysis -->" in old:
-            keep = "\n" + old[old.index("<!-- analysis -->"):]
-    with open(args.out + ".tmp", "w") as f:
-        f.write(markdown(results, args, time.time() - t0) + "\n" + keep)
-    os.replace(args.out + ".tmp", args.out)
+    write_keeping_analysis(args.out, markdown(results, args, time.time() - t0) + "\n")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=1, default=float)

@@ -26,6 +26,7 @@ import time
 import numpy as np
 
 import aosr
+from results_file import write_keeping_analysis
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ARCSEC = 180 * 3600 / math.pi
@@ -233,14 +234,7 @@ def main():
         lines.append(f"| {name} | {m['report']} | {100 * core[-1]:.2f} % | {100 * core[len(core) // 2]:.2f} % | "
                      f"{100 * window[-1]:.2f} % | {m['seconds']:.1f} |")
     lines.append("")
-    keep = ""  # the hand-written analysis after the marker survives a rerun
-    if os.path.exists(args.out):
-        old = open(args.out).read()
-        if "<!-- analysis -->" in old:
-            keep = "\n" + old[old.index("<!-- analysis -->"):]
-    with open(args.out + ".tmp", "w") as f:
-        f.write("\n".join(lines) + keep)
-    os.replace(args.out + ".tmp", args.out)
+    write_keeping_analysis(args.out, "\n".join(lines))
     with open(os.path.splitext(args.out)[0] + ".json", "w") as f:
         json.dump({"scene": scene, "centre": centre, "results": results, "stars_models": star_models}, f, indent=1)
     series = [{"label": f"{res['method']} ({res['psf_field']})",
