@@ -14,14 +14,13 @@
 #include "aosr/io/image_io.hpp"
 #include "aosr/scene/dead_leaves.hpp"
 #include "aosr/scene/image_object.hpp"
+#include "aosr/solvers/fourier_normal_system.hpp"
 #include "aosr/solvers/tikhonov.hpp"
 #include "design_internal.hpp"
 #include "solvers/tikhonov_internal.hpp"  // solvers-private: CMakeLists.txt gives aosr_design the root
 
 namespace aosr {
 
-using tikhonov_internal::FourierInverseOperator;
-using tikhonov_internal::FourierSystem;
 using tikhonov_internal::PriorSymbolImage;
 
 const char* ToString(DesignLoss loss) {
@@ -198,8 +197,8 @@ class MapHessian : public LinearOperator {
   Vector b11_, b12_, b22_;
 };
 
-// M⁻¹ = (w A0ᵀA0 + λ c ΓᵀΓ)⁻¹ by FFTs and per-bin inverses (tikhonov.hpp (2)), Γ the prior's operator (the
-// gradient for Charbonnier TV): exact for the Tikhonov prior (c = 1), a Fourier-diagonal approximation with
+// M⁻¹ = (w A0ᵀA0 + λ c ΓᵀΓ)⁻¹ by FFTs and per-bin solves (FourierNormalSystem; tikhonov.hpp (2)), Γ the prior's
+// operator (the gradient for Charbonnier TV): exact for the Tikhonov prior (c = 1), a Fourier-diagonal approximation with
 // the mean curvature for Charbonnier (it removes the data term's ill-conditioning; the prior's spatial
 // variation is what CG then resolves).
 class Preconditioner {
@@ -207,19 +206,20 @@ class Preconditioner {
   Preconditioner(const MultiFrameModel& a0, const MapOptions& mo, double weight) : a0_(a0), weight_(weight), lambda_(mo.lambda) {
     TikhonovOptions t;
     t.prior = mo.prior == MapPrior::kTikhonov ? mo.tikhonov_operator : TikhonovPrior::kGradient;
-    system_ = std::make_unique<FourierSystem>(a0, PriorSymbolImage(t, a0.hr_shape()), 1e-12, TikhonovBinSolver::kAuto);
+    symbol_ = PriorSymbolImage(t, a0.hr_shape());
   }
+  // Valid while the operator lives; a later call while one is still held lays out a new system.
   OperatorPtr At(double c) const {
-    bool proper = true;
-    Index woodbury = 0;
-    return FourierInverseOperator(a0_.hr_shape(), a0_.r(), system_->Inverses(lambda_ * c / weight_, &proper, &woodbury),
-                                  1.0 / weight_);
+    if (!system_ || system_.use_count() > 1) system_ = std::make_shared<FourierNormalSystem>(a0_, weight_);
+    system_->Factorize(lambda_ * c * symbol_);
+    return NormalSystemInverse(system_);
   }
 
  private:
   const MultiFrameModel& a0_;
   double weight_, lambda_;
-  std::unique_ptr<FourierSystem> system_;
+  Image symbol_;
+  mutable std::shared_ptr<FourierNormalSystem> system_;
 };
 
 // Newton-CG on F from x (in place). Returns true when ||∇F|| <= tol · gref.

@@ -121,6 +121,23 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
                 "gradient_weight", gradient_weight, "finite and >= 0");
   CheckArgument(std::isfinite(identity_weight) && identity_weight >= 0, "FourierNormalSystem::Factorize",
                 "identity_weight", identity_weight, "finite and >= 0");
+  const int rr = r_ * r_;
+  FactorizeWith([&](Index bin, int k) { return gradient_weight * symbol_[bin * rr + k] + identity_weight; });
+}
+
+void FourierNormalSystem::Factorize(const Image& penalty) {
+  CheckArgument(ShapeOf(penalty) == hr_, "FourierNormalSystem::Factorize", "penalty shape",
+                ToString(ShapeOf(penalty)), "the HR shape " + ToString(hr_));
+  CheckArgument(AllFinite(penalty) && penalty.minCoeff() >= 0, "FourierNormalSystem::Factorize", "penalty",
+                "(negative or non-finite values)", "finite values >= 0");
+  FactorizeWith([&](Index bin, int k) {
+    const Index uy = bin / lr_.cols, ux = bin % lr_.cols;
+    return penalty(uy + Index(k / r_) * lr_.rows, ux + Index(k % r_) * lr_.cols);
+  });
+}
+
+template <class Penalty>
+void FourierNormalSystem::FactorizeWith(const Penalty& penalty) {
   const int rr = r_ * r_, n = n_;
   const Index bins = lr_.size();
   dinv_.assign(bins * rr, 0.0);
@@ -136,7 +153,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
       double* dinv = &dinv_[bin * rr];
       double dmin = std::numeric_limits<double>::infinity(), frob = 0;
       for (int k = 0; k < rr; ++k) {
-        const double d = gradient_weight * symbol_[bin * rr + k] + identity_weight;
+        const double d = penalty(bin, k);
         dmin = std::min(dmin, d);
         dinv[k] = d > 0 ? 1.0 / d : 0.0;
       }
@@ -182,7 +199,7 @@ void FourierNormalSystem::Factorize(double gradient_weight, double identity_weig
         Complex s = 0;
         for (int i = 0; i < n; ++i) s += std::conj(b[i * rr + k]) * b[i * rr + l];
         if (k == l) {
-          s += gradient_weight * symbol_[bin * rr + k] + identity_weight;
+          s += penalty(bin, k);
           scale = std::max(scale, std::abs(s.real()));
         }
         g[k * rr + l] = s;
@@ -406,6 +423,35 @@ void FourierNormalSystem::SolveWithDataInto(const Image& rhs, const ImageStack& 
     ax->resize(n_);
     ParallelFor(n_, [&](Index i) { FftC2RInto(ws->ax_half[i], lr_.cols, &(*ax)[i]); });
   }
+}
+
+namespace {
+
+class NormalSystemInverseOp final : public LinearOperator {
+ public:
+  NormalSystemInverseOp(std::shared_ptr<const FourierNormalSystem> system, Shape hr)
+      : LinearOperator(hr.size(), hr.size(), "NormalSystemInverse(" + ToString(hr) + ")"),
+        system_(std::move(system)),
+        hr_(hr) {}
+
+ private:
+  void ApplyImpl(ConstRef b, Ref x) const override {
+    FourierNormalSystem::Workspace ws;
+    Image out;
+    system_->SolveInto(AsImage(Vector(b), hr_), &out, &ws);
+    x = AsVector(out);
+  }
+  void ApplyAdjointImpl(ConstRef y, Ref x) const override { ApplyImpl(y, x); }
+  std::shared_ptr<const FourierNormalSystem> system_;
+  Shape hr_;
+};
+
+}  // namespace
+
+OperatorPtr NormalSystemInverse(std::shared_ptr<const FourierNormalSystem> system) {
+  CheckArgument(system != nullptr, "NormalSystemInverse", "system", "null", "a factorised FourierNormalSystem");
+  const Shape hr = system->hr_shape();
+  return std::make_shared<NormalSystemInverseOp>(std::move(system), hr);
 }
 
 }  // namespace aosr

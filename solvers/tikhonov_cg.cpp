@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <optional>
 
 #include "aosr/ao/random.hpp"
@@ -11,6 +12,7 @@
 #include "aosr/core/fft.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/solvers/conjugate_gradient.hpp"
+#include "aosr/solvers/fourier_normal_system.hpp"
 #include "aosr/solvers/padded_model.hpp"
 #include "tikhonov_internal.hpp"
 
@@ -132,7 +134,8 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   const OperatorPtr gtg = Normal(TikhonovPriorOperator(hr, options));
   const Vector y = pm.Flatten(grid.frames);
   const Vector b = a->ApplyAdjoint(w_op->Apply(y));
-  FourierSystem sys(pm, PriorSymbolImage(options, hr), options.rank_tolerance, options.bin_solver);
+  const Image prior_symbol = PriorSymbolImage(options, hr);
+  FourierSystem sys(pm, prior_symbol, options.rank_tolerance, options.bin_solver);
 
   TikhonovResult result;
   TikhonovSummary& s = result.summary;
@@ -142,7 +145,19 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
   s.padding = padded ? padded->padding() : 0;
   Vector x = Vector::Zero(hr.size());
   SolverSummary last;
-  const LargeLambdaExpansion expansion(pm, w_stack, y, PriorSymbolImage(options, hr));
+  const LargeLambdaExpansion expansion(pm, w_stack, y, prior_symbol);
+  // The preconditioner M = (w̄ AᵀA + λΓᵀΓ)⁻¹, the exact inverse of the uniform-weight problem on the same grid,
+  // per LR bin by FourierNormalSystem: in the Woodbury form where N < r² it holds an N x N factor per bin and
+  // the model's aliased system for half the bins (about N + 4 HR arrays) instead of an r² x r² inverse for every
+  // bin (2 r² HR arrays, 32 at r = 4: the weighted path's largest allocation before), and it applies with real
+  // FFTs. Laid out on first use, refactorised for each λ.
+  std::shared_ptr<FourierNormalSystem> precond_system;
+  auto preconditioner = [&](double lambda) -> OperatorPtr {
+    if (!precond_system || precond_system.use_count() > 1)  // a live operator keeps its own factors
+      precond_system = std::make_shared<FourierNormalSystem>(pm, w_bar);
+    precond_system->Factorize(lambda * prior_symbol);
+    return NormalSystemInverse(precond_system);
+  };
   // Every PCG solve reports to options.progress (stage "tikhonov-cg"); once one is cancelled, no further solve
   // runs (a λ search returns the last iterate, the std draws are skipped).
   const ConjugateGradientOptions& cg = options.cg;
@@ -164,10 +179,8 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
     }
     const OperatorPtr normal = Sum({atwa, Scale(lambda, gtg)});
     if (options.precondition) {
-      Index wb = 0;
-      const OperatorPtr m =
-          FourierInverseOperator(hr, pm.r(), sys.Inverses(lambda / w_bar, nullptr, &wb), 1.0 / w_bar);
-      s.woodbury_bins = wb;
+      const OperatorPtr m = preconditioner(lambda);
+      s.woodbury_bins = precond_system->woodbury_bins();
       last = PreconditionedConjugateGradient(*normal, *m, b, &x, cg, cg_progress);
     } else {
       last = ConjugateGradient(*normal, b, &x, cg, cg_progress);
@@ -244,7 +257,7 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
       // σ²Q, so Q⁻¹ b_s has covariance σ²Q⁻¹ = C.
       const OperatorPtr normal = Sum({atwa, Scale(lambda, gtg)});
       const OperatorPtr prior_op = TikhonovPriorOperator(hr, options);
-      const OperatorPtr m = FourierInverseOperator(hr, pm.r(), sys.Inverses(lambda / w_bar, nullptr, nullptr), 1.0 / w_bar);
+      const OperatorPtr m = preconditioner(lambda);
       const Vector sqrt_w = AsVector(w_stack).cwiseMax(0.0).cwiseSqrt();
       ConjugateGradientOptions draw_cg = cg;
       draw_cg.tolerance = std::max(options.cg.tolerance, 1e-6);  // the draws' sampling error is ~√(2/K)

@@ -3,12 +3,17 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
+#include <string>
 #include <tuple>
 #include <utility>
 #include <vector>
 
+#include "aosr/core/error.hpp"
 #include "aosr/core/operators.hpp"
 #include "aosr/core/parallel.hpp"
+#include "aosr/solvers/tikhonov.hpp"
+#include "solvers/tikhonov_internal.hpp"  // the library's solvers/ folder (tests/CMakeLists.txt)
 #include "support/testing.hpp"
 #include "total_variation_fixture.hpp"
 
@@ -61,6 +66,43 @@ TEST(FourierNormalSystemTest, EveryBinFormSolvesTheSystem) {
       EXPECT_EQ(system.woodbury_bins(), 0);
     }
   }
+}
+
+// A general penalty symbol (Factorize(penalty)): D(u) = λ|Γ(f)|² of every Tikhonov prior, the preconditioner of
+// the weighted Tikhonov path (tikhonov_cg.cpp). The oracle is the spatial operator w AᵀA + λΓᵀΓ built from the
+// prior's own operator; NormalSystemInverse applies the same solve. The gradient symbol given as an image gives
+// the bits of Factorize(λ, 0), whose symbol is the same arithmetic.
+TEST(FourierNormalSystemTest, APenaltySymbolSolvesEveryTikhonovPrior) {
+  for (const auto& [r, frames] : std::vector<std::pair<int, int>>{{2, 3}, {4, 3}, {4, 16}}) {
+    const Shape hr{r * (12 / r + 2), r * (12 / r + 3)};
+    const auto m = RasterModel(hr, r, Shifts(frames), 0.9);
+    const double w = 2.5, lambda = 0.3;
+    const Image rhs = test::RandomImage(hr, 23);
+    for (TikhonovPrior prior : {TikhonovPrior::kIdentity, TikhonovPrior::kGradient, TikhonovPrior::kLaplacian,
+                                TikhonovPrior::kPowerSpectrum}) {
+      TikhonovOptions o;
+      o.prior = prior;
+      auto system = std::make_shared<FourierNormalSystem>(*m, w);
+      system->Factorize(lambda * tikhonov_internal::PriorSymbolImage(o, hr));
+      const Image x = system->Solve(rhs);
+      const OperatorPtr normal =
+          Sum({Scale(w, Normal(m->Operator())), Scale(lambda, Normal(TikhonovPriorOperator(hr, o)))});
+      const std::string what = std::string(ToString(prior)) + ", r = " + std::to_string(r) + ", N = " +
+                               std::to_string(frames);
+      EXPECT_LT((normal->Apply(AsVector(x)) - AsVector(rhs)).norm() / AsVector(rhs).norm(), 1e-10) << what;
+      EXPECT_EQ(system->singular_bins(), 0) << what;
+      const Vector via_operator = NormalSystemInverse(system)->Apply(AsVector(rhs));
+      EXPECT_EQ((via_operator - AsVector(x)).cwiseAbs().maxCoeff(), 0.0) << what;
+      if (prior == TikhonovPrior::kGradient) {
+        FourierNormalSystem same(*m, w);
+        same.Factorize(lambda, 0.0);
+        EXPECT_TRUE((same.Solve(rhs) == x).all()) << what;
+      }
+    }
+  }
+  FourierNormalSystem system(*RasterModel({16, 16}, 2, Shifts(2), 0.9), 1.0);
+  EXPECT_THROW(system.Factorize(Image::Constant(16, 16, -1.0)), InvalidArgument);
+  EXPECT_THROW(system.Factorize(Image::Constant(8, 16, 1.0)), InvalidArgument);
 }
 
 // Ill-conditioned bins: a small gradient weight and no identity term make D(u) small beside the data at low

@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "aosr/core/forward_model.hpp"
+#include "aosr/core/operators.hpp"
 
 namespace aosr {
 
@@ -45,6 +46,10 @@ class FourierNormalSystem {
   FourierNormalSystem(const MultiFrameModel& model, double data_weight);
   // (Re)factorises for the given a, b (finite, >= 0): per bin an N x N or r² x r² Cholesky (above).
   void Factorize(double gradient_weight, double identity_weight);
+  // (Re)factorises with a general diagonal penalty: D(u) = `penalty` (an HR-shaped real, even symbol, finite and
+  // >= 0) on the r² aliases of each bin, e.g. λ|Γ(f)|² of any Tikhonov prior (tikhonov_cg.cpp's preconditioner).
+  // Only one bin of each mirror pair reads it: D(−f) = D(f) is assumed.
+  void Factorize(const Image& penalty);
   // x = G⁻¹ rhs for an HR image rhs (finite). Requires a prior Factorize.
   Image Solve(const Image& rhs) const;
   // x = G⁻¹ (rhs + w Aᵀ v) for frames v (N frames of the LR shape, finite), and, if `ax` is not null, the
@@ -65,12 +70,16 @@ class FourierNormalSystem {
   Index singular_bins() const { return singular_bins_; }
   Index woodbury_bins() const { return woodbury_bins_; }
   Index bins() const { return lr_.size(); }
+  Shape hr_shape() const { return hr_; }
   // ||A||₂, the largest singular value of the stacked model (for unit data weight): max over bins of
   // r·σ_max(A(u)). Computed on the first call (an eigenvalue problem per bin; thread-safe), since only the
   // split data term needs it.
   double ModelNorm() const;
 
  private:
+  // Factorize's two passes with D(u)_k = penalty(bin, k).
+  template <class Penalty>
+  void FactorizeWith(const Penalty& penalty);
   void SolveBins(const ComplexImage& half, const std::vector<ComplexImage>* v, ComplexImage* out,
                  std::vector<ComplexImage>* ax) const;
   void SolveBin(Index bin, Complex* v, Complex* work) const;
@@ -94,5 +103,9 @@ class FourierNormalSystem {
   std::vector<std::vector<Complex>> dense_;    // r² x r² Cholesky of G(u) (empty if singular)
   std::vector<Eigen::MatrixXcd> pseudo_;       // pseudo-inverse of a singular G(u) (empty otherwise)
 };
+
+// G⁻¹ of a factorised system as a LinearOperator on flattened HR images (self-adjoint; Solve per application). It
+// shares `system`: refactorising the system changes the operator (callers make a new system while one is in use).
+OperatorPtr NormalSystemInverse(std::shared_ptr<const FourierNormalSystem> system);
 
 }  // namespace aosr
