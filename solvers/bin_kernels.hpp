@@ -12,12 +12,15 @@ namespace aosr::bins {
 
 // In-place Cholesky G = L Lᴴ of an n x n Hermitian matrix (row-major; the lower triangle is read). Stores L
 // in the lower triangle with 1/L_ii on the diagonal (no complex division in the substitutions). False if a
-// pivot falls to `pivot_floor` or below (singular to rounding; 0 accepts any positive pivot, like Eigen's LLT).
-inline bool CholeskyInPlace(Complex* g, int n, double pivot_floor) {
+// pivot falls to `pivot_floor` or below (singular to rounding; 0 accepts any positive pivot, like Eigen's LLT),
+// or to `relative_floor` times its own diagonal entry or below: the test of the matrix scaled to a unit diagonal,
+// on which Cholesky's accuracy depends (a diagonally dominant G whose diagonal spans 1e12 is accurate to rounding).
+inline bool CholeskyInPlace(Complex* g, int n, double pivot_floor, double relative_floor = 0.0) {
   for (int j = 0; j < n; ++j) {
-    double d = g[j * n + j].real();
+    const double diagonal = g[j * n + j].real();
+    double d = diagonal;
     for (int k = 0; k < j; ++k) d -= std::norm(g[j * n + k]);
-    if (!(d > pivot_floor)) return false;
+    if (!(d > pivot_floor) || !(d > relative_floor * diagonal)) return false;
     const double inv = 1.0 / std::sqrt(d);
     g[j * n + j] = inv;
     for (int i = j + 1; i < n; ++i) {

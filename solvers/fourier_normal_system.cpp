@@ -206,9 +206,11 @@ void FourierNormalSystem::FactorizeWith(const Penalty& penalty) {
       }
     slot_[bin] = int(dense_.size());
     std::vector<Complex> f = g;
-    // A pivot below 1e-12 of the largest diagonal entry means G(u) is singular to rounding: the Cholesky
-    // "solution" would be noise of size 1e12. Use the pseudo-inverse instead.
-    if (scale > 0 && bins::CholeskyInPlace(f.data(), rr, 1e-12 * scale)) {
+    // A pivot below 1e-12 of its own diagonal entry means G(u) is singular to rounding: the Cholesky "solution"
+    // would be noise of size 1e12. Use the pseudo-inverse instead. (Relative to its own entry, not the largest:
+    // a general penalty's bin may hold D = 0 at one alias and 1e13 at the others, e.g. the DC bin of a Laplacian
+    // prior at λ = 1e12 in tikhonov_cg.cpp's preconditioner, and that G is well conditioned once scaled.)
+    if (scale > 0 && bins::CholeskyInPlace(f.data(), rr, 0.0, 1e-12)) {
       dense_.push_back(std::move(f));
       pseudo_.emplace_back();
       continue;

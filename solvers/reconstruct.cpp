@@ -167,10 +167,11 @@ double EstimateSolveBytes(ReconstructionMethod method, int frames, double hr_pix
   double arrays = 0;
   switch (method) {
     // Peak RSS of `aosr reconstruct` at 1024² HR, N = 4 (less the process's 40 MB), in HR arrays: Tikhonov 21,
-    // linear 29, TV 38, MAP 90 (Ceres's L-BFGS keeps its own copies), Drizzle 18.
-    case ReconstructionMethod::kTikhonov: arrays = 2 * n + (weighted ? 18 : 14); break;
+    // linear 29, TV 38, MAP 90 (Ceres's L-BFGS keeps its own copies), Drizzle 18. Weighted Tikhonov (the CG
+    // path) and TV, whose pilot it is, measured at 1088² and 2176² HR, N = 4 (stop 44): 37-39 and 41 arrays.
+    case ReconstructionMethod::kTikhonov: arrays = 2 * n + (weighted ? 32 : 14); break;
     case ReconstructionMethod::kLinear: arrays = 2 * n + (weighted ? 24 : 22); break;
-    case ReconstructionMethod::kTotalVariation: arrays = 2 * n + 30; break;
+    case ReconstructionMethod::kTotalVariation: arrays = 2 * n + 34; break;
     case ReconstructionMethod::kMap: arrays = 2 * n + 84; break;
     default: arrays = 2 * n + 12; break;
   }

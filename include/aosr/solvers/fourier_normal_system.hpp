@@ -16,7 +16,7 @@
 //    580 against 4096). The subtraction cancels where D is small beside the data (the lowest frequencies
 //    without positivity): a bin whose amplification ||B||²_F / min D exceeds 1e6 (so at most ~1e-10 relative
 //    error from the cancellation) uses the dense form instead.
-//  * Dense: the r² x r² Cholesky of G(u) (pivots below 1e-12 of the largest diagonal entry: singular).
+//  * Dense: the r² x r² Cholesky of G(u) (a pivot below 1e-12 of its own diagonal entry: singular).
 //  * Singular (a = b = 0 and A(u) rank-deficient, or the DC bin with every OTF zero there): the minimum-norm
 //    solution by an eigen-decomposition pseudo-inverse, counted in singular_bins().
 // The layout is flat (one array per quantity, bin-major), so nothing is allocated per bin, and the bins are
