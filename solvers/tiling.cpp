@@ -434,13 +434,29 @@ void FieldData::Validate(const std::string& function) const {
   }
 }
 
+namespace {
+
+// Whether every weight of the field is one positive value (ReconstructionProblem::HasUniformWeights's rule): the
+// tiles' solves then take the Fourier path, which EstimateSolveBytes counts as unweighted (Tikhonov: 2N + 14 HR
+// arrays, not the CG path's 2N + 32).
+bool UniformWeights(const FieldData& field) {
+  if (field.weights.empty()) return true;
+  const double w0 = field.weights.front()(0, 0);
+  if (!(w0 > 0)) return false;
+  for (const Image& w : field.weights)
+    if ((w.array() != w0).any()) return false;
+  return true;
+}
+
+}  // namespace
+
 double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, int tile, int overlap, int concurrent,
                           bool aux) {
   const double lr_px = double(field.lr.rows) * double(field.lr.cols);
   const double data = 8.0 * lr_px * double(field.frames.size() + field.weights.size());
   const double side = double(std::min<Index>(tile + 2 * Index(overlap), std::max(field.lr.rows, field.lr.cols)));
   const double window_hr = side * side * double(field.r) * double(field.r);
-  const bool weighted = !field.weights.empty();
+  const bool weighted = !UniformWeights(field);
   // A tile's solve, its cut frames and the result it hands back (image, second map, the blend weight).
   const double solve = EstimateSolveBytes(method, int(field.frames.size()), window_hr, weighted) + 8.0 * 3 * window_hr;
   // Two tile rows of output accumulators (numerator and denominator, twice with a second map).
@@ -463,10 +479,11 @@ int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod meth
   const double data =
       8.0 * double(field.lr.rows) * double(field.lr.cols) * double(field.frames.size() + field.weights.size());
   const Index largest = std::max(field.lr.rows, field.lr.cols);
+  const bool weighted = !UniformWeights(field);
   for (const int w : {512, 384, 256, 192, 128, 96, 64, 48, 32}) {
     const Index wy = std::min<Index>(w, field.lr.rows), wx = std::min<Index>(w, field.lr.cols);
     const double hr = double(wy * field.r) * double(wx * field.r);
-    if (data + EstimateSolveBytes(method, int(field.frames.size()), hr, !field.weights.empty()) <= limit_bytes)
+    if (data + EstimateSolveBytes(method, int(field.frames.size()), hr, weighted) <= limit_bytes)
       return w >= largest ? 0 : w;
   }
   return 32;
