@@ -1303,4 +1303,26 @@ std::vector<Eigen::MatrixXcd> FourierSystem::Inverses(double lambda, bool* prope
   return out;
 }
 
+Eigen::MatrixXcd FourierSystem::InverseMean(double lambda, bool* proper) const {
+  const double w = lambda / double(model_.r() * model_.r());
+  PrepareChoose(w);
+  const Index blocks = (nb_ + kBinBlock - 1) / kBinBlock;
+  std::vector<Eigen::MatrixXcd> partial(std::size_t(blocks), Eigen::MatrixXcd::Zero(rr_, rr_));
+  std::vector<char> ok(std::size_t(blocks), 1);
+  // ForBinBlocks runs each block's bins in order on one task, so block i / kBinBlock is written by one thread.
+  ForBinBlocks<BinData>(nb_, [&](Index i, BinData* d) {
+    bool proper_i = true, woodbury_i = false;
+    partial[std::size_t(i / kBinBlock)] += InverseBin(i, w, &proper_i, &woodbury_i, d);
+    if (!proper_i) ok[std::size_t(i / kBinBlock)] = 0;
+  });
+  Eigen::MatrixXcd sum = Eigen::MatrixXcd::Zero(rr_, rr_);
+  bool all_ok = true;
+  for (Index b = 0; b < blocks; ++b) {
+    sum += partial[std::size_t(b)];
+    all_ok = all_ok && ok[std::size_t(b)];
+  }
+  if (proper) *proper = all_ok;
+  return sum / double(nb_);
+}
+
 }  // namespace aosr::tikhonov_internal

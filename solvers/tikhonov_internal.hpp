@@ -79,6 +79,9 @@ class FourierSystem {
 
   // G(u)⁻¹ for every bin (pseudo-inverse where singular; *proper = false then).
   std::vector<Eigen::MatrixXcd> Inverses(double lambda, bool* proper, Index* woodbury_bins) const;
+  // Their mean over the bins (r² x r²), summed per fixed block of bins and then in block order (the same bits on
+  // any thread count) without holding every bin's inverse: 2 r² HR arrays fewer (32 at r = 4). *proper as above.
+  Eigen::MatrixXcd InverseMean(double lambda, bool* proper) const;
 
   const MultiFrameModel& model() const { return model_; }
   double lambda0() const;  // Σ tr AᴴA / Σ tr P (made on first use)
@@ -241,8 +244,9 @@ class FourierSystem {
 // FFT ((1/r²) IFFT(G⁻¹ FFT b), see tikhonov.hpp).
 OperatorPtr FourierInverseOperator(Shape hr, int r, std::vector<Eigen::MatrixXcd> inverses, double scale);
 
-// diag (AᵀA + λ'ΓᵀΓ)⁻¹ on the HR grid from the per-bin inverses: (6) of tikhonov.hpp without σ²/w₀.
-Image InverseDiagonal(Shape hr, int r, const std::vector<Eigen::MatrixXcd>& inverses);
+// diag (AᵀA + λ'ΓᵀΓ)⁻¹ on the HR grid from the bins' mean inverse (FourierSystem::InverseMean): (6) of tikhonov.hpp
+// without σ²/w₀.
+Image InverseDiagonal(Shape hr, int r, const Eigen::MatrixXcd& mean_inverse);
 
 // Discrepancy search: the λ where residual(λ) (nondecreasing) equals target, on t = log10(λ/λ₀) in
 // [-16, 8], bracketed from t = -3 in steps of 2 decades, refined by the Illinois method.

@@ -55,11 +55,8 @@ OperatorPtr FourierInverseOperator(Shape hr, int r, std::vector<Eigen::MatrixXcd
   return std::make_shared<FourierInverseOp>(hr, r, std::move(inverses), scale);
 }
 
-Image InverseDiagonal(Shape hr, int r, const std::vector<Eigen::MatrixXcd>& inverses) {
+Image InverseDiagonal(Shape hr, int r, const Eigen::MatrixXcd& mean) {
   const int rr = r * r;
-  Eigen::MatrixXcd mean = Eigen::MatrixXcd::Zero(rr, rr);
-  for (const Eigen::MatrixXcd& g : inverses) mean += g;
-  mean /= double(inverses.size());
   // C_pp = (1/r⁴) φ(p)ᴴ Ḡ φ(p), φ_k(p) = exp(−2πi k·p/r), for the r x r phases p mod r.
   Image cell(r, r);
   Eigen::VectorXcd phi(rr);
@@ -79,9 +76,9 @@ Image InverseDiagonal(Shape hr, int r, const std::vector<Eigen::MatrixXcd>& inve
 bool PosteriorStd(const FourierSystem& sys, double lambda_eff, double variance_scale, Image* std_map,
                   double* mean_variance) {
   bool proper = true;
-  const std::vector<Eigen::MatrixXcd> inv = sys.Inverses(lambda_eff, &proper, nullptr);
+  const Eigen::MatrixXcd mean = sys.InverseMean(lambda_eff, &proper);
   if (!proper) return false;
-  const Image var = InverseDiagonal(sys.model().hr_shape(), sys.model().r(), inv) * variance_scale;
+  const Image var = InverseDiagonal(sys.model().hr_shape(), sys.model().r(), mean) * variance_scale;
   *mean_variance = var.mean();
   *std_map = var.max(0.0).sqrt();
   return true;
