@@ -91,8 +91,14 @@ TEST(FourierNormalSystemTest, APenaltySymbolSolvesEveryTikhonovPrior) {
                                std::to_string(frames);
       EXPECT_LT((normal->Apply(AsVector(x)) - AsVector(rhs)).norm() / AsVector(rhs).norm(), 1e-10) << what;
       EXPECT_EQ(system->singular_bins(), 0) << what;
-      const Vector via_operator = NormalSystemInverse(system)->Apply(AsVector(rhs));
+      const OperatorPtr inverse = NormalSystemInverse(system);
+      const Vector via_operator = inverse->Apply(AsVector(rhs));
       EXPECT_EQ((via_operator - AsVector(x)).cwiseAbs().maxCoeff(), 0.0) << what;
+      // Adjointness (G⁻¹ is Hermitian): <G⁻¹u, v> = <u, G⁻¹v> for random u, v, and the adjoint is the same map.
+      const Vector u = AsVector(test::RandomImage(hr, 31)), v = AsVector(test::RandomImage(hr, 32));
+      const double lhs = inverse->Apply(u).dot(v), rhs_dot = u.dot(inverse->Apply(v));
+      EXPECT_NEAR(lhs, rhs_dot, 1e-12 * std::abs(lhs)) << what;
+      EXPECT_EQ((inverse->ApplyAdjoint(v) - inverse->Apply(v)).cwiseAbs().maxCoeff(), 0.0) << what;
       if (prior == TikhonovPrior::kGradient) {
         FourierNormalSystem same(*m, w);
         same.Factorize(lambda, 0.0);
@@ -103,6 +109,7 @@ TEST(FourierNormalSystemTest, APenaltySymbolSolvesEveryTikhonovPrior) {
   FourierNormalSystem system(*RasterModel({16, 16}, 2, Shifts(2), 0.9), 1.0);
   EXPECT_THROW(system.Factorize(Image::Constant(16, 16, -1.0)), InvalidArgument);
   EXPECT_THROW(system.Factorize(Image::Constant(8, 16, 1.0)), InvalidArgument);
+  EXPECT_THROW(NormalSystemInverse(nullptr), InvalidArgument);
 }
 
 // Ill-conditioned bins: a small gradient weight and no identity term make D(u) small beside the data at low
