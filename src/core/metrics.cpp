@@ -188,6 +188,11 @@ ImageOffset RefinePeak(const ComplexImage& x, ImageOffset centre, double step, i
 
 namespace {
 
+// The cross-power spectrum E T* of two real images (full, R x C), from their half spectra.
+ComplexImage CrossSpectrum(const Image& estimate, const Image& truth) {
+  return ExpandHalfSpectrum(FftR2C(estimate) * FftR2C(truth).conjugate(), estimate.cols());
+}
+
 // The d that maximises c(d) = (1/RC) Re Σ_k X(k) exp(+2πi (k_y dy/R + k_x dx/C)) for a cross-power spectrum
 // X = E T*: the whole-pixel peak by one inverse FFT, then the two matrix-DFT refinements (see the header).
 ImageOffset PeakOfCrossSpectrum(const ComplexImage& cross) {
@@ -226,43 +231,78 @@ Image MirrorExtend(const Image& x) {
   return ext;
 }
 
-// The estimate moved back by d for scoring: S_{−d} of its mirror extension, cropped back to R × C. d = 0 returns
-// the image itself, bit for bit.
-Image ShiftBackMirrored(const Image& x, ImageOffset d) {
-  if (d.dy == 0.0 && d.dx == 0.0) return x;
-  return FourierShiftImage(MirrorExtend(x), -d.dy, -d.dx).topLeftCorner(x.rows(), x.cols());
+// The estimate moved back by d on its mirror extension, cropped to the image: S_{−d} e, and its derivatives
+// ∂(S_{−d} e)/∂d = S_{−d} ∇e. The extension's half spectrum E is transformed once per estimate and shared by every
+// region scored on it (the rings of CompareImagesInRings); each image is then one real inverse transform.
+//
+// The phase exp(+2πi f·d) is Hermitian except on the Nyquist row and column (f = +1/2 there for both members of a
+// pair), so E·phase is not the spectrum of a real image. The real part of its complex inverse (what is meant) is the
+// inverse of its Hermitian part H(k) = ½(X(k) + conj X(−k)); since E(−k) = conj E(k), H = E·Q with
+// Q(k) = ½(q(k) + conj q(−k)) for the phase-and-derivative factor q, separable as q(k) = a(k_y)·c(k_x). So each
+// stored bin gets E·½(a c + b d) with b, d the conjugated partners' factors, and c2r returns exactly that real part
+// (equal to the complex inverse's real part up to rounding, at half its cost and without its complex buffers).
+// A rectangle of an image: top-left corner (y, x) and shape.
+struct Box {
+  Index y = 0, x = 0, rows = 0, cols = 0;
+};
+
+// The smallest box holding every non-zero of w (w not all zero).
+Box NonZeroBox(const Image& w) {
+  Index y0 = w.rows(), y1 = -1, x0 = w.cols(), x1 = -1;
+  for (Index y = 0; y < w.rows(); ++y)
+    for (Index x = 0; x < w.cols(); ++x)
+      if (w(y, x) != 0.0) {
+        y0 = std::min(y0, y), y1 = std::max(y1, y);
+        x0 = std::min(x0, x), x1 = std::max(x1, x);
+      }
+  if (y1 < 0) return Box{0, 0, w.rows(), w.cols()};
+  return Box{y0, x0, y1 - y0 + 1, x1 - x0 + 1};
 }
 
-// The estimate moved back by d on the mirror-extended grid (spectrum E of its extension), cropped to the image, and
-// its derivatives ∂(S_{−d} e)/∂d = S_{−d} ∇e (inverse transforms of E·phase·2πi f/N).
-struct ShiftedEstimate {
-  Image e, ey, ex;
-};
-ShiftedEstimate ShiftWithGradient(const ComplexImage& spectrum, Shape image, ImageOffset d) {
-  const Index rows = spectrum.rows(), cols = spectrum.cols();
-  // S_{−d}: the phase of FourierShiftImage with −d, separable in y and x.
-  ComplexVector py(rows), px(cols);
-  Vector fy(rows), fx(cols);
-  for (Index k = 0; k < rows; ++k) {
-    fy(k) = static_cast<double>(SignedFrequency(k, rows)) / rows;
-    py(k) = Complex(std::cos(kTwoPi * fy(k) * d.dy), std::sin(kTwoPi * fy(k) * d.dy));
-  }
-  for (Index l = 0; l < cols; ++l) {
-    fx(l) = static_cast<double>(SignedFrequency(l, cols)) / cols;
-    px(l) = Complex(std::cos(kTwoPi * fx(l) * d.dx), std::sin(kTwoPi * fx(l) * d.dx));
-  }
-  ComplexImage x(rows, cols), xy(rows, cols), xx(rows, cols);
-  for (Index k = 0; k < rows; ++k)
-    for (Index l = 0; l < cols; ++l) {
-      const Complex v = spectrum(k, l) * py(k) * px(l);
-      x(k, l) = v;
-      xy(k, l) = v * Complex(0.0, kTwoPi * fy(k));
-      xx(k, l) = v * Complex(0.0, kTwoPi * fx(l));
+class MirrorShift {
+ public:
+  enum class Part { kValue, kDy, kDx };
+
+  explicit MirrorShift(const Image& estimate)
+      : image_(ShapeOf(estimate)), ext_cols_(2 * estimate.cols()), spectrum_(FftR2C(MirrorExtend(estimate))) {}
+
+  // S_{−d} e (Part::kValue) or one of its derivatives on `box` of the image (rows, cols of its top-left corner and
+  // its shape). Not thread-safe: the transform's buffers are kept between calls (a fresh 2R x 2C array per call
+  // cost more in page faults than the transform itself).
+  Image Transform(ImageOffset d, Part part, const Box& box) const {
+    const Index rows = spectrum_.rows(), half = spectrum_.cols(), cols = ext_cols_;
+    // Per row: a(k) = py(k)·my(k) and b(k) = conj(a(−k)); per column the same with px, mx.
+    ComplexVector a(rows), b(rows), c(half), e(half);
+    auto factor = [](Index k, Index n, double shift, bool derivative) {
+      const double f = static_cast<double>(SignedFrequency(k, n)) / static_cast<double>(n);
+      const Complex phase(std::cos(kTwoPi * f * shift), std::sin(kTwoPi * f * shift));
+      return derivative ? phase * Complex(0.0, kTwoPi * f) : phase;
+    };
+    for (Index k = 0; k < rows; ++k) {
+      a(k) = factor(k, rows, d.dy, part == Part::kDy);
+      b(k) = std::conj(factor((rows - k) % rows, rows, d.dy, part == Part::kDy));
     }
-  return {FftInverse(x).real().topLeftCorner(image.rows, image.cols),
-          FftInverse(xy).real().topLeftCorner(image.rows, image.cols),
-          FftInverse(xx).real().topLeftCorner(image.rows, image.cols)};
-}
+    for (Index l = 0; l < half; ++l) {
+      c(l) = factor(l, cols, d.dx, part == Part::kDx);
+      e(l) = std::conj(factor((cols - l) % cols, cols, d.dx, part == Part::kDx));
+    }
+    y_.resize(rows, half);
+    for (Index k = 0; k < rows; ++k)
+      for (Index l = 0; l < half; ++l) y_(k, l) = spectrum_(k, l) * (0.5 * (a(k) * c(l) + b(k) * e(l)));
+    FftC2RInto(y_, cols, &out_);
+    return out_.block(box.y, box.x, box.rows, box.cols);
+  }
+
+  // The estimate moved back by d for scoring; d = 0 is not moved (the caller keeps the image itself then).
+  Image Shifted(ImageOffset d) const { return Transform(d, Part::kValue, Box{0, 0, image_.rows, image_.cols}); }
+
+ private:
+  Shape image_;
+  Index ext_cols_;
+  ComplexImage spectrum_;  // half spectrum of the mirror extension, 2R x (C + 1)
+  mutable ComplexImage y_;
+  mutable Image out_;
+};
 
 // The misfit of the region with the intensity nuisances fitted: J(d) = min_{g,b} Σ v (g·e_d + b − t)² (a weighted
 // linear regression of t on e_d), with its g and b. A gain and a level are fitted so that the shift does not absorb
@@ -290,17 +330,22 @@ RegionFit FitGainAndBias(const Image& e, const Image& truth, const Image& weight
 // Gauss-Newton (variable projection) on J(d) from `start`: each step solves the 4x4 normal equations of (dy, dx, g,
 // b) at the current fit, moves d only (capped at 0.5 px, halved up to 6 times until J decreases) and refits g and b
 // exactly; stops when a step is below 1e-5 px or after 12 steps. J never increases. Returns d and J(d).
-std::pair<ImageOffset, double> RefineShift(const ComplexImage& spectrum, const Image& truth, const Image& weights,
-                                           ImageOffset start) {
-  const Shape shape = ShapeOf(truth);
+std::pair<ImageOffset, double> RefineShift(const MirrorShift& shift, const Image& full_truth,
+                                           const Image& full_weights, ImageOffset start) {
+  // J only sees the pixels with a weight: every image below is cut to their box.
+  const Box box = NonZeroBox(full_weights);
+  const Image truth = full_truth.block(box.y, box.x, box.rows, box.cols);
+  const Image weights = full_weights.block(box.y, box.x, box.rows, box.cols);
   ImageOffset d = start;
-  ShiftedEstimate s = ShiftWithGradient(spectrum, shape, d);
-  RegionFit fit = FitGainAndBias(s.e, truth, weights);
-  const Image ones = Image::Ones(shape.rows, shape.cols);
+  Image e = shift.Transform(d, MirrorShift::Part::kValue, box);
+  RegionFit fit = FitGainAndBias(e, truth, weights);
+  const Image ones = Image::Ones(box.rows, box.cols);
   for (int it = 0; it < 12; ++it) {
-    const Image r = fit.gain * s.e + fit.bias - truth;
-    const Image jy = fit.gain * s.ey, jx = fit.gain * s.ex;
-    const Image* cols[4] = {&jy, &jx, &s.e, &ones};
+    // The Jacobian at d; a trial needs only its value (one transform), the derivatives only where it is accepted.
+    const Image jy = fit.gain * shift.Transform(d, MirrorShift::Part::kDy, box);
+    const Image jx = fit.gain * shift.Transform(d, MirrorShift::Part::kDx, box);
+    const Image r = fit.gain * e + fit.bias - truth;
+    const Image* cols[4] = {&jy, &jx, &e, &ones};
     Eigen::Matrix4d a;
     Eigen::Vector4d rhs;
     for (int i = 0; i < 4; ++i) {
@@ -316,11 +361,11 @@ std::pair<ImageOffset, double> RefineShift(const ComplexImage& spectrum, const I
     bool accepted = false;
     for (int halving = 0; halving < 7 && !accepted; ++halving) {
       const ImageOffset trial{d.dy + sy, d.dx + sx};
-      ShiftedEstimate ts = ShiftWithGradient(spectrum, shape, trial);
-      const RegionFit tf = FitGainAndBias(ts.e, truth, weights);
+      Image te = shift.Transform(trial, MirrorShift::Part::kValue, box);
+      const RegionFit tf = FitGainAndBias(te, truth, weights);
       if (tf.j < fit.j) {
         d = trial;
-        s = std::move(ts);
+        e = std::move(te);
         fit = tf;
         accepted = true;
       } else {
@@ -337,18 +382,17 @@ std::pair<ImageOffset, double> RefineShift(const ComplexImage& spectrum, const I
 // least-squares offset of the region itself, Σ v (S_{−d} e − t)² with weights v (the scored pixels), by
 // Gauss-Newton from that peak and from 0, keeping the lower misfit. nullopt when the truth or the estimate has no
 // structure under the window. Arguments already checked.
-std::optional<ImageOffset> RegionOffset(const Image& truth, const Image& estimate, const Image& window,
-                                        const Image& weights) {
+std::optional<ImageOffset> RegionOffset(const Image& truth, const Image& estimate, const MirrorShift& shift,
+                                        const Image& window, const Image& weights) {
   const double sum_w = window.sum();
   const std::optional<Image> a = Apodised(truth, window, sum_w);
   const std::optional<Image> b = Apodised(estimate, window, sum_w);
   if (!a || !b) return std::nullopt;
-  const ComplexImage cross = FftForward(b->cast<Complex>()) * FftForward(a->cast<Complex>()).conjugate();
+  const ComplexImage cross = CrossSpectrum(*b, *a);
   const ImageOffset peak = PeakOfCrossSpectrum(cross);
-  const ComplexImage spectrum = FftForward(MirrorExtend(estimate).cast<Complex>());
-  std::pair<ImageOffset, double> best = RefineShift(spectrum, truth, weights, ImageOffset{});
+  std::pair<ImageOffset, double> best = RefineShift(shift, truth, weights, ImageOffset{});
   if (peak.dy != 0.0 || peak.dx != 0.0) {
-    const std::pair<ImageOffset, double> from_peak = RefineShift(spectrum, truth, weights, peak);
+    const std::pair<ImageOffset, double> from_peak = RefineShift(shift, truth, weights, peak);
     if (from_peak.second < best.second) best = from_peak;
   }
   ImageOffset d = best.first;
@@ -363,7 +407,7 @@ std::optional<ImageOffset> RegionOffset(const Image& truth, const Image& estimat
 ImageOffset MeasureImageOffset(const Image& truth, const Image& estimate) {
   CheckOffsetImages("MeasureImageOffset", truth, estimate);
   // Cross-power spectrum E T*: its inverse transform is c at whole-pixel shifts.
-  const ComplexImage cross = FftForward(estimate.cast<Complex>()) * FftForward(truth.cast<Complex>()).conjugate();
+  const ComplexImage cross = CrossSpectrum(estimate, truth);
   return PeakOfCrossSpectrum(cross);
 }
 
@@ -384,7 +428,7 @@ ImageOffset MeasureImageOffsetInWindow(const Image& truth, const Image& estimate
                 "an image with structure in the windowed region (a constant has no correlation peak)");
   CheckArgument(Apodised(estimate, window, sum_w).has_value(), f, "estimate", "constant under the window",
                 "an image with structure in the windowed region (a constant has no correlation peak)");
-  return *RegionOffset(truth, estimate, window, window);
+  return *RegionOffset(truth, estimate, MirrorShift(estimate), window, window);
 }
 
 Image ScoreWindow(Shape shape, int crop_px, const ScoreRing& ring) {
@@ -454,8 +498,9 @@ AlignedImageMetrics CompareImagesAligned(const Image& truth, const Image& estima
   Image scored = Image::Zero(truth.rows(), truth.cols());
   const Index c = opts.crop_px;
   scored.block(c, c, truth.rows() - 2 * c, truth.cols() - 2 * c).setOnes();
+  const MirrorShift shift(estimate);
   const std::optional<ImageOffset> d =
-      RegionOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px), scored);
+      RegionOffset(truth, estimate, shift, ScoreWindow(ShapeOf(truth), opts.crop_px), scored);
   if (!d) return m;  // no structure on the crop: no peak, nothing to align
   m.measured_offset = *d;
   if (d->dy == 0.0 && d->dx == 0.0) {
@@ -463,7 +508,7 @@ AlignedImageMetrics CompareImagesAligned(const Image& truth, const Image& estima
     return m;
   }
   // Applied only when it raises neither the crop's MSE nor lowers its SSIM (header: aligned >= raw).
-  const ImageMetrics a = CompareImages(truth, ShiftBackMirrored(estimate, *d), opts);
+  const ImageMetrics a = CompareImages(truth, shift.Shifted(*d), opts);
   if (a.rmse <= m.raw.rmse && a.ssim >= m.raw.ssim) {
     m.aligned = a;
     m.offset = *d;
@@ -591,6 +636,7 @@ RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, cons
       ring_of(y, x) = std::clamp(int(std::floor((rho - rho_min) / width)), 0, k_rings - 1);
     }
   const RingSums raw = SumRings(region, SsimMapOfRegion(region, out.peak), ring_of, k_rings);
+  const MirrorShift shift(estimate);  // one transform of the estimate for every ring
   for (int k = 0; k < k_rings; ++k) {
     RingScore ring;
     ring.inner_px = rho_min + k * width;
@@ -616,14 +662,14 @@ RingMetrics CompareImagesInRings(const Image& truth, const Image& estimate, cons
       for (Index x = 0; x < ring_of.cols(); ++x)
         if (ring_of(y, x) == k) in_ring(y + c, x + c) = 1.0;
     const std::optional<ImageOffset> d =
-        RegionOffset(truth, estimate, ScoreWindow(ShapeOf(truth), opts.crop_px, sr), in_ring);
+        RegionOffset(truth, estimate, shift, ScoreWindow(ShapeOf(truth), opts.crop_px, sr), in_ring);
     if (!d) continue;
     m.measured_offset = *d;
     if (d->dy == 0.0 && d->dx == 0.0) {
       m.offset_applied = true;
       continue;
     }
-    const Image moved = ShiftBackMirrored(estimate, *d);
+    const Image moved = shift.Shifted(*d);
     const Region shifted{region.truth, moved.block(c, c, region.truth.rows(), region.truth.cols())};
     const ImageMetrics a = RingScores(SumRings(shifted, SsimMapOfRegion(shifted, out.peak), ring_of, k_rings), k, out.peak);
     if (a.rmse <= m.raw.rmse && a.ssim >= m.raw.ssim) {
