@@ -38,9 +38,18 @@ def ring_table(truth, estimate, centre, rings, crop):
 
 
 def star_bias(dataset, rec, centre, edges, crop):
-    """Median aperture-flux ratio − 1 of isolated stars per ring: the linear output against the truth seen
+    """Median aperture-flux ratio − 1 of isolated stars per ring, and how many: see star_ratios."""
+    ratios = star_ratios(dataset, rec, centre, edges, crop)
+    if ratios is None:
+        return None
+    return [(float(np.median(x)) if len(x) else float("nan"), len(x)) for x in ratios]
+
+
+def star_ratios(dataset, rec, centre, edges, crop, keep_from=None):
+    """Per ring, the aperture-flux ratios − 1 of isolated stars: the linear output against the truth seen
     through its effective PSF (the target), apertures of 3 target FWHM, each less a local background (the median
-    of an annulus from 1.5 to 2.5 apertures)."""
+    of an annulus from 1.5 to 2.5 apertures). keep_from: another reconstruction whose target FWHM picks the
+    stars (so that two outputs are measured on the same stars)."""
     eff = rec.effective_psf
     if eff is None:
         return None
@@ -51,7 +60,8 @@ def star_bias(dataset, rec, centre, edges, crop):
     k[:kh, :kw] = eff
     k = np.roll(k, (-(kh // 2), -(kw // 2)), axis=(0, 1))
     seen = np.fft.irfft2(np.fft.rfft2(truth) * np.fft.rfft2(k), s=truth.shape)
-    fwhm = rec.linear.get("target_fwhm_hr_px", 4.0) if rec.linear else 4.0
+    pick = keep_from if keep_from is not None else rec
+    fwhm = pick.linear.get("target_fwhm_hr_px", 4.0) if pick.linear else 4.0
     radius = 3.0 * fwhm
     stars = np.asarray(dataset.stars)
     if stars.size == 0:
@@ -84,7 +94,7 @@ def star_bias(dataset, rec, centre, edges, crop):
             est = rec.image[sl][m].sum() - np.median(rec.image[sl][annulus]) * m.sum()
             ref = seen[sl][m].sum() - np.median(seen[sl][annulus]) * m.sum()
             ratios.append(est / ref - 1)
-        out.append((float(np.median(ratios)) if ratios else float("nan"), len(ratios)))
+        out.append(np.asarray(ratios))
     return out
 
 
