@@ -1,5 +1,5 @@
 // Private to solvers/: the small dense kernels of the per-frequency-bin solvers (fourier_normal_system.cpp,
-// tikhonov_fourier_system.cpp). Matrices are row-major on caller-owned memory, so a bin costs no allocation.
+// tikhonov_fourier_system.cpp, tikhonov_spectral.cpp). Matrices are row-major on caller-owned memory, so a bin costs no allocation.
 #pragma once
 
 #include <algorithm>

@@ -1,7 +1,8 @@
 // Tikhonov's entry points: ReconstructTikhonov and TikhonovFourier, the dispatch between the exact Fourier path
 // and the conjugate-gradient path (tikhonov_cg.cpp), the fitted prior, and the summary helpers both paths share.
 // The rest lives beside it: tikhonov_prior.cpp (options and prior), tikhonov_fourier_system.cpp (the per-bin
-// engine), tikhonov_lambda.cpp (λ searches), tikhonov_posterior.cpp (inverse operator and std map).
+// engine), tikhonov_spectral.cpp (its decomposition for the λ rules), tikhonov_lambda.cpp (λ searches),
+// tikhonov_posterior.cpp (inverse operator and std map).
 #include "aosr/solvers/tikhonov.hpp"
 
 #include <chrono>
