@@ -1,10 +1,10 @@
 // Private to the library (not installed): the per-bin Fourier engine of tikhonov.hpp and the λ searches, shared
 // by the Fourier path and the conjugate-gradient path, used by design/design_empirical.cpp (the prior symbol of
-// objective B's preconditioner) and by the tests. Defined
-// in tikhonov_prior.cpp (PriorSymbolImage), tikhonov_fourier_system.cpp (FourierSystem), tikhonov_spectral.cpp
-// (FourierSystem's spectral decomposition for the λ rules), tikhonov_posterior.cpp (inverse operator, diagonal,
-// PosteriorStd), tikhonov_lambda.cpp (λ searches), tikhonov.cpp (entry points, summary helpers) and
-// tikhonov_cg.cpp (the CG path, preconditioned by fourier_normal_system.hpp's NormalSystemInverse).
+// objective B's preconditioner) and by the tests. Defined in tikhonov_prior.cpp (PriorSymbolImage),
+// tikhonov_fourier_system.cpp (FourierSystem), tikhonov_spectral.cpp (FourierSystem's spectral decomposition for
+// the λ rules), tikhonov_posterior.cpp (inverse operator, diagonal, PosteriorStd), tikhonov_lambda.cpp (λ
+// searches), tikhonov.cpp (entry points, summary helpers) and tikhonov_cg.cpp (the CG path, preconditioned by
+// fourier_normal_system.hpp's NormalSystemInverse).
 #pragma once
 
 #include <Eigen/Dense>
