@@ -121,10 +121,13 @@ bool TuneAllocatorForLargeArrays(bool override_environment) {
     for (const char* name : {"MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_"})
       if (std::getenv(name)) return false;
   }
-  // Setting either threshold explicitly also turns glibc's dynamic adjustment off.
+  // Setting either threshold explicitly also turns glibc's dynamic adjustment off. M_MMAP_MAX = 0: blocks above
+  // the threshold come from the heap too (the header says why); the threshold still applies where mmap is the
+  // only way (a thread's arena asked for more than its heap holds).
   const bool mmap_ok = mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024) == 1;
   const bool trim_ok = mallopt(M_TRIM_THRESHOLD, 1024 * 1024 * 1024) == 1;
-  return mmap_ok && trim_ok;
+  const bool max_ok = mallopt(M_MMAP_MAX, 0) == 1;
+  return mmap_ok && trim_ok && max_ok;
 #else
   (void)override_environment;
   return false;

@@ -52,9 +52,11 @@ double PeakResidentBytes();
 // glibc's defaults adapt the mmap and trim thresholds to the largest block freed so far and then hand the
 // heap's free top back to the kernel whenever it exceeds twice that, so each such array is page-faulted in
 // again on its next use: at r = 8 (1024^2) that was 25-30 % of a MAP reconstruction's time (1.6 s of system
-// time in 4.9 s). Fixed thresholds (mmap above 32 MiB, the largest glibc accepts; trim above 1 GiB) keep
-// freed blocks for reuse; the cost is that the process's resident size stays near its peak instead of
-// shrinking between steps. The CLI, the benchmarks and the Python module call it at start; it does nothing
+// time in 4.9 s). Fixed thresholds (trim above 1 GiB) and no mmap for the main heap's blocks keep freed blocks
+// for reuse. (A block above the mmap threshold, 32 MiB at most in glibc, is mapped and unmapped on every
+// allocation: a 2176^2 HR window's arrays are 38 MiB, and with the threshold alone weighted Tikhonov on it spent
+// 13.4 of its 39.5 CPU-s in the kernel and took 24.2 s; with mmap off, 1.4 CPU-s and 14.1 s.) The cost is that
+// the process's resident size stays near its peak instead of shrinking between steps. The CLI, the benchmarks and the Python module call it at start; it does nothing
 // when the user already chose malloc settings (GLIBC_TUNABLES with glibc.malloc.*, or MALLOC_*_ variables)
 // or set AOSR_MALLOC_TUNING=0, and outside glibc. Returns whether it changed the settings.
 // override_environment ignores the malloc variables (not AOSR_MALLOC_TUNING=0): for processes whose
