@@ -32,6 +32,16 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ARCSEC = 180 * 3600 / math.pi
 
 
+def geometry(scene, ds):
+    """r, the HR shape, the HR pixel in arcsec, the guide star's HR position (y, x) and the scored crop (HR px)."""
+    r = scene["r"]
+    hr = ds.truth.shape
+    hr_arcsec = ds.camera_pixel_rad / r * ARCSEC
+    gx, gy = scene["psf_field"]["guide_star_arcsec"]
+    centre = ((hr[0] - 1) / 2 + gy / hr_arcsec, (hr[1] - 1) / 2 + gx / hr_arcsec)
+    return r, hr, hr_arcsec, centre, ds.trustworthy_border_px * r
+
+
 def ring_table(truth, estimate, centre, rings, crop):
     r = aosr.compare_images_rings(truth, estimate, rings=rings, centre=centre, crop=crop)
     return [(ring["inner_px"], ring["outer_px"], ring["aligned"]["psnr_db"]) for ring in r["rings"]]
@@ -154,12 +164,8 @@ def main():
     ds = aosr.simulate(aosr.Scene(scene))
     t_sim = time.time() - t0
     field = ds.psf_field
-    r = scene["r"]
-    hr = ds.truth.shape
-    hr_arcsec = ds.camera_pixel_rad / r * ARCSEC
+    r, hr, hr_arcsec, centre, crop = geometry(scene, ds)
     gx, gy = scene["psf_field"]["guide_star_arcsec"]
-    centre = ((hr[0] - 1) / 2 + gy / hr_arcsec, (hr[1] - 1) / 2 + gx / hr_arcsec)
-    crop = ds.trustworthy_border_px * r
     rings = 5
     print(f"simulated {hr[1] // r}^2 camera px, {field['grid']} field points in {t_sim:.1f} s; guide star at HR "
           f"({centre[0]:.1f}, {centre[1]:.1f})", flush=True)

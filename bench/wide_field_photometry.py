@@ -28,7 +28,7 @@ import numpy as np
 
 import aosr
 from results_file import write_keeping_analysis
-from wide_field import ARCSEC, ROOT, star_ratios
+from wide_field import ROOT, geometry, star_ratios
 
 
 def median_and_error(x):
@@ -53,12 +53,7 @@ def main():
     noisy = aosr.simulate(aosr.Scene(scene))
     clean = aosr.simulate(aosr.Scene(clean_scene))
     t_sim = time.time() - t0
-    r = scene["r"]
-    hr = noisy.truth.shape
-    hr_arcsec = noisy.camera_pixel_rad / r * ARCSEC
-    gx, gy = scene["psf_field"]["guide_star_arcsec"]
-    centre = ((hr[0] - 1) / 2 + gy / hr_arcsec, (hr[1] - 1) / 2 + gx / hr_arcsec)
-    crop = noisy.trustworthy_border_px * r
+    r, hr, hr_arcsec, centre, crop = geometry(scene, noisy)
     rings = 5
     # The rings of bench/wide_field.py: equal widths from the guide star out to the crop's farthest corner.
     span = aosr.compare_images_rings(noisy.truth, noisy.truth[::-1], rings=rings, centre=centre, crop=crop)

@@ -47,6 +47,32 @@ inline int GatherRunLength(std::size_t stride) {
   return int(std::clamp<std::size_t>((std::size_t(256) << 10) / (stride * sizeof(Complex)), 1, kGatherRun));
 }
 
+// The columns of a bin kept for its decomposition, given their squared norms: the columns whose norm is at most
+// `threshold` are dropped, all of them if their sum fits under it, else the smallest while their sum fits
+// (ascending norm, ties by index). Writes the kept indices in increasing order to keep[0 .. returned).
+inline int KeptColumns(const double* norms, int count, double threshold, int* keep) {
+  double small = 0;
+  for (int c = 0; c < count; ++c)
+    if (norms[c] <= threshold) small += norms[c];
+  int kept = 0;
+  if (small <= threshold) {
+    for (int c = 0; c < count; ++c)
+      if (norms[c] > threshold) keep[kept++] = c;
+    return kept;
+  }
+  std::vector<int> order(count);
+  for (int c = 0; c < count; ++c) order[c] = c;
+  std::sort(order.begin(), order.end(),
+            [&](int x, int y) { return norms[x] < norms[y] || (norms[x] == norms[y] && x < y); });
+  double dropped = 0;
+  std::vector<char> drop(count, 0);
+  for (int c : order)
+    if (dropped + norms[c] <= threshold) dropped += norms[c], drop[c] = 1;
+  for (int c = 0; c < count; ++c)
+    if (!drop[c]) keep[kept++] = c;
+  return kept;
+}
+
 }  // namespace loops
 
 template <class Want, class F>

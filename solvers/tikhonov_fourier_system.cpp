@@ -382,29 +382,12 @@ int FourierSystem::RankOf(const Complex* a, int cols) const {
   double* nrm = rr <= 256 ? norms : (norm_heap.resize(rr), norm_heap.data());
   int* kp = rr <= 256 ? keep : (keep_heap.resize(rr), keep_heap.data());
   const double threshold = 1e-4 * floor2;
-  double small = 0;
   for (int c = 0; c < rr; ++c) {
     double s = 0;
     for (int f = 0; f < n_; ++f) s += Norm2(a[c * n_ + f]);
     nrm[c] = s;
-    if (s <= threshold) small += s;
   }
-  int kept = 0;
-  if (small <= threshold) {  // every column below the threshold fits: drop them all
-    for (int c = 0; c < rr; ++c)
-      if (nrm[c] > threshold) kp[kept++] = c;
-  } else {  // drop the smallest columns while their sum fits (ascending order, ties by index)
-    std::vector<int> order(rr);
-    for (int c = 0; c < rr; ++c) order[c] = c;
-    std::sort(order.begin(), order.end(),
-              [&](int x, int y) { return nrm[x] < nrm[y] || (nrm[x] == nrm[y] && x < y); });
-    double dropped = 0;
-    std::vector<char> drop(rr, 0);
-    for (int c : order)
-      if (dropped + nrm[c] <= threshold) dropped += nrm[c], drop[c] = 1;
-    for (int c = 0; c < rr; ++c)
-      if (!drop[c]) kp[kept++] = c;
-  }
+  const int kept = loops::KeptColumns(nrm, rr, threshold, kp);
   const int size = std::min(n_, kept);
   if (size == 0) return 0;
   std::vector<Complex> g(std::size_t(size) * size), l(g.size()), w(size);

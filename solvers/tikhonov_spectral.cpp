@@ -110,25 +110,7 @@ void FourierSystem::PrepareWhitened(int n, const Complex* a, const double* pinv,
   }
   const double eps = std::numeric_limits<double>::epsilon();
   const double threshold = eps * eps * total;
-  double small = 0;
-  for (int c = 0; c < rr; ++c)
-    if (norms[c] <= threshold) small += norms[c];
-  int kept = 0;
-  if (small <= threshold) {
-    for (int c = 0; c < rr; ++c)
-      if (norms[c] > threshold) keep[kept++] = c;
-  } else {
-    std::vector<int> order(rr);
-    for (int c = 0; c < rr; ++c) order[c] = c;
-    std::sort(order.begin(), order.end(),
-              [&](int x, int z) { return norms[x] < norms[z] || (norms[x] == norms[z] && x < z); });
-    double dropped = 0;
-    std::vector<char> drop(rr, 0);
-    for (int c : order)
-      if (dropped + norms[c] <= threshold) dropped += norms[c], drop[c] = 1;
-    for (int c = 0; c < rr; ++c)
-      if (!drop[c]) keep[kept++] = c;
-  }
+  const int kept = loops::KeptColumns(norms, rr, threshold, keep);
   for (int k = 0; k < kept; ++k)
     if (keep[k] != k)
       for (int f = 0; f < n; ++f) bw[k * n + f] = bw[keep[k] * n + f];
