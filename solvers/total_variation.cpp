@@ -439,27 +439,44 @@ class XUpdate {
 // Uniform weights w: (w AᵀA + ρ∇ᵀ∇ + ρ_v I) x = w Aᵀy + prior_rhs, exact per bin.
 class FourierXUpdate final : public XUpdate {
  public:
-  FourierXUpdate(const MultiFrameModel& model, double w, Vector aty, TotalVariationSummary* s)
-      : system_(model, w), aty_(std::move(aty)), summary_(s) {}
+  // cache (optional): a system built for the same model, w and (ρ, ρ_v) is taken from it instead of built; on
+  // return it holds this run's system, for the next run.
+  FourierXUpdate(const ReconstructionProblem& problem, double w, Vector aty, TotalVariationSummary* s,
+                 TotalVariationState::Cache* cache)
+      : aty_(std::move(aty)), summary_(s), cache_(cache) {
+    if (cache_ && cache_->system && cache_->model == problem.model && cache_->weight == w) {
+      system_ = cache_->system;
+      factorized_ = {cache_->rho, cache_->rho_v};
+    } else {
+      system_ = std::make_shared<FourierNormalSystem>(*problem.model, w);
+      if (cache_) *cache_ = {problem.model, w, -1.0, -1.0, system_};
+    }
+  }
   void Prepare(double rho, double rho_v) override {
-    system_.Factorize(rho, rho_v);
-    summary_->singular_bins = std::max(summary_->singular_bins, system_.singular_bins());
+    if (factorized_ != std::make_pair(rho, rho_v)) {
+      system_->Factorize(rho, rho_v);
+      factorized_ = {rho, rho_v};
+      if (cache_) cache_->rho = rho, cache_->rho_v = rho_v;
+    }
+    summary_->singular_bins = std::max(summary_->singular_bins, system_->singular_bins());
   }
   const double* RhsOffset() const override { return aty_.data(); }
   // rhs already holds w Aᵀy + ρ∇ᵀ(z − u) [+ ρ_v(v − s)]: the solve reads it and writes x, nothing else.
   bool Solve(const Image& rhs, const Image& /*x_prev*/, Image* x) override {
-    system_.SolveInto(rhs, x, &workspace_);
+    system_->SolveInto(rhs, x, &workspace_);
     return true;
   }
   std::string Report() const override {
-    return " (" + std::to_string(system_.woodbury_bins()) + " of " + std::to_string(system_.bins()) +
+    return " (" + std::to_string(system_->woodbury_bins()) + " of " + std::to_string(system_->bins()) +
            " bins in Woodbury form)";
   }
 
  private:
-  FourierNormalSystem system_;
+  std::shared_ptr<FourierNormalSystem> system_;
+  std::pair<double, double> factorized_{-1.0, -1.0};  // the (ρ, ρ_v) of the system's factorisation
   Vector aty_;
   TotalVariationSummary* summary_;
+  TotalVariationState::Cache* cache_;
   FourierNormalSystem::Workspace workspace_;  // reused every iteration
 };
 
@@ -597,14 +614,26 @@ class SplitXUpdate final : public XUpdate {
 }  // namespace
 
 Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariationOptions& options,
-                         TotalVariationSummary* summary, const Image* initial) {
+                         TotalVariationSummary* summary, const Image* initial, TotalVariationState* state) {
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument(std::string(kFunction) + ": invalid options: " + why);
   problem.Validate(kFunction);
   const MultiFrameModel& model = *problem.model;
   const Shape hr = model.hr_shape();
   const Index n = hr.size();
-  if (initial) {
+  const bool resume = state && !state->empty();
+  if (resume) {
+    // The caller's own earlier state: checked for fit (shapes, positivity) and finiteness, as `initial` is.
+    const bool fits = ShapeOf(state->x) == hr && state->z.size() == 2 * n && state->u.size() == 2 * n &&
+                      (options.positivity ? state->v.size() == n && state->s.size() == n
+                                          : state->v.size() == 0 && state->s.size() == 0) &&
+                      std::isfinite(state->rho);
+    CheckArgument(fits, kFunction, "state", "(shapes, positivity or rho unlike this problem's)",
+                  "the state of a run on the same HR grid with the same positivity setting");
+    CheckArgument(AllFinite(state->x) && state->z.allFinite() && state->u.allFinite() && state->v.allFinite() &&
+                      state->s.allFinite(),
+                  kFunction, "state", "(non-finite values)", "finite values");
+  } else if (initial) {
     CheckArgument(ShapeOf(*initial) == hr, kFunction, "initial shape", ToString(ShapeOf(*initial)),
                   "the model's HR shape " + ToString(hr));
     CheckArgument(AllFinite(*initial), kFunction, "initial", "(non-finite values)", "finite values");
@@ -642,13 +671,13 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
 
   // State: x, z = ∇x (+ u), v = x (+ s). Start consistent with x, duals at zero. x and x_prev swap their
   // buffers every iteration (the x-update writes the new x over the one before the last).
-  Image x = initial ? *initial : Image(Image::Zero(hr.rows, hr.cols));
+  Image x = resume ? state->x : initial ? *initial : Image(Image::Zero(hr.rows, hr.cols));
   Image x_prev(hr.rows, hr.cols);
-  double rho = options.rho > 0 ? options.rho : AutomaticRho(problem);
+  double rho = resume ? state->rho : options.rho > 0 ? options.rho : AutomaticRho(problem);
   s.initial_rho = rho;
   std::unique_ptr<XUpdate> x_update;
   if (path == TotalVariationXUpdate::kFourier)
-    x_update = std::make_unique<FourierXUpdate>(model, weights[0], std::move(aty), &s);
+    x_update = std::make_unique<FourierXUpdate>(problem, weights[0], std::move(aty), &s, state ? &state->cache : nullptr);
   else if (path == TotalVariationXUpdate::kFourierSplit)
     x_update = std::make_unique<SplitXUpdate>(problem, weights, y, AsVector(x), rho, options.positivity);
   else
@@ -658,11 +687,19 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   x_update->Prepare(rho, pos ? rho : 0.0);
 
   Vector z(2 * n), u(2 * n);
-  InitialSplitting(hr, x.data(), z.data(), u.data());
   Vector v, sv;
-  if (pos) {
-    v = AsVector(x).cwiseMax(0.0);
-    sv = Vector::Zero(n);
+  if (resume) {
+    z = std::move(state->z);
+    u = std::move(state->u);
+    v = std::move(state->v);
+    sv = std::move(state->s);
+    state->rho = 0;  // moved from: empty until the run ends
+  } else {
+    InitialSplitting(hr, x.data(), z.data(), u.data());
+    if (pos) {
+      v = AsVector(x).cwiseMax(0.0);
+      sv = Vector::Zero(n);
+    }
   }
   const double alpha = options.relaxation;
   const double sqrt_p = std::sqrt(double((pos ? 3 : 2) * n)), sqrt_n = std::sqrt(double(n));
@@ -823,6 +860,14 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
   reporter.RethrowIfThrown();
   s.final_rho = rho;
 
+  if (state && !failed) {
+    state->x = x;
+    state->z = std::move(z);
+    state->u = std::move(u);
+    state->v = std::move(v);
+    state->s = std::move(sv);
+    state->rho = rho;
+  }
   Image out = pos ? Image(x.cwiseMax(0.0)) : std::move(x);
   if (!AllFinite(out)) throw NumericalError("TotalVariationAdmm: the estimate is not finite");  // unreachable
   s.data_misfit = WeightedDataMisfit(problem, out, &s.frame_residual_rms);

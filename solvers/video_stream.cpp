@@ -326,7 +326,9 @@ VideoFrame VideoReconstructor::Compute() {
       tv.max_iterations = options_.tv_iterations;
       if (options_.reconstruct.progress) tv.progress = options_.reconstruct.progress;
       TotalVariationSummary s;
-      out.image = TotalVariationAdmm(window, tv, &s, &previous_);
+      const bool resume = options_.tv_warm_duals && !tv_state_.empty();
+      out.image = TotalVariationAdmm(window, tv, &s, resume ? nullptr : &previous_,
+                                     options_.tv_warm_duals ? &tv_state_ : nullptr);
       out.summary = s;
       out.iterations = s.iterations;
       out.path = "tv-warm";

@@ -85,6 +85,30 @@ TEST(TotalVariationErrorsTest, BadInitialImageIsNamed) {
   EXPECT_THAT(ErrorOf([&] { TotalVariationAdmm(p, {}, nullptr, &nan); }), HasSubstr("initial"));
 }
 
+// A state from another grid or positivity setting, or with non-finite values, is refused by name; an empty
+// state is simply filled.
+TEST(TotalVariationErrorsTest, StateThatDoesNotFitIsRefused) {
+  const ReconstructionProblem p = Problem();
+  TotalVariationOptions o;
+  o.max_iterations = 3;
+  TotalVariationState state;
+  TotalVariationAdmm(p, o, nullptr, nullptr, &state);
+  ASSERT_FALSE(state.empty());
+  TotalVariationState wrong = state;
+  wrong.x = Image::Zero(4, 4);
+  EXPECT_THAT(ErrorOf([&] { TotalVariationAdmm(p, o, nullptr, nullptr, &wrong); }), HasSubstr("state"));
+  o.positivity = true;  // the state has no positivity split
+  wrong = state;
+  EXPECT_THAT(ErrorOf([&] { TotalVariationAdmm(p, o, nullptr, nullptr, &wrong); }), HasSubstr("positivity"));
+  o.positivity = false;
+  wrong = state;
+  wrong.u[5] = kNaN;
+  EXPECT_THAT(ErrorOf([&] { TotalVariationAdmm(p, o, nullptr, nullptr, &wrong); }), HasSubstr("non-finite"));
+  wrong = state;
+  wrong.rho = std::numeric_limits<double>::infinity();
+  EXPECT_THAT(ErrorOf([&] { TotalVariationAdmm(p, o, nullptr, nullptr, &wrong); }), HasSubstr("state"));
+}
+
 TEST(TotalVariationErrorsTest, FourierXUpdateNeedsUniformWeights) {
   ReconstructionProblem p = Problem();
   p.weights = ImageStack(2, Image::Ones(4, 4));

@@ -74,6 +74,7 @@
 //  * No wall-time promise is made or tested; the summary records the time taken.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -197,10 +198,33 @@ double IsotropicTotalVariation(const Image& x);
 // indicator is not included). Validates the problem; mu >= 0.
 double TotalVariationObjective(const ReconstructionProblem& problem, const Image& x, double mu);
 
+// ADMM's whole state at the end of a run, to start another run on a nearby problem where it stopped: the next
+// window of a video stream (video_stream.hpp), whose solution and duals differ from this one's by the frames'
+// changes. Starting the duals there too, not only x, is what lets a few iterations per window stay close to the
+// converged solution (bench/results/video.md measures both).
+struct TotalVariationState {
+  Image x;       // the last iterate, before the positivity clip
+  Vector z, u;   // the gradient split (2 x HR pixels, ∂y then ∂x) and its scaled dual
+  Vector v, s;   // the positivity split and its scaled dual (empty without positivity)
+  double rho = 0;  // ρ at the end (the scaled duals are for this ρ); 0: no state
+  bool empty() const { return !(rho > 0); }
+  // The uniform-weight x-update's factorised system (FourierNormalSystem) and what it was built for: a next run on
+  // the same model object with the same data weight and ρ reuses it instead of building it again.
+  struct Cache {
+    std::shared_ptr<const MultiFrameModel> model;
+    double weight = 0, rho = 0, rho_v = 0;
+    std::shared_ptr<FourierNormalSystem> system;
+  } cache;
+};
+
 // Solves the problem above by ADMM. `initial` (optional) warm-starts x (HR shape, finite); otherwise
 // x starts at 0. The splitting variables start consistent with it (z = ∇x, v = max(x, 0)) and the duals
 // at 0. Returns x̂ (>= 0 when options.positivity).
+// `state` (optional, in and out): if it holds a state (not empty) of the same HR shape and positivity setting,
+// the run starts from it instead (x, z, u, v, s and its ρ, which then replaces options.rho; `initial` is not read);
+// a state that does not fit is refused. On return it holds the run's final state, or is empty if the run failed.
 Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariationOptions& options = {},
-                         TotalVariationSummary* summary = nullptr, const Image* initial = nullptr);
+                         TotalVariationSummary* summary = nullptr, const Image* initial = nullptr,
+                         TotalVariationState* state = nullptr);
 
 }  // namespace aosr

@@ -45,8 +45,9 @@
 //
 // The first window is reconstructed as Reconstruct does (automatic μ from the Tikhonov pilot unless
 // auto_regularisation is off, ADMM to tv.max_iterations / its tolerance). μ is then fixed, and every later
-// output is TotalVariationAdmm on its window warm-started from the previous output, stopped after
-// tv_iterations ADMM iterations (or its tolerance). A static scene converges across frames; a changing one
+// output is TotalVariationAdmm on its window started from the previous output's whole ADMM state (x, the splits,
+// their scaled duals and ρ: TotalVariationState; the second output, after the batch first window, from its x
+// alone), stopped after tv_iterations ADMM iterations (or its tolerance). A static scene converges across frames; a changing one
 // lags by about the frames the budget needs to follow it (bench/results/video.md measures the gap to TV run to
 // convergence on the same window).
 //
@@ -64,6 +65,7 @@
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/total_variation.hpp"
 
 namespace aosr {
 
@@ -83,6 +85,9 @@ struct VideoOptions {
   // tv: ADMM iterations of each output after the first, warm-started from the previous output. >= 1. 10:
   // measured within 0.3 dB of TV to convergence on the bench's static scene at > 10 outputs/s (video.md).
   int tv_iterations = 10;
+  // tv: start each output from the previous one's whole ADMM state (true) or from its x alone, with the splits
+  // consistent with it and the duals at 0 (false: what TotalVariationAdmm's `initial` does; kept to compare).
+  bool tv_warm_duals = true;
   // Use the slot filter where it is exact (top of the file). false: the batch solver on every window.
   bool slot_filter = true;
 
@@ -171,6 +176,7 @@ class VideoReconstructor {
   std::unique_ptr<SlotFilter> filter_;
   VideoSetup setup_;
   Image previous_;  // tv: the last output
+  TotalVariationState tv_state_;  // tv: the last output's ADMM state (tv_warm_duals)
   int outputs_ = 0;
 };
 
