@@ -82,8 +82,9 @@ struct VideoOptions {
   // The method's options as Reconstruct takes them (tikhonov, linear, tv, auto_regularisation, progress).
   // Default: Reconstruct's (GCV λ once on the first window; κ by the leakage bound; automatic μ).
   ReconstructOptions reconstruct;
-  // tv: ADMM iterations of each output after the first, warm-started from the previous output. >= 1. 10:
-  // measured within 0.3 dB of TV to convergence on the bench's static scene at > 10 outputs/s (video.md).
+  // tv: ADMM iterations of each output after the first, warm-started from the previous output. >= 1. Measured
+  // (bench/results/video.md, from the state): 10 within 0.10 dB (static scene) and 0.16 dB (moving) of TV to
+  // convergence, 7 within 0.14 and 0.24 dB at 1.3-1.5x the rate.
   int tv_iterations = 10;
   // tv: start each output from the previous one's whole ADMM state (true) or from its x alone, with the splits
   // consistent with it and the duals at 0 (false: what TotalVariationAdmm's `initial` does; kept to compare).
