@@ -209,7 +209,8 @@ struct TotalVariationState {
   double rho = 0;  // ρ at the end (the scaled duals are for this ρ); 0: no state
   bool empty() const { return !(rho > 0); }
   // The uniform-weight x-update's factorised system (FourierNormalSystem) and what it was built for: a next run on
-  // the same model object with the same data weight and ρ reuses it instead of building it again.
+  // the same model object with the same data weight and ρ reuses it instead of building it again. A run may
+  // refactorise it, and copies of a state share it: do not run two copies at the same time (clear `cache` first).
   struct Cache {
     std::shared_ptr<const MultiFrameModel> model;
     double weight = 0, rho = 0, rho_v = 0;
