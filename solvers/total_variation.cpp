@@ -671,7 +671,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
 
   // State: x, z = ∇x (+ u), v = x (+ s). Start consistent with x, duals at zero. x and x_prev swap their
   // buffers every iteration (the x-update writes the new x over the one before the last).
-  Image x = resume ? state->x : initial ? *initial : Image(Image::Zero(hr.rows, hr.cols));
+  Image x = resume ? std::move(state->x) : initial ? *initial : Image(Image::Zero(hr.rows, hr.cols));
   Image x_prev(hr.rows, hr.cols);
   double rho = resume ? state->rho : options.rho > 0 ? options.rho : AutomaticRho(problem);
   s.initial_rho = rho;
@@ -693,7 +693,7 @@ Image TotalVariationAdmm(const ReconstructionProblem& problem, const TotalVariat
     u = std::move(state->u);
     v = std::move(state->v);
     sv = std::move(state->s);
-    state->rho = 0;  // moved from: empty until the run ends
+    state->rho = 0;  // moved from (x too): empty until the run ends
   } else {
     InitialSplitting(hr, x.data(), z.data(), u.data());
     if (pos) {
