@@ -153,19 +153,27 @@ BinIndex Classify(Shape lr, Index uy, Index ux) {
   return {uy, ux, ux < mux || (ux == mux && uy <= muy), ux == mux && uy == muy};
 }
 
-// What the κ search needs from every canonical bin: e_j and a_j = Σ_k |T_k|² |g_kj|², plus Σ_k |T_k|².
+// What the κ search needs from every canonical bin: e_j and a_j = Σ_k |T_k|² |g_kj|², plus Σ_k |T_k|²; and, for
+// the flux normalisation's factor 1/dc(κ), the zero-frequency row's modes: dc(κ) = Σ_j |g_0j|² / (e_j + κ).
 struct SearchData {
   std::vector<double> e, a;        // concatenated over bins
   std::vector<double> bin_weight;  // multiplicity (1 or 2) per entry of e/a
   double target_power = 0;         // Σ_f |T(f)|² over the whole HR grid
   double e_max = 0;
+  std::vector<double> dc_e, dc_g2;  // the DC bin's e_j and |g_0j|²
+
+  double Dc(double kappa) const {
+    double dc = 0;
+    for (std::size_t j = 0; j < dc_e.size(); ++j) dc += dc_g2[j] / (dc_e[j] + kappa);
+    return dc;
+  }
 };
 
 SearchData CollectSearchData(const MultiFrameModel& model, const Target& target) {
   const Shape hr = model.hr_shape(), lr = model.lr_shape();
   const int r = model.r(), rr = r * r;
   struct Row {
-    std::vector<double> e, a, w;
+    std::vector<double> e, a, w, dc_e, dc_g2;
     double power = 0, e_max = 0;
   };
   std::vector<Row> rows(lr.rows);
@@ -181,6 +189,11 @@ SearchData CollectSearchData(const MultiFrameModel& model, const Target& target)
           t2[ky * r + kx] = std::norm(FullAt(target.half, hr, uy + ky * lr.rows, ux + kx * lr.cols));
       row.power += mult * t2.sum();
       const Modes m = Analyse(model.AliasedSystem(uy, ux));
+      if (uy == 0 && ux == 0)
+        for (Index j = 0; j < m.e.size(); ++j) {
+          row.dc_e.push_back(m.e[j]);
+          row.dc_g2.push_back(std::norm(m.g(0, j)));
+        }
       for (Index j = 0; j < m.e.size(); ++j) {
         row.e.push_back(m.e[j]);
         row.a.push_back(t2.dot(m.g.col(j).cwiseAbs2()));
@@ -196,20 +209,29 @@ SearchData CollectSearchData(const MultiFrameModel& model, const Target& target)
     s.bin_weight.insert(s.bin_weight.end(), row.w.begin(), row.w.end());
     s.target_power += row.power;
     s.e_max = std::max(s.e_max, row.e_max);
+    s.dc_e.insert(s.dc_e.end(), row.dc_e.begin(), row.dc_e.end());
+    s.dc_g2.insert(s.dc_g2.end(), row.dc_g2.begin(), row.dc_g2.end());
   }
   return s;
 }
 
-// U(κ) = (Σ|T|² − Σ_j a_j (e_j + 2κ)/(e_j + κ)²) / Σ|T|²: the leakage of (1). kappa = 0: U_min, the modes below
-// the reach floor (kReachFloor) lost and the rest captured. reachable_only: the modes below the floor count as lost
-// at any κ (what the bound U ≤ U_min + ε is held to; ≥ the true U, since (1) captures a little of them).
+// U(κ) = (Σ|T|² − Σ_j a_j (2s/(e_j + κ) − s² e_j/(e_j + κ)²)) / Σ|T|², s = 1/dc(κ): the leakage of (1) with
+// the flux normalisation (ℓ_k = |T_k|² ‖s·row k of RA − e_k‖², summed over the modes; at s = 1 the captured part
+// is a_j (e_j + 2κ)/(e_j + κ)²). Why s belongs in the search: it is 1 + κ/e at DC, small at a tight bound but
+// not at a loose one (ε = 1e-2 on tests' scene: U 0.010 without it, 0.003 with), and the output carries it.
+// kappa = 0: U_min, the modes below the reach floor (kReachFloor) lost and the rest captured. reachable_only:
+// the modes below the floor count as lost at any κ (what the bound U ≤ U_min + ε is held to; ≥ the true U,
+// since (1) captures a little of them).
 double Leakage(const SearchData& s, double kappa, bool reachable_only = false) {
   const double floor = kReachFloor * s.e_max;
+  const double dc = kappa > 0 ? s.Dc(kappa) : 1.0;
+  const double f = dc > 0 ? 1.0 / dc : 1.0;
   double captured = 0;
   for (std::size_t j = 0; j < s.e.size(); ++j) {
     const double e = s.e[j];
     if (kappa > 0) {
-      if (!reachable_only || e > floor) captured += s.bin_weight[j] * s.a[j] * (e + 2 * kappa) / ((e + kappa) * (e + kappa));
+      const double d = e + kappa;
+      if (!reachable_only || e > floor) captured += s.bin_weight[j] * s.a[j] * (2.0 * f / d - f * f * e / (d * d));
     } else if (e > floor) {
       captured += s.bin_weight[j] * s.a[j] / e;
     }
@@ -233,11 +255,10 @@ class FourierNormalInverse final : public LinearOperator {
   Shape hr_;
 };
 
-// x ↦ T ⊛ x with the zero-frequency gain divided by dc (the flux normalisation).
+// x ↦ T ⊛ x / dc (the flux normalisation, target_psf.hpp "Flux": every frequency, so the filter stays smooth).
 Image ApplyTarget(const Image& x, const ComplexImage& t_half, double dc) {
   ComplexImage s = FftR2C(x);
-  s *= t_half;
-  s(0, 0) /= dc;
+  s *= t_half * (1.0 / dc);
   return FftC2R(s, x.cols());
 }
 
@@ -330,15 +351,10 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   s.leakage_met = s.leakage <= goal * (1 + 1e-9);
 
   // DC transfer e/(e + κ) of the zero-frequency row, divided out for flux conservation.
-  double dc = 1.0;
-  {
-    const Modes m = Analyse(model.AliasedSystem(0, 0));
-    Complex r00 = 0;
-    for (Index j = 0; j < m.e.size(); ++j) r00 += std::norm(m.g(0, j)) / (m.e[j] + kappa);
-    dc = r00.real();
-  }
+  const double dc = sd.Dc(kappa);
   if (!(dc > 0)) throw InvalidArgument(std::string(kTargetPsfFn) + ": the frames carry no flux information (zero DC transfer)");
   s.dc_transfer = dc;
+  const double flux = 1.0 / dc;  // every output frequency's gain (target_psf.hpp, "Flux")
 
   // --- per-bin pass: effective transfer, leakage, noise spectrum and cell, and (Fourier path) the solution --
   const double null_floor = kReachFloor * sd.e_max;
@@ -371,20 +387,16 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
       const Eigen::MatrixXcd a = model.AliasedSystem(uy, ux);
       const Modes m = Analyse(a);
       const Index q = m.e.size();
-      Eigen::VectorXd inv1(q), inv2(q), lk(q), lmin(q);
+      Eigen::VectorXd inv1(q), inv2(q), lmin(q);
       for (Index j = 0; j < q; ++j) {
         const double d = m.e[j] + kappa;
         inv1[j] = 1.0 / d;
         inv2[j] = 1.0 / (d * d);
-        lk[j] = (m.e[j] + 2 * kappa) / (d * d);
         lmin[j] = m.e[j] > null_floor ? 1.0 / m.e[j] : 0.0;
       }
       const Eigen::MatrixXd g2 = m.g.cwiseAbs2();  // r² x q
-      const Eigen::VectorXd rkk = g2 * inv1, skk = g2 * inv2, lkk = g2 * lk, lmk = g2 * lmin;
-      // The zero-frequency row carries the flux normalisation (target_psf.hpp, "Flux").
-      const bool dc_bin = uy == 0 && ux == 0;
-      // Row-0 scale of Q in the DC bin.
-      auto row_scale = [&](int k) { return dc_bin && k == 0 ? 1.0 / dc : 1.0; };
+      // ‖row k of RA‖² = Σ_j |g_kj|² e_j/(e_j + κ)² (RA = G diag(1/(e + κ)) Gᴴ, GᴴG = diag(e)).
+      const Eigen::VectorXd rkk = g2 * inv1, skk = g2 * inv2, r2k = g2 * m.e.cwiseProduct(inv2), lmk = g2 * lmin;
       if (s.fourier_exact) {
         Eigen::VectorXcd yv(n);
         for (int i = 0; i < n; ++i) yv[i] = y_half[i](uy, ux);
@@ -392,7 +404,7 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
         x.setZero();
         for (Index j = 0; j < q; ++j) x += m.h.col(j) * (c[j] * inv1[j]);
         ridge_x = x;
-        for (int k = 0; k < rr; ++k) x[k] *= t[k] * row_scale(k);
+        for (int k = 0; k < rr; ++k) x[k] *= t[k] * flux;
         if (b.self_mirror) {  // exactly Hermitian within the bin (FourierSystem::Solve)
           for (Eigen::VectorXcd* v : {&x, &ridge_x}) {
             const Eigen::VectorXcd v0 = *v;
@@ -412,17 +424,10 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
           const Index fy = uy + ky * lr.rows, fx = ux + kx * lr.cols;
           const Index my = (hr.rows - fy) % hr.rows, mx = (hr.cols - fx) % hr.cols;
           const double t2 = std::norm(t[k]);
-          double l = t2 * (1.0 - lkk[k]);
-          Complex te = t[k] * rkk[k];
-          double sn = t2 * skk[k];
-          if (dc_bin && k == 0) {  // row 0 of QA / R00 − T: (R²)_00 / R00² − 1
-            Complex r2 = 0;
-            for (Index j = 0; j < q; ++j) r2 += g2(0, j) * m.e[j] * inv2[j];
-            l = t2 * (r2.real() / (dc * dc) - 1.0);
-            te = t[k];
-            sn /= dc * dc;
-          }
-          l = std::max(l, 0.0);
+          // ℓ = |T_k|² ‖s·row k of RA − e_k‖² = |T_k|² (s² ‖row‖² − 2 s (RA)_kk + 1), s = 1/dc.
+          const double l = std::max(t2 * (flux * flux * r2k[k] - 2.0 * flux * rkk[k] + 1.0), 0.0);
+          const Complex te = t[k] * (rkk[k] * flux);
+          const double sn = t2 * skk[k] * (flux * flux);
           const double lm = std::max(t2 * (1.0 - lmk[k]), 0.0);
           leak(fy, fx) = leak(my, mx) = l;
           leak_min(fy, fx) = leak_min(my, mx) = lm;
@@ -448,7 +453,7 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
           for (int ky = 0; ky < r; ++ky)
             for (int kx = 0; kx < r; ++kx) {
               const int k = ky * r + kx;
-              z(ky, kx) = t[k] * m.g(k, j) * inv1[j] * row_scale(k);
+              z(ky, kx) = t[k] * m.g(k, j) * (inv1[j] * flux);
             }
           const Eigen::MatrixXcd zx = z * tw;          // (ky, px)
           const Eigen::MatrixXcd zz = tw.transpose() * zx;  // (py, px)
@@ -461,8 +466,7 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
 
   // --- leakage report ---------------------------------------------------------------------------------
   {
-    // U from the per-frequency map: it includes the flux normalisation of the zero-frequency row, which the
-    // search (on e/(e + κ) alone) leaves out; the difference is that one row's.
+    // U from the per-frequency map (each frequency's ℓ clamped at 0; the search sums the modes unclamped).
     s.leakage = leak.sum() / sd.target_power;
     // The band: the largest radius below which every HR frequency has ℓ ≤ 1e-3.
     double band = 0.5 * std::sqrt(2.0) + 1e-12, in_band_max = 0;

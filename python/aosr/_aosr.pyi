@@ -204,7 +204,7 @@ def reconstruct(dataset: Union[Dataset, PathLike], method: str = "tikhonov", *, 
                 offsets: str = "auto", model_psfs: Union[ArrayLike, str, None] = None,
                 progress: Optional[Callable[[ProgressDict], Optional[bool]]] = None, registration_range: float = 0.5,
                 registration_anchor: str = "mean", stars: Optional[Dict[str, Any]] = None,
-                tile: int = 0, tile_overlap: int = -1, resume: str = "", psf_field: str = "auto",
+                tile: int = 0, tile_overlap: int = -1, tile_tolerance: float = 1e-6, resume: str = "", psf_field: str = "auto",
                 memory_limit: Union[float, str, None] = None, **options: Any) -> Reconstruction: ...
 def bicubic(frame: ArrayLike, r: int) -> np.ndarray: ...
 # The slanted-edge MTF of several outputs with the exact transfer of the linear ones (solvers/mtf_comparison.hpp).

@@ -604,13 +604,15 @@ void BindSolvers(py::module_& m) {
             d["memory_limit_bytes"] = r.memory_limit_bytes;
             d["tile"] = r.by_tiles_for_memory->tile;
             d["tile_overlap"] = r.by_tiles_for_memory->overlap;
+            d["tile_overlap_max"] = r.by_tiles_for_memory->max_overlap;
             d["parallel_tiles"] = r.by_tiles_for_memory->parallel_tiles;
             d["regularisation_window"] = r.by_tiles_for_memory->regularisation_window;
             return std::move(d);
           },
           "None when the whole grid was reconstructed at once; else the whole grid did not fit memory_limit and the "
           "run went by tiles without a whole-grid model: dict(whole_grid_bytes, memory_limit_bytes, tile, "
-          "tile_overlap, parallel_tiles, regularisation_window)")
+          "tile_overlap (-1: measured once the regularisation is fixed, up to tile_overlap_max), tile_overlap_max, "
+          "parallel_tiles, regularisation_window)")
       .def_property_readonly(
           "registration",
           [](const PyReconstruction& r) -> py::object {
@@ -652,12 +654,15 @@ void BindSolvers(py::module_& m) {
       "reconstruct",
       [](py::object dataset, const std::string& method, const std::string& weights, const std::string& offsets,
          py::object model_psfs, py::object progress, double registration_range, const std::string& registration_anchor,
-         py::object stars, int tile, int tile_overlap, const std::string& resume, const std::string& psf_field,
-         py::object memory_limit, py::kwargs kwargs) {
+         py::object stars, int tile, int tile_overlap, double tile_tolerance, const std::string& resume,
+         const std::string& psf_field, py::object memory_limit, py::kwargs kwargs) {
         // Everything is parsed and checked before any work (as the CLI does).
         TilingOptions tiling;
         tiling.tile = tile;
         tiling.overlap = tile_overlap;
+        tiling.tolerance = tile_tolerance;
+        if (!(tile_tolerance > 0 && tile_tolerance < 1))
+          throw InvalidArgument("aosr.reconstruct", "tile_tolerance", ToString(tile_tolerance), "in (0, 1)");
         if (tile == 0 && tile_overlap >= 0)
           throw InvalidArgument("aosr.reconstruct", "tile_overlap", std::to_string(tile_overlap), "only with tile > 0");
         if (tile != 0) {
@@ -733,8 +738,8 @@ void BindSolvers(py::module_& m) {
       py::arg("dataset"), py::arg("method") = "tikhonov", py::kw_only(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("model_psfs") = py::none(), py::arg("progress") = py::none(),
       py::arg("registration_range") = 0.5, py::arg("registration_anchor") = "mean", py::arg("stars") = py::none(),
-      py::arg("tile") = 0, py::arg("tile_overlap") = -1, py::arg("resume") = "", py::arg("psf_field") = "auto",
-      py::arg("memory_limit") = py::none(),
+      py::arg("tile") = 0, py::arg("tile_overlap") = -1, py::arg("tile_tolerance") = 1e-6, py::arg("resume") = "",
+      py::arg("psf_field") = "auto", py::arg("memory_limit") = py::none(),
       R"doc(Super-resolves a dataset with one method: the library's Reconstruct (include/aosr/solvers/reconstruct.hpp),
 the call `aosr reconstruct DATASET -m METHOD` makes, with the same defaults and the same bits.
 
@@ -758,7 +763,12 @@ stars       model_psfs='stars': a dict of aosr.stars_psf's options (psf_size_hr_
 tile        > 0: reconstruct in overlapping tiles of at most tile x tile camera px, blended with no seam, one
             regularisation for the field chosen on the whole field (solvers/tiling.hpp; `aosr reconstruct --tile`);
             0: the whole grid at once. progress is not called for a tiled run
-tile_overlap  tile > 0: camera px added on each side of a tile; -1: from the PSF's extent and the method's reach
+tile_overlap  tile > 0: camera px added on each side of a tile; -1: automatic (tikhonov and linear: measured
+            from the method's response to hold the tiled error below tile_tolerance; others: from the PSF's extent
+            and the method's reach; solvers/tiling.hpp "The overlap rule"); Reconstruction.tiling['overlap_rule']
+            says how it was made
+tile_tolerance  the automatic overlap's bound on the tiled error of tikhonov and linear, a fraction of the level
+            (default 1e-6)
 resume      tile > 0: an existing folder where finished tiles are kept; a rerun reuses them (same bytes)
 psf_field   'auto' (a dataset with a psf_field, or stars={'grid': (ny, nx)} with model_psfs='stars', with a
             method that models the PSF: 'tiles') | 'none' (the guide

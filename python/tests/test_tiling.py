@@ -27,6 +27,18 @@ def test_tiled_matches_whole_grid_and_the_cli(demo_dir, cli, tmp_path):
     assert j["summary"]["message"] == tiled.summary["message"]
 
 
+def test_the_automatic_overlap_is_measured_for_the_linear_methods(demo_dir):
+    # tikhonov and linear: the overlap from the method's response, to hold the tiled error below tile_tolerance
+    # (solvers/tiling.hpp, "The overlap rule"); the summary says how it was made. A looser bound, a smaller overlap.
+    import re
+    overlaps = []
+    for tolerance in (1e-6, 0.3):
+        rec = aosr.reconstruct(demo_dir, "tikhonov", lambda_=0.01, tile=32, tile_tolerance=tolerance)
+        assert "measured: tikhonov's response" in rec.summary["message"]
+        overlaps.append(int(re.search(r"overlap (\d+)", rec.summary["message"]).group(1)))
+    assert overlaps[1] < overlaps[0]
+
+
 def test_one_regularisation_for_the_field(demo_dir):
     rec = aosr.reconstruct(demo_dir, "tv", tile=64, iterations=20)
     assert "whole field" in rec.summary["message"]
@@ -36,6 +48,7 @@ def test_one_regularisation_for_the_field(demo_dir):
 @pytest.mark.parametrize("kwargs,needle", [
     ({"tile": -1}, "tile = -1"),
     ({"tile_overlap": 3}, "tile_overlap"),
+    ({"tile": 32, "tile_tolerance": 0.0}, "tile_tolerance"),
     ({"tile": 32, "tile_overlap": -4}, "overlap = -4"),
     ({"tile": 32, "tile_overlap": 40}, "overlap"),
 ])

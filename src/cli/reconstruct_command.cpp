@@ -84,6 +84,7 @@ struct ReconstructArgs {
   std::string psf_field = "auto";  // --psf-field auto|none|tiles|operator (solvers/dataset_problem.hpp)
   int tile = 0;           // --tile [camera px]
   int tile_overlap = -1;  // --tile-overlap [camera px], -1 = the rule
+  double tile_tolerance = 1e-6;  // --tile-tolerance: the measured overlap's bound on the tiled error
   std::string resume;     // --resume DIR: finished tiles kept there, reused by a rerun
   ExecutionArgs exec;
 };
@@ -177,6 +178,9 @@ void RunReconstruct(const ReconstructArgs& a) {
   TilingOptions tiling;
   tiling.tile = a.tile;
   tiling.overlap = a.tile_overlap;
+  tiling.tolerance = a.tile_tolerance;
+  if (!(a.tile_tolerance > 0 && a.tile_tolerance < 1))
+    throw InvalidArgument("aosr reconstruct", "--tile-tolerance", ToString(a.tile_tolerance), "in (0, 1)");
   if (a.tile == 0 && a.tile_overlap >= 0)
     throw InvalidArgument("aosr reconstruct", "--tile-overlap", std::to_string(a.tile_overlap), "only with --tile");
   if (a.tile != 0) {
@@ -774,8 +778,12 @@ void RegisterReconstruct(CLI::App& app) {
                   "reconstruct in overlapping tiles of at most T x T camera px, blended with no seam, one "
                   "regularisation for the field (chosen on the whole field); 0: the whole grid at once");
   cmd->add_option("--tile-overlap", a->tile_overlap,
-                  "--tile: camera px added on each side of a tile; default from the PSF's extent and the method's "
-                  "reach (solvers/tiling.hpp)");
+                  "--tile: camera px added on each side of a tile; default: tikhonov and linear measure it from "
+                  "their response (the tiled error below --tile-tolerance), the others from the PSF's extent and "
+                  "the method's reach (solvers/tiling.hpp, \"The overlap rule\"; the JSON's tiling.overlap_rule)");
+  cmd->add_option("--tile-tolerance", a->tile_tolerance,
+                  "the automatic overlap's bound on the tiled error of tikhonov and linear, a fraction of the level")
+      ->capture_default_str();
   cmd->add_option("--resume", a->resume,
                   "--tile: keep each finished tile in this folder (created if missing) and reuse the tiles a killed "
                   "run of the same command left there; the output is byte-identical to an uninterrupted run");

@@ -253,13 +253,14 @@ TEST_F(ReconstructCliTest, TileReconstructsByOverlappingTiles) {
   // overlap 10 (bench figures in solvers/tiling.hpp), far above the float32 rounding of the file.
   EXPECT_LT((t - w).abs().maxCoeff(), 1e-3 * w.abs().maxCoeff());
   EXPECT_TRUE((t == t2.planes.at(0)).all()) << "1 and 2 threads";
-  // The automatic overlap (PSF reach + Tikhonov's), and GCV chosen on the whole field.
+  // The automatic overlap (measured from Tikhonov's response at the GCV λ, capped by the field), GCV on the whole field.
   const nlohmann::json a = Run("tikhonov", "--tile 24");
   EXPECT_EQ(a["tiling"]["regularisation_source"], "whole field");
-  EXPECT_THAT(a["tiling"]["overlap_rule"].get<std::string>(), HasSubstr("psf"));
+  EXPECT_THAT(a["tiling"]["overlap_rule"].get<std::string>(), HasSubstr("measured"));
   // Bad tilings: named, and nothing written.
   for (const std::string& bad : {std::string("--tile -3"), std::string("--tile 24 --tile-overlap 30"),
-                                 std::string("--tile-overlap 4"), std::string("--tile 24 --tile-overlap -5")}) {
+                                 std::string("--tile-overlap 4"), std::string("--tile 24 --tile-overlap -5"),
+                                 std::string("--tile 24 --tile-tolerance 0")}) {
     const CliRun r = RunCli("reconstruct " + Data() + " -m tikhonov -o " + Out("bad") + " " + bad);
     EXPECT_EQ(r.status, 1) << bad << ": " << r.out;
     EXPECT_THAT(r.out, HasSubstr("tile")) << bad;

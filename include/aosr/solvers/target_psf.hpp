@@ -37,10 +37,14 @@
 // (solvers/target_psf.cpp, kReachFloor). The summary reports U, U_min, the per-frequency leakage ℓ (the FITS extension of the CLI) and
 // the band: the largest radius |f| below which every HR frequency has ℓ ≤ 10⁻³ (the target is met there).
 //
-// Flux. The DC transfer of (1) is e/(e + κ) < 1; the zero-frequency output row is divided by it, so the
+// Flux. The DC transfer of (1) is dc = e/(e + κ) < 1; the output is divided by it at every frequency, so the
 // effective PSF sums to exactly 1 (a point source keeps its flux). With a 100 % fill-factor box pixel the DC
 // bin sees no other HR frequency (B vanishes on the lattice), so this holds for a source at any sub-pixel
-// position.
+// position. Why every frequency and not the zero frequency alone: the filter must stay smooth there. Dividing
+// only the DC bin made a jump of 1/dc − 1 at one frequency, which is a constant in space: the response to one
+// pixel had a pedestal of ~1e-9 of its peak over the whole field (1e-4 of its L1 norm), a global coupling that
+// no tile overlap captures (bench/results/kernel_reach.md). The factor is 1 + κ/e at DC (~1e-4 here), so the
+// effective transfer elsewhere moves by that fraction; the noise and leakage reported include it.
 //
 // Noise. Frame pixels of weight w have variance σ²/w (σ = noise_sigma: 1 when the weights are inverse
 // variances). On the Fourier path the output noise is exact: its power spectrum σ²/w₀ · S/r² (HR frequencies),

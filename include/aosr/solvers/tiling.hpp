@@ -23,17 +23,31 @@
 // product of the axis weights; the blended image is Σ w_k x_k / Σ w_k, so the weights sum to exactly 1 up to
 // one rounding. Needs P <= every core (a ramp must not reach the next boundary).
 //
-// The overlap rule (TilingOptions::overlap = -1): P = psf_reach + regulariser_reach (camera px), where
-//   psf_reach = PaddedModel::SuggestPadding(model, psf_tail): the Chebyshev radius holding all but psf_tail
+// The overlap rule (TilingOptions::overlap = -1).
+//   tikhonov and linear (linear estimators): P is measured, once their regularisation is fixed (below). The
+//     response x of the method to one pixel of frame 0 is computed on a periodic probe of the model's kernels
+//     (the field's camera side up to 128 px); tail(d) is the part of Σ|x| beyond Chebyshev distance d (camera
+//     px). A tile's pixel at distance d from its window's edge misses the data beyond the edge and sees the
+//     wrapped data instead, each worth up to tail(d) of a pixel's value, and it enters the blend with weight
+//     w_P(d) (0 up to P/2, 1 from 3P/2). P is the smallest overlap with E(P) = 2 max_d w_P(d) tail(d) <=
+//     TilingOptions::tolerance (1e-6), at most a third of the probe (42 camera px). E(P) is an estimate of the
+//     tiled error relative to the peak for data of one sign: on tiling_test's scene it gave 2.6e-5 for Tikhonov at
+//     P = 24 (measured 2.7e-5) and 5e-4 at P = 16 (measured 9.9e-4); for the linear output it is pessimistic
+//     (9e-6 at P = 24, measured 2.2e-7). Why measured: their kernels decay geometrically at a rate set by the
+//     PSF, the sampling and λ or κ (bench/results/kernel_reach.md: ~9x per 4 camera px there), so a fixed
+//     reach was either too short for 1e-6 (P = 12 gave 1e-3) or wasteful. With a regularisation to choose, the
+//     tiles of the choice (the central-tile source) are those of the rule below; then P is measured.
+//   the other methods: P = psf_reach + regulariser_reach (camera px), where
+//     psf_reach = PaddedModel::SuggestPadding(model, psf_tail): the Chebyshev radius holding all but psf_tail
 //               (1e-4) of the model PSFs' energy Σh², in camera px, rounded up (the largest over the frames;
 //               always the problem's model PSFs, also when local PSFs are given);
-//   regulariser_reach = 2 for tv and map (TV couples neighbours; its staircase settles within a few pixels),
-//               3 for tikhonov and linear (their solution kernels decay geometrically with the prior's
-//               correlation length: a few camera px at the λ the rules pick), 1 for shift-add and drizzle
-//               (their drops reach one pixel, plus the offsets: ceil(max |offset| / r) more).
-// Then P is doubled (the ramp uses the inner half of the overlap, see Blending) and capped so that P <= every
-// core and the window fits in the field. The measured errors against the whole-grid solution are in
-// tests/solvers/tiling_test.cpp; give a larger overlap where more accuracy is needed.
+//     regulariser_reach = 2 for tv and map (TV couples neighbours; its staircase settles within a few pixels),
+//               3 for tikhonov and linear before their regularisation is fixed, 1 for shift-add and drizzle
+//               (their drops reach one pixel, plus the offsets: ceil(max |offset| / r) more);
+//     then doubled (the ramp uses the inner half of the overlap, see Blending).
+// Either way P is capped so that P <= every core and the window fits in the field, and at max_overlap (a memory
+// plan's). The measured errors against the whole-grid solution are in tests/solvers/tiling_test.cpp; give a
+// larger overlap where more accuracy is needed.
 //
 // One regularisation for the whole field (what a user expects: the same λ or TV weight everywhere, so the
 // image's resolution and noise do not change from tile to tile). The method's automatic choices are made
@@ -110,6 +124,12 @@ struct TilingOptions {
   int overlap = -1;
   // The PSF tail left out of the overlap rule's PSF reach (energy fraction), in (0, 1).
   double psf_tail = 1e-4;
+  // The measured overlap rule's bound on the tiled error of tikhonov and linear, a fraction of a pixel's
+  // response (see "The overlap rule"), in (0, 1).
+  double tolerance = 1e-6;
+  // The largest automatic overlap (camera px; 0: no bound): a memory plan's (FitTilingToMemory), which sized the
+  // tiles for it before the regularisation, and with it the measured reach, was known.
+  int max_overlap = 0;
   // Choose the regularisation on the whole field (default) or on the central tile. The whole field costs one
   // whole-grid solve (tikhonov's λ rules, the linear method's κ; tv and map their pilot) but is right: measured
   // on tiling_test's scene (3 x 3 tiles of 32 camera px), GCV on the central tile's window picked λ = 3e-10
