@@ -450,7 +450,7 @@ int MeasuredOverlap(std::shared_ptr<const MultiFrameModel> model, const std::vec
   const double e = estimate(p);
   const bool met = kMargin * e <= tolerance;
   if (rule)
-    *rule = std::string("measured: ") + ToString(options.method) + "'s response to a point source, estimated tiled " +
+    *rule = std::string("measured: ") + ToString(options.method) + "'s response to a point source, bound on the tiled " +
             "error " + Sci(e) + " x " + Sci(kMargin) + (met ? " <= " : " > ") + Sci(tolerance) + " at " +
             std::to_string(p) + " camera px" + (met ? " (probe " : " (the probe's largest, ") +
             std::to_string(lr.rows) + " x " + std::to_string(lr.cols) + " camera px)";

@@ -25,18 +25,21 @@
 //
 // The overlap rule (TilingOptions::overlap = -1).
 //   tikhonov and linear (linear estimators): P is measured, once their regularisation is fixed (below). The
-//     response x of the method to one pixel of frame 0 is computed on a periodic probe of the model's kernels
-//     (the field's camera side up to 128 px); tail(d) is the part of Σ|x| beyond Chebyshev distance d (camera
-//     px). A tile's pixel at distance d from its window's edge misses the data beyond the edge and sees the
-//     wrapped data instead, each worth up to tail(d) of a pixel's value, and it enters the blend with weight
-//     w_P(d) (0 up to P/2, 1 from 3P/2). P is the smallest overlap with E(P) = 2 max_d w_P(d) tail(d) <=
-//     TilingOptions::tolerance (1e-6), at most a third of the probe (42 camera px). E(P) is an estimate of the
-//     tiled error relative to the peak for data of one sign: on tiling_test's scene it gave 2.6e-5 for Tikhonov at
-//     P = 24 (measured 2.7e-5) and 5e-4 at P = 16 (measured 9.9e-4); for the linear output it is pessimistic
-//     (9e-6 at P = 24, measured 2.2e-7). Why measured: their kernels decay geometrically at a rate set by the
-//     PSF, the sampling and λ or κ (bench/results/kernel_reach.md: ~9x per 4 camera px there), so a fixed
-//     reach was either too short for 1e-6 (P = 12 gave 1e-3) or wasteful. With a regularisation to choose, the
-//     tiles of the choice (the central-tile source) are those of the rule below; then P is measured.
+//     response x of the method to a point source rendered through the model (its resolution kernel) is computed
+//     on a periodic probe of the model's kernels (the field's camera side up to 128 px); tail(d) is Σ|x| beyond
+//     Chebyshev distance d (camera px) over |Σx|. A tile's pixel at distance d from its window's edge misses the
+//     sources beyond the edge and sees those wrapped in from the other side instead, each worth up to tail(d) of
+//     the level, and it enters the blend with weight w_P(d) (0 up to P/2, 1 from 3P/2). With E(P) = 2 max_d
+//     w_P(d) tail(d), P is the smallest overlap with 4 E(P) <= TilingOptions::tolerance (1e-6), at most a third
+//     of the probe (42 camera px). On tiling_test's 288² scene (Gaussian PSFs) the tiled error was 1.5x E(P)
+//     for Tikhonov and 1.4x for the linear output (noise and sources cut at the edges add to it), hence the
+//     margin 4; the rule then gave P = 38 (error 9.2e-8 of the peak) and P = 25 (2.5e-7). E(P) is far above
+//     the truth for kernels that ring (an AO PSF's sharp MTF cut-off counts every ring with one sign: 2e-3 at
+//     42 camera px against 2.1e-7 measured, bench/results/whole_detector.md); the rule then takes the probe's
+//     largest overlap, and says so. Why measured: these kernels decay at a rate set by the PSF, the sampling
+//     and λ or κ (bench/results/kernel_reach.md), so a fixed reach was too short for 1e-6 (P = 12 gave 1e-3 on
+//     the test's scene). With a regularisation still to choose, the tiles of that choice (the central-tile
+//     source) are those of the rule below; then P is measured.
 //   the other methods: P = psf_reach + regulariser_reach (camera px), where
 //     psf_reach = PaddedModel::SuggestPadding(model, psf_tail): the Chebyshev radius holding all but psf_tail
 //               (1e-4) of the model PSFs' energy Σh², in camera px, rounded up (the largest over the frames;
