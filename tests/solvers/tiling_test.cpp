@@ -613,5 +613,34 @@ TEST(TilingTest, ChooseTilingFitsTheMemoryLimit) {
               ::testing::AllOf(::testing::HasSubstr("ChooseTiling"), ::testing::HasSubstr("--memory-limit")));
 }
 
+// A whole detector's memory plan fixes the tiles before λ is known, for twice the PSF-and-reach rule's overlap,
+// and leaves the measured overlap room to grow as far as those tiles' memory allows (up to the probe's largest,
+// 42 camera px), never past the limit.
+TEST(TilingTest, MemoryPlanLeavesTheMeasuredOverlapRoomToGrow) {
+  const Scene s = MakeScene({384, 384});
+  const FieldData f = FieldOf(s);
+  ReconstructOptions o;
+  o.method = ReconstructionMethod::kTikhonov;  // λ by GCV: measured only once it is chosen
+  const int rule = SuggestTileOverlap(f, o, TilingOptions{});
+  ASSERT_EQ(rule, 12);
+  TilingOptions ample;
+  ample.overlap = -1;
+  FitTilingToMemory(f, o, 1e10, &ample);
+  EXPECT_EQ(ample.overlap, -1) << "still automatic";
+  EXPECT_EQ(ample.max_overlap, 42) << "the probe's largest";
+  for (const double scale : {1.0, 1.3}) {
+    const double limit = EstimateTiledBytes(f, o.method, 64, 2 * rule, DefaultThreads(), false) * scale;
+    TilingOptions t;
+    t.overlap = -1;
+    FitTilingToMemory(f, o, limit, &t);
+    const int concurrent = t.parallel_tiles ? DefaultThreads() : 1;
+    std::printf("limit %.3g MB: tile %d, max overlap %d\n", limit / 1e6, t.tile, t.max_overlap);
+    EXPECT_GE(t.max_overlap, 2 * rule);
+    EXPECT_LE(EstimateTiledBytes(f, o.method, t.tile, t.max_overlap, concurrent, false), limit);
+    // Measured: tile 64 both times; max overlap 24 at the plan's own limit, 33 with 30 % more.
+    if (scale > 1) EXPECT_GT(t.max_overlap, 2 * rule) << "the room the tiles leave is used";
+  }
+}
+
 }  // namespace
 }  // namespace aosr
