@@ -42,6 +42,16 @@ TEST(TilingErrorsTest, BadTileAndOverlap) {
   t.overlap = 2;
   t.psf_tail = 1.5;
   EXPECT_THAT(test::ErrorOf([&] { ReconstructTiled(p, o, t); }), HasSubstr("psf_tail"));
+  t.psf_tail = 1e-4;
+  for (const double tolerance : {0.0, 1.0, -1e-6}) {
+    t.tolerance = tolerance;
+    EXPECT_THAT(test::ErrorOf([&] { ReconstructTiled(p, o, t); }),
+                AllOf(HasSubstr("ReconstructTiled"), HasSubstr("tolerance"))) << tolerance;
+  }
+  t.tolerance = 1e-6;
+  t.max_overlap = -2;
+  EXPECT_THAT(test::ErrorOf([&] { ReconstructTiled(p, o, t); }),
+              AllOf(HasSubstr("ReconstructTiled"), HasSubstr("max_overlap = -2")));
   EXPECT_THAT(test::ErrorOf([&] { MakeTiles({32, 32}, 4, -1); }), AllOf(HasSubstr("MakeTiles"), HasSubstr("overlap")));
 }
 
