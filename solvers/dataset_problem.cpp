@@ -1,6 +1,7 @@
 #include "aosr/solvers/dataset_problem.hpp"
 
 #include <algorithm>
+#include <mutex>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -187,24 +188,54 @@ FrameOffset KernelCentroid(const Image& k) {
   return {my / sum, mx / sum};
 }
 
+bool WeightsRule::Uniform() const {
+  if (kind == Kind::kUniform) return true;
+  if (kind != Kind::kBackground || any_invalid || variance_e2.empty()) return false;
+  return std::all_of(variance_e2.begin(), variance_e2.end(), [&](double v) { return v == variance_e2.front(); });
+}
+
+ImageStack ApplyWeightsRule(const WeightsRule& rule, const ImageStack& valid, const std::optional<ImageStack>& weights_adu) {
+  const std::size_t n = valid.size();
+  ImageStack out;
+  switch (rule.kind) {
+    case WeightsRule::Kind::kUniform:
+      break;
+    case WeightsRule::Kind::kValid:
+      out = valid;
+      break;
+    case WeightsRule::Kind::kBackground:
+      CheckArgument(rule.variance_e2.size() == n, "ApplyWeightsRule", "rule.variance_e2", rule.variance_e2.size(),
+                    "one per frame (" + std::to_string(n) + ")");
+      for (std::size_t i = 0; i < n; ++i) out.push_back(valid[i] / rule.variance_e2[i]);
+      break;
+    case WeightsRule::Kind::kDataset:
+      CheckArgument(weights_adu && weights_adu->size() == n, "ApplyWeightsRule", "weights_adu",
+                    weights_adu ? std::to_string(weights_adu->size()) + " maps" : std::string("none"),
+                    "the dataset's inverse variances, one per frame (" + std::to_string(n) + ")");
+      for (std::size_t i = 0; i < n; ++i) out.push_back((*weights_adu)[i] * valid[i] / rule.gain2);
+      break;
+  }
+  return out;
+}
+
 DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frames_e, const DatasetProblemOptions& options) {
   const std::size_t n = d.frames.size();
   CheckArgument(frames_e.size() == n, "WeightsFromDataset", "frames_e", std::to_string(frames_e.size()) + " frames",
                 "the dataset's " + std::to_string(n) + " frames in electrons");
   DatasetFrameWeights out;
+  WeightsRule& rule = out.rule;
   DatasetWeights choice = options.weights;
   if (choice == DatasetWeights::kAuto && options.method) choice = AutoWeights(*options.method);
   const bool use_dataset = choice == DatasetWeights::kDataset || (choice == DatasetWeights::kAuto && d.weights);
-  bool any_invalid = false;
-  for (const Image& v : d.valid) any_invalid = any_invalid || (v == 0).any();
+  for (const Image& v : d.valid) rule.any_invalid = rule.any_invalid || (v == 0).any();
   auto use_mask = [&] {
-    if (any_invalid) out.weights = d.valid;
+    rule.kind = rule.any_invalid ? WeightsRule::Kind::kValid : WeightsRule::Kind::kUniform;
     out.source = "validity mask";
   };
   if (use_dataset) {
     CheckArgument(bool(d.weights), kDatasetProblemFn, "weights", "dataset", "a dataset whose manifest gives `weights`");
-    const double g2 = d.gain_e_per_adu * d.gain_e_per_adu;
-    for (std::size_t i = 0; i < n; ++i) out.weights.push_back((*d.weights)[i] * d.valid[i] / g2);
+    rule.kind = WeightsRule::Kind::kDataset;
+    rule.gain2 = d.gain_e_per_adu * d.gain_e_per_adu;
     out.source = "dataset inverse variances (e-^-2)";
     if (options.method && IsLinearMethod(*options.method))
       out.warning = std::string("the dataset's inverse variances (source photon noise included) with ") +
@@ -240,20 +271,29 @@ DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frame
     if (none) {
       use_mask();  // no noise model (or a frame without a usable background): uniform on the valid pixels
     } else {
-      for (std::size_t i = 0; i < n; ++i) {
-        out.weights.push_back(d.valid[i] / var[i]);
-        out.background_sigma_e.push_back(std::sqrt(var[i]));
-      }
+      rule.kind = WeightsRule::Kind::kBackground;
+      rule.variance_e2 = var;
+      for (std::size_t i = 0; i < n; ++i) out.background_sigma_e.push_back(std::sqrt(var[i]));
     }
   } else {
     use_mask();
   }
+  out.weights = ApplyWeightsRule(rule, d.valid, d.weights);
   return out;
 }
 
 DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions& options) {
-  const std::size_t n = d.frames.size();
+  const std::size_t n = std::size_t(d.size());
   CheckArgument(n > 0, kDatasetProblemFn, "dataset frames", 0, "at least one frame");
+  if (d.pixel_files) {
+    // Only the tiles' windows will be read: nothing here may need the whole frames.
+    CheckArgument(!options.whole_grid_model, kDatasetProblemFn, "dataset", "one loaded by sections",
+                  "with whole_grid_model false (a tiled run without a whole-grid model)");
+    CheckArgument(bool(options.weights_rule), kDatasetProblemFn, "weights_rule", "none for a dataset loaded by sections",
+                  "the rule decided on the whole dataset (DatasetProblem::weights_rule of the plan)");
+    CheckArgument(!options.stars_psfs, kDatasetProblemFn, "stars_psfs", "true for a dataset loaded by sections",
+                  "PSFs that need no whole frame (the dataset's, nominal or given)");
+  }
   DatasetProblem out;
 
   // ---- PSFs of the model. ---------------------------------------------------------------------------------
@@ -385,6 +425,35 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   }
 
   // ---- Frames (e⁻) and weights. ---------------------------------------------------------------------------
+  if (d.pixel_files) {
+    // By sections: each window's frames in electrons and its weights under the plan's rule, the bytes the held
+    // frames would give there (FramesElectrons and ApplyWeightsRule pixel by pixel).
+    const WeightsRule rule = *options.weights_rule;
+    out.weights_rule = rule;
+    out.weights_source = rule.kind == WeightsRule::Kind::kDataset      ? "dataset inverse variances (e-^-2)"
+                         : rule.kind == WeightsRule::Kind::kBackground ? "background variances (e-^-2), the plan's"
+                                                                       : "validity mask";
+    for (double v : rule.variance_e2) out.background_sigma_e.push_back(std::sqrt(v));
+    auto sections = std::make_shared<FieldData::Sections>();
+    sections->frames = int(n);
+    sections->uniform_weights = rule.Uniform();
+    const auto dataset = std::make_shared<const Dataset>(d);
+    // One read at a time: cfitsio need not be built reentrant, and a read is short beside a tile's solve.
+    const auto io = std::make_shared<std::mutex>();
+    sections->read = [dataset, rule, io](Index y0, Index x0, Index rows, Index cols, ImageStack* frames,
+                                         ImageStack* weights) {
+      DatasetSection s;
+      {
+        const std::lock_guard<std::mutex> lock(*io);
+        s = ReadDatasetSection(*dataset, y0, x0, rows, cols);
+      }
+      frames->clear();
+      for (const Image& f : s.frames) frames->push_back((f - dataset->bias_adu) * dataset->gain_e_per_adu);
+      *weights = ApplyWeightsRule(rule, s.valid, s.weights);
+    };
+    out.field->sections = std::move(sections);
+  }
+  if (!d.pixel_files) {
   out.problem.frames = d.FramesElectrons();
   {
     DatasetFrameWeights fw = WeightsFromDataset(d, out.problem.frames, options);
@@ -392,10 +461,12 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     out.weights_source = std::move(fw.source);
     out.background_sigma_e = std::move(fw.background_sigma_e);
     out.warning = std::move(fw.warning);
+    out.weights_rule = std::move(fw.rule);
   }
   for (std::size_t i = 0; i < n; ++i) {
     const Image w = out.problem.weights.empty() ? d.valid[i] : out.problem.weights[i];
     out.masked_pixels += (w == 0).count();
+  }
   }
 
   // ---- Offsets. ---------------------------------------------------------------------------------------------

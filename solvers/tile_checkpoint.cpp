@@ -35,6 +35,14 @@ struct TileFnv {
     Value(a.cols());
     Bytes(a.data(), sizeof(double) * a.size());
   }
+  // A word at a time (8x fewer steps than Bytes: a tile's window data is tens of MB), with a shift that carries
+  // the product's high bits down so that a change anywhere in a word reaches every bit of the hash.
+  void Word(double v) {
+    std::uint64_t w;
+    std::memcpy(&w, &v, sizeof w);
+    h = (h ^ w) * 1099511628211ull;
+    h ^= h >> 29;
+  }
 };
 
 // A little-endian-as-in-memory writer/reader of the fields (the file is read back by the same build).
@@ -109,21 +117,6 @@ struct TileReader {
 
 namespace {
 
-// The data part of the fingerprint: the frames' weighted pixels, the weights and the offsets.
-void HashTileData(const ImageStack& frames, const ImageStack& weights, const std::vector<FrameOffset>& offsets,
-                  TileFnv* f) {
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    // Only weighted pixels are data (a masked pixel may hold anything, NaN with any payload).
-    const Image& a = frames[i];
-    for (Index k = 0; k < a.size(); ++k) {
-      const bool on = weights.empty() || weights[i].data()[k] > 0;
-      f->Value(on ? a.data()[k] : 0.0);
-    }
-  }
-  for (const Image& w : weights) f->Array(w);
-  for (const FrameOffset& off : offsets) f->Value(off.dy), f->Value(off.dx);
-}
-
 void HashTileOptions(const ReconstructOptions& o, const TilingOptions& tiling, int overlap, TileFnv* fp) {
   TileFnv& f = *fp;
   f.Value(tiling.tile);
@@ -150,7 +143,7 @@ void HashTileOptions(const ReconstructOptions& o, const TilingOptions& tiling, i
 std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& o,
                              const TilingOptions& tiling, int overlap) {
   TileFnv f;
-  f.String("aosr tiles v1");
+  f.String("aosr tiles v2");
   const MultiFrameModel& m = *problem.model;
   f.Value(m.hr_shape().rows);
   f.Value(m.hr_shape().cols);
@@ -159,7 +152,7 @@ std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const Reconst
     const ComplexImage& otf = m.otf(i);
     f.Bytes(otf.data(), sizeof(Complex) * otf.size());
   }
-  HashTileData(problem.frames, problem.weights, problem.offsets, &f);
+  for (const FrameOffset& off : problem.offsets) f.Value(off.dy), f.Value(off.dx);
   HashTileOptions(o, tiling, overlap, &f);
   return f.h;
 }
@@ -167,13 +160,32 @@ std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const Reconst
 std::uint64_t RunFingerprint(const FieldData& field, const ReconstructOptions& o, const TilingOptions& tiling,
                              int overlap) {
   TileFnv f;
-  f.String("aosr field tiles v1");
+  f.String("aosr field tiles v2");
   f.Value(field.lr.rows);
   f.Value(field.lr.cols);
   f.Value(field.r);
   for (const Image& k : field.kernels) f.Array(k);
-  HashTileData(field.frames, field.weights, field.offsets, &f);
+  for (const FrameOffset& off : field.offsets) f.Value(off.dy), f.Value(off.dx);
   HashTileOptions(o, tiling, overlap, &f);
+  return f.h;
+}
+
+std::uint64_t TileFingerprint(std::uint64_t run, const ImageStack& frames, const ImageStack& weights) {
+  TileFnv f;
+  f.h = run;
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    // Only weighted pixels are data (a masked pixel may hold anything, NaN with any payload).
+    const Image& a = frames[i];
+    f.Value(a.rows()), f.Value(a.cols());
+    for (Index k = 0; k < a.size(); ++k) {
+      const bool on = weights.empty() || weights[i].data()[k] > 0;
+      f.Word(on ? a.data()[k] : 0.0);
+    }
+  }
+  for (const Image& w : weights) {
+    f.Value(w.rows()), f.Value(w.cols());
+    for (Index k = 0; k < w.size(); ++k) f.Word(w.data()[k]);
+  }
   return f.h;
 }
 
@@ -222,9 +234,13 @@ void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, co
 
 bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Reconstruction* r,
               std::vector<double>* misfit) {
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) return false;
-  const std::vector<char> buf((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // In one read of the file's size (a character iterator costs more than the disk: 45 MB tiles at 8192²).
+  const std::streamoff size = in.tellg();
+  std::vector<char> buf(size > 0 ? std::size_t(size) : 0);
+  in.seekg(0);
+  if (size > 0 && !in.read(buf.data(), size)) RefuseTile(path, "an unreadable tile file");
   TileReader rd{buf};
   char magic[sizeof kTileMagic];
   rd.Bytes(magic, sizeof magic);

@@ -11,14 +11,17 @@
 
 namespace aosr::tiling_internal {
 
-// A 64-bit FNV-1a hash of what decides the tiles' bytes: the data (frames, weights, offsets, the model's
-// OTFs), the tile geometry, the method and its options with the regularisation already fixed, and the caller's
+// A 64-bit FNV-1a hash of what decides the tiles' bytes, but for each window's pixels: the offsets, the model's
+// OTFs, the tile geometry, the method and its options with the regularisation already fixed, and the caller's
 // TilingOptions::checkpoint_key (what the hash cannot see: local PSFs, options not listed).
 std::uint64_t RunFingerprint(const ReconstructionProblem& problem, const ReconstructOptions& fixed,
                              const TilingOptions& tiling, int overlap);
 // The same for a field without a whole-grid model: its kernels instead of the model's OTFs.
 std::uint64_t RunFingerprint(const FieldData& field, const ReconstructOptions& fixed, const TilingOptions& tiling,
                              int overlap);
+// One tile's: the run's, continued over its window's data (the weighted frame pixels and the weights). Per window,
+// so that a job that reads only its window (FieldData::sections) can check a tile without the whole field.
+std::uint64_t TileFingerprint(std::uint64_t run, const ImageStack& frames, const ImageStack& weights);
 
 // dir/tile_<index>.bin.
 std::string TilePath(const std::string& dir, int index);

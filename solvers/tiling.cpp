@@ -3,6 +3,7 @@
 #include "aosr/solvers/tiling.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -380,8 +381,22 @@ ReconstructionProblem TileProblem(const ReconstructionProblem& problem, const Ti
 void FieldData::Validate(const std::string& function) const {
   CheckArgument(r >= 1, function, "field.r", r, ">= 1");
   CheckArgument(lr.rows >= 1 && lr.cols >= 1, function, "field.lr", ToString(lr), "at least 1 x 1 camera px");
-  const std::size_t n = frames.size();
+  const std::size_t n = std::size_t(frame_count());
   CheckArgument(n >= 1, function, "field.frames", 0, "at least one frame");
+  if (sections) {
+    CheckArgument(frames.empty() && weights.empty() && bool(sections->read), function, "field.sections",
+                  "set with held frames or without a reader", "a reader, and no held frames or weights");
+    CheckArgument(kernels.size() == n, function, "field.kernels", kernels.size(),
+                  "one per frame (" + std::to_string(n) + ")");
+    CheckArgument(offsets.empty() || offsets.size() == n, function, "field.offsets", offsets.size(),
+                  "0 or one per frame (" + std::to_string(n) + ")");
+    for (std::size_t i = 0; i < n; ++i) {
+      const Image& k = kernels[i];
+      CheckArgument(k.size() > 0 && AllFinite(k) && k.sum() > 0, function, "field.kernels[" + std::to_string(i) + "]",
+                    k.size() == 0 ? std::string("empty") : "sum " + ToString(k.sum()), "finite values with a positive sum");
+    }
+    return;  // the pixels are checked window by window (Reconstruct validates each tile's problem)
+  }
   CheckArgument(kernels.size() == n, function, "field.kernels", kernels.size(),
                 "one per frame (" + std::to_string(n) + ")");
   CheckArgument(weights.empty() || weights.size() == n, function, "field.weights", weights.size(),
@@ -394,6 +409,7 @@ void FieldData::Validate(const std::string& function) const {
     if (!weights.empty())
       CheckArgument(ShapeOf(weights[i]) == lr, function, "field.weights[" + std::to_string(i) + "] shape",
                     ToString(ShapeOf(weights[i])), ToString(lr));
+    if (!AllFinite(frames[i]))  // the pixel-by-pixel search only when some pixel is not finite
     for (Index y = 0; y < lr.rows; ++y)
       for (Index x = 0; x < lr.cols; ++x)
         if (!std::isfinite(frames[i](y, x)) && (weights.empty() || weights[i](y, x) > 0))
@@ -416,6 +432,7 @@ namespace {
 // tiles' solves then take the Fourier path, which EstimateSolveBytes counts as unweighted (Tikhonov: 2N + 14 HR
 // arrays, not the CG path's 2N + 32).
 bool UniformWeights(const FieldData& field) {
+  if (field.sections) return field.sections->uniform_weights;
   if (field.weights.empty()) return true;
   const double w0 = field.weights.front()(0, 0);
   if (!(w0 > 0)) return false;
@@ -429,12 +446,12 @@ bool UniformWeights(const FieldData& field) {
 double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, int tile, int overlap, int concurrent,
                           bool aux) {
   const double lr_px = double(field.lr.rows) * double(field.lr.cols);
-  const double data = 8.0 * lr_px * double(field.frames.size() + field.weights.size());
+  const double data = 8.0 * lr_px * double(field.frames.size() + field.weights.size());  // 0 when read by sections
   const double side = double(std::min<Index>(tile + 2 * Index(overlap), std::max(field.lr.rows, field.lr.cols)));
   const double window_hr = side * side * double(field.r) * double(field.r);
   const bool weighted = !UniformWeights(field);
   // A tile's solve, its cut frames and the result it hands back (image, second map, the blend weight).
-  const double solve = EstimateSolveBytes(method, int(field.frames.size()), window_hr, weighted) + 8.0 * 3 * window_hr;
+  const double solve = EstimateSolveBytes(method, field.frame_count(), window_hr, weighted) + 8.0 * 3 * window_hr;
   // Two tile rows of output accumulators (numerator and denominator, twice with a second map).
   const double band = 2.0 * side * field.r * double(field.lr.cols) * field.r * 8.0 * (aux ? 4 : 2);
   // The window models, one per window shape, kept for the run (N half spectra each, ~8 bytes per HR px per
@@ -447,7 +464,7 @@ double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, i
     shapes = int(distinct.size());
   } catch (const InvalidArgument&) {
   }
-  const double models = double(shapes) * 8.0 * double(field.frames.size()) * window_hr;
+  const double models = double(shapes) * 8.0 * double(field.frame_count()) * window_hr;
   return data + concurrent * solve + band + models;
 }
 
@@ -459,7 +476,7 @@ int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod meth
   for (const int w : {512, 384, 256, 192, 128, 96, 64, 48, 32}) {
     const Index wy = std::min<Index>(w, field.lr.rows), wx = std::min<Index>(w, field.lr.cols);
     const double hr = double(wy * field.r) * double(wx * field.r);
-    if (data + EstimateSolveBytes(method, int(field.frames.size()), hr, weighted) <= limit_bytes)
+    if (data + EstimateSolveBytes(method, field.frame_count(), hr, weighted) <= limit_bytes)
       return w >= largest ? 0 : w;
   }
   return 32;
@@ -554,6 +571,7 @@ struct TiledInput {
   const std::vector<FrameOffset>* offsets = nullptr;
   const ReconstructionProblem* problem = nullptr;  // set when the whole problem exists
   const FieldData* field = nullptr;                // else this
+  int n = 0;                                       // frames
 };
 
 // The raised-cosine blend of finished tiles, kept row by row: a row exists from the first tile that touches
@@ -704,19 +722,59 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     if (!m) m = window_model(window);
     return m;
   };
-  auto window_problem = [&](const TileWindow& t, bool share_model = true) {
+  // A window's frames, weights and offsets (no model yet): cut from the held frames, or read by sections.
+  auto window_data = [&](const TileWindow& t) {
+    if (!in.field || !in.field->sections) return CutWindow(lr, *in.frames, *in.weights, *in.offsets, t, nullptr);
+    // An edge tile's window wraps around the periodic field (CutWindow): up to two pieces per axis, each a
+    // section inside the field, placed where CutWindow would put them.
+    auto pieces = [](Index start, Index length, Index m) {
+      const Index a = WrapIndex(start, m), first = std::min(length, m - a);
+      std::vector<std::array<Index, 3>> out{{a, first, 0}};  // field start, length, window offset
+      if (first < length) out.push_back({0, length - first, first});
+      return out;
+    };
+    ReconstructionProblem p;
+    for (const auto& [fy, ny, wy] : pieces(t.y0, t.rows, lr.rows))
+      for (const auto& [fx, nx, wx] : pieces(t.x0, t.cols, lr.cols)) {
+        ImageStack frames, weights;
+        in.field->sections->read(fy, fx, ny, nx, &frames, &weights);
+        CheckArgument(int(frames.size()) == in.n && (weights.empty() || int(weights.size()) == in.n) &&
+                          (p.frames.empty() || weights.empty() == p.weights.empty()),
+                      kTilingFn, "field.sections", std::to_string(frames.size()) + " frames read",
+                      "one frame (and 0 or one weight map, the same for every section) per frame (" +
+                          std::to_string(in.n) + ")");
+        if (p.frames.empty()) {
+          p.frames.assign(std::size_t(in.n), Image(t.rows, t.cols));
+          if (!weights.empty()) p.weights.assign(std::size_t(in.n), Image(t.rows, t.cols));
+        }
+        for (int i = 0; i < in.n; ++i) {
+          CheckArgument(ShapeOf(frames[i]) == Shape{ny, nx} && (weights.empty() || ShapeOf(weights[i]) == Shape{ny, nx}),
+                        kTilingFn, "field.sections", ToString(ShapeOf(frames[i])) + " read",
+                        "the section's " + ToString(Shape{ny, nx}));
+          p.frames[i].block(wy, wx, ny, nx) = frames[i];
+          if (!weights.empty()) p.weights[i].block(wy, wx, ny, nx) = weights[i];
+        }
+      }
+    p.offsets = *in.offsets;
+    return p;
+  };
+  auto tile_model = [&](const TileWindow& t, bool share_model = true) {
     const Shape window{t.rows * r, t.cols * r};
     std::shared_ptr<const MultiFrameModel> model;
     if (tiling.local_psfs) {
       const ImageStack psfs = tiling.local_psfs(t);
-      CheckArgument(int(psfs.size()) == int(in.frames->size()), kTilingFn, "local_psfs",
-                    std::to_string(psfs.size()) + " kernels",
-                    "one per frame (" + std::to_string(in.frames->size()) + ")");
+      CheckArgument(int(psfs.size()) == in.n, kTilingFn, "local_psfs", std::to_string(psfs.size()) + " kernels",
+                    "one per frame (" + std::to_string(in.n) + ")");
       model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(window, r, psfs));
     } else {
       model = share_model ? shared_model(window) : window_model(window);
     }
-    return CutWindow(lr, *in.frames, *in.weights, *in.offsets, t, std::move(model));
+    return model;
+  };
+  auto window_problem = [&](const TileWindow& t, bool share_model = true) {
+    ReconstructionProblem p = window_data(t);
+    p.model = tile_model(t, share_model);
+    return p;
   };
 
   // One regularisation for the field, chosen on the whole field, a central window of it, or the central tile.
@@ -792,7 +850,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
                     : tiling_internal::RunFingerprint(*in.field, fingerprint_options, tiling, overlap);
   // Without a whole image at the end, the residual is each tile's over its core.
   const bool misfit_by_tiles = !whole_model || bool(tiling.rows);
-  const int n = int(in.frames->size());
+  const int n = in.n;
   struct TileOutcome {
     Reconstruction rec;
     bool empty = false, resumed = false, cancelled = false;
@@ -804,7 +862,13 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     std::optional<ReconstructionProblem> p;
     std::vector<double> stored;  // the misfit a checkpoint kept: per frame Σ r², then per frame the pixels
     bool solved = false;
-    if (checkpoint && tiling_internal::ReadTile(path, fingerprint, k, &out->rec, &stored)) {
+    // The tile's fingerprint: the run's and the window's own data (what the tile depends on).
+    std::uint64_t tile_fingerprint = 0;
+    if (checkpoint) {
+      p = window_data(t);
+      tile_fingerprint = tiling_internal::TileFingerprint(fingerprint, p->frames, p->weights);
+    }
+    if (checkpoint && tiling_internal::ReadTile(path, tile_fingerprint, k, &out->rec, &stored)) {
       out->resumed = true;
       out->empty = out->rec.summary.method.empty() && out->rec.summary.message == "no data";
       if (misfit_by_tiles && int(stored.size()) == 2 * n) {
@@ -812,7 +876,8 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
         out->px.assign(stored.begin() + n, stored.end());
       }
     } else {
-      p = window_problem(t);
+      if (p) p->model = tile_model(t);
+      else p = window_problem(t);
       if (!AnyWeighted(*p)) {  // nothing observed in the window: zeros, said in the summary
         out->empty = true;
         out->rec.image = Image::Zero(p->model->hr_shape().rows, p->model->hr_shape().cols);
@@ -828,6 +893,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     }
     if (misfit_by_tiles && !out->empty && out->ss.empty()) {
       if (!p) p = window_problem(t);
+      if (!p->model) p->model = tile_model(t);
       const ImageStack predicted = p->model->Render(out->rec.image);
       out->ss.assign(n, 0.0);
       out->px.assign(n, 0.0);
@@ -844,7 +910,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     if (solved && checkpoint) {
       std::vector<double> misfit = out->ss;
       misfit.insert(misfit.end(), out->px.begin(), out->px.end());
-      tiling_internal::WriteTile(path, fingerprint, k, out->rec, misfit);
+      tiling_internal::WriteTile(path, tile_fingerprint, k, out->rec, misfit);
     }
   };
 
@@ -1049,6 +1115,7 @@ Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const Reco
   in.weights = &problem.weights;
   in.offsets = &problem.offsets;
   in.problem = &problem;
+  in.n = problem.frame_count();
   return RunTiles(in, options, tiling, summary);
 }
 
@@ -1063,6 +1130,7 @@ Reconstruction ReconstructTiled(const FieldData& field, const ReconstructOptions
   in.weights = &field.weights;
   in.offsets = &field.offsets;
   in.field = &field;
+  in.n = field.frame_count();
   return RunTiles(in, options, tiling, summary);
 }
 

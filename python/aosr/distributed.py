@@ -266,16 +266,21 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
     or one reconstruction spread over a cluster (solvers/tiling.hpp, "A whole detector").
 
     The client plans once: the dataset's tiles (``tile`` camera px, or the largest whose run fits
-    ``memory_limit``), their overlap and one regularisation for the whole field (λ, κ or TV's μ, chosen on a
-    central window). Each task opens the dataset from its path (shared storage: frames are not shipped through
-    the scheduler), solves its tile with the plan's options and writes it to ``checkpoint_dir``. The client then
-    blends the tiles in order. The image has the bytes of the serial run
+    ``memory_limit``), their overlap, one regularisation for the whole field (λ, κ or TV's μ, chosen on a
+    central window) and the weights' rule (e.g. the background variance estimated from the whole frames). Each
+    task opens the dataset from its path (shared storage: frames are not shipped through the scheduler), reads
+    only its tile's window of the frames, masks and weights (cfitsio reads the section), solves the tile with the
+    plan's options and writes it to ``checkpoint_dir``. The client then blends the tiles in order, written by rows
+    into ``output`` (the image is never held whole). The image has the bytes of the serial run
     ``aosr.reconstruct(dataset, method, tile=..., tile_overlap=..., memory_limit=...)`` by tiles without a
     whole-grid model, whoever solved which tile; a task whose worker dies is run again by Dask, and a rerun with
     the same ``checkpoint_dir`` solves only the tiles that are missing.
 
     dataset         a dataset folder or manifest path every worker can read
-    output          optional FITS path: the image (``dtype``) with the HR grid's WCS, written atomically
+    output          optional FITS path: the image (``dtype``) with the HR grid's WCS and the run's keywords (as
+                    `aosr reconstruct` writes them), written by rows and renamed into place at the end; the second
+                    map (Tikhonov's σ, ...) beside it as <stem>_std.fits. The returned Reconstruction then holds
+                    no image (read the file: aosr.read_fits, or astropy with memmap)
     method, **options   as aosr.reconstruct (the CLI's defaults)
     tile, tile_overlap, memory_limit   as aosr.reconstruct; tile 0 chooses the tiles under memory_limit
     checkpoint_dir  an existing folder on shared storage for the tiles (kept: a rerun resumes from it); None: a
@@ -284,7 +289,7 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
     client, n_workers, progress   see the module doc
 
     Returns the aosr.Reconstruction of the blend (its summary says how many tiles and that they were resumed
-    from the folder).
+    from the folder); its image is empty (0 x 0) when ``output`` is given.
     """
     if not isinstance(dataset, (str, os.PathLike)):
         raise aosr.InvalidArgument("aosr.distributed.reconstruct_tiles: invalid dataset = "
@@ -315,28 +320,12 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
         map_tasks(_tile_task, tasks, client=client, progress=progress, n_workers=n_workers,
                   key_prefix=f"aosr-tile-{key}")
         rec = aosr._aosr._tiles(dataset, method, phase="blend", plan=plan, checkpoint_dir=checkpoint_dir, keep=True,
-                                **common)
+                                output=os.fspath(output) if output else "", dtype=dtype, **common)
     finally:
         aosr._aosr._tiles_forget()
         _remove_stale_temporaries([os.path.join(checkpoint_dir, f"tile_{k}.bin") for k in range(plan["tiles"])])
         if own_folder:
             shutil.rmtree(checkpoint_dir, ignore_errors=True)
-    if output:
-        ds = aosr.open_dataset(dataset)
-        header = {
-            "ORIGIN": f"aosr {aosr.__version__}",
-            "AOSRDATA": "reconstruction",
-            "METHOD": method,
-            "SRFACTOR": ds.r,
-            "NFRAMES": len(ds),
-            "REGUL": rec.regularisation,
-            "TERMINAT": rec.summary["termination"],
-            "NITER": rec.summary["iterations"],
-            "NTILES": plan["tiles"],
-            "TILE": plan["tile"],
-        }
-        header.update(ds.hr_header("electron"))
-        aosr.write_fits(output, rec.image, header, dtype=dtype)
     return rec
 
 

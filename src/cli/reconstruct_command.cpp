@@ -22,6 +22,7 @@
 #include "aosr/scene/evaluation.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/reconstruction_header.hpp"
 #include "aosr/solvers/psf_field_model.hpp"
 #include "aosr/solvers/tiling.hpp"
 #include "cli_util.hpp"
@@ -339,7 +340,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   // largest central window that fits (512 camera px at most), and the output written by rows as tiles finish.
   const bool streamed = dp.field.has_value();
   std::unique_ptr<FitsRowWriter> image_writer, aux_writer;
-  const std::string streamed_aux_path = AuxPath(a.out, o.method == ReconstructionMethod::kDrizzle ? "weight" : "std");
+  const std::string streamed_aux_path = ReconstructionAuxPath(a.out, o.method);
   if (streamed) {
     // A field model sets its own tiles (ReconstructDataset); otherwise the tiles are chosen to fit.
     if (dp.psf_field) tiling.regularisation_window = ChooseRegularisationWindow(*dp.field, o.method, limit.bytes);
@@ -377,27 +378,7 @@ void RunReconstruct(const ReconstructArgs& a) {
     std::exit(130);
   }
 
-  FitsHeader h;
-  h.Set("ORIGIN", std::string("aosr ") + AOSR_VERSION, "software that wrote this file");
-  h.Set("AOSRDATA", "reconstruction", "content of this HDU");
-  h.Set("METHOD", std::string(ToString(o.method)), "reconstruction method");
-  h.Set("SRFACTOR", static_cast<long long>(d.r), "super-resolution factor r");
-  h.Set("NFRAMES", static_cast<long long>(d.size()), "number of sub-exposures N");
-  h.Set("REGUL", rec.regularisation, "lambda (tikhonov, map) or mu (tv); 0 for baselines");
-  h.Set("TERMINAT", std::string(ToString(rec.summary.termination)), "solver termination");
-  h.Set("NITER", static_cast<long long>(rec.summary.iterations), "iterations");
-  if (dp.psf_field)
-    h.Set("PSFFIELD",
-          std::string(ToString(dp.psf_field->approach)) + " " + std::to_string(dp.psf_field->grid.ny()) + "x" +
-              std::to_string(dp.psf_field->grid.nx()),
-          dp.stars_psf ? "field-varying model of the stars PSFs' grid (solvers/stars_psf.hpp)"
-                       : "field-varying model of the dataset's PSF grid (solvers/psf_field_model.hpp)");
-  if (tiled) {
-    h.Set("TILE", static_cast<long long>(ts.tile), "[camera px] largest tile core (solvers/tiling.hpp)");
-    h.Set("TILEOVER", static_cast<long long>(ts.overlap), "[camera px] tile overlap on each side");
-    h.Set("NTILES", static_cast<long long>(ts.tiles.size()), "tiles reconstructed and blended");
-  }
-  if (d.camera_pixel_rad > 0) h.Set("HRPIXRAD", d.camera_pixel_rad / d.r, "[rad] HR pixel angular pitch");
+  FitsHeader h = ReconstructionHeader(d, o.method, rec, &dp, tiled ? &ts : nullptr);
   const FitsHeader common = h;  // the aux map sets its own unit
   SetHrImageKeywords(d, "electron", &h);  // BUNIT (e- per HR pixel per frame) and the HR grid's WCS
   progress.Step("writing " + a.out);

@@ -486,6 +486,54 @@ FitsData ReadFits(const std::string& path) {
   return data;
 }
 
+FitsImageInfo ReadFitsInfo(const std::string& path) {
+  FitsFile file;
+  OpenForReading(&file, path);
+  const ImageInfo info = FindImage(file.get(), path);
+  FitsImageInfo out;
+  out.header = ReadHeader(file.get(), path);
+  out.cols = info.axes[0];
+  out.rows = info.axes[1];
+  out.planes = info.axes.size() == 3 ? info.axes[2] : 1;
+  file.Close(path);
+  ClearFitsMessages();
+  return out;
+}
+
+FitsData ReadFitsSection(const std::string& path, Index y0, Index x0, Index rows, Index cols) {
+  FitsFile file;
+  OpenForReading(&file, path);
+  const ImageInfo info = FindImage(file.get(), path);
+  const Index width = info.axes[0], height = info.axes[1];
+  const Index planes = info.axes.size() == 3 ? info.axes[2] : 1;
+  CheckArgument(y0 >= 0 && x0 >= 0 && rows >= 1 && cols >= 1 && y0 + rows <= height && x0 + cols <= width,
+                "ReadFitsSection", "section",
+                "rows [" + std::to_string(y0) + ", " + std::to_string(y0 + rows) + ") x cols [" + std::to_string(x0) +
+                    ", " + std::to_string(x0 + cols) + ")",
+                "inside the " + std::to_string(height) + "x" + std::to_string(width) + " image of " + path);
+  FitsData data;
+  data.header = ReadHeader(file.get(), path);
+  // As ReadCurrentImage: BLANK becomes NaN for integer data; float data pass unchanged.
+  double nan = std::numeric_limits<double>::quiet_NaN();
+  double* null_value = info.bitpix > 0 ? &nan : nullptr;
+  for (Index p = 0; p < planes; ++p) {
+    Image plane(rows, cols);
+    // FITS pixel coordinates are 1-based, x first; the section is inclusive at both ends.
+    long first[3] = {long(x0 + 1), long(y0 + 1), long(p + 1)};
+    long last[3] = {long(x0 + cols), long(y0 + rows), long(p + 1)};
+    long step[3] = {1, 1, 1};
+    int any_null = 0, status = 0;
+    if (fits_read_subset(file.get(), TDOUBLE, first, last, step, null_value, plane.data(), &any_null, &status))
+      ThrowFits(path, status, "cannot read the section rows " + std::to_string(y0) + ".." + std::to_string(y0 + rows - 1) +
+                                  " x cols " + std::to_string(x0) + ".." + std::to_string(x0 + cols - 1) + " of plane " +
+                                  std::to_string(p));
+    data.planes.push_back(std::move(plane));
+  }
+  file.Close(path);
+  ClearFitsMessages();
+  return data;
+}
+
 std::vector<std::string> FitsExtensionNames(const std::string& path) {
   FitsFile file;
   OpenForReading(&file, path);

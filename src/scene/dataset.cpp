@@ -521,7 +521,80 @@ ImageStack Dataset::FramesElectrons() const {
   return out;
 }
 
-Dataset LoadDataset(const std::string& manifest_or_dir) {
+namespace {
+
+// The pixels as a reconstruction takes them, the same for a whole file and for a section: a mask holds 0 and 1
+// only; a non-finite frame pixel is invalid and reads the bias (FITS marks bad pixels NaN; solvers multiply data
+// by weights, so a NaN would poison them: detector.hpp's dead pixels read the bias for the same reason); weights
+// are >= 0 and 0 where invalid. `fail(key, value, allowed)` reports a bad value and does not return.
+template <class Fail>
+void CleanPixels(double bias_adu, ImageStack* frames, ImageStack valid, std::optional<ImageStack> weights,
+                 ImageStack* valid_out, std::optional<ImageStack>* weights_out, const Fail& fail) {
+  const std::size_t n = frames->size();
+  for (std::size_t i = 0; i < n; ++i)
+    if (!((valid[i].array() == 0) || (valid[i].array() == 1)).all())
+      fail("valid", "plane " + std::to_string(i) + " holds values other than 0 and 1", "1 (usable) or 0 (not)");
+  for (std::size_t i = 0; i < n; ++i) {
+    Image& f = (*frames)[i];
+    const auto bad = !f.array().isFinite();
+    valid[i] = bad.select(0.0, valid[i]);
+    f = bad.select(bias_adu, f);
+  }
+  if (weights) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (((*weights)[i].array() < 0).any())
+        fail("weights", "negative values in plane " + std::to_string(i), "inverse variances >= 0");
+      (*weights)[i] *= valid[i];
+    }
+  }
+  *valid_out = std::move(valid);
+  *weights_out = std::move(weights);
+}
+
+}  // namespace
+
+DatasetSection ReadDatasetSection(const Dataset& d, Index y0, Index x0, Index rows, Index cols) {
+  const char* fn = "ReadDatasetSection";
+  CheckArgument(y0 >= 0 && x0 >= 0 && rows >= 1 && cols >= 1 && y0 + rows <= d.frame.rows && x0 + cols <= d.frame.cols,
+                fn, "section",
+                "rows [" + std::to_string(y0) + ", " + std::to_string(y0 + rows) + ") x cols [" + std::to_string(x0) +
+                    ", " + std::to_string(x0 + cols) + ")",
+                "inside the frames' " + ToString(d.frame));
+  DatasetSection out;
+  if (!d.pixel_files) {  // held whole: cut
+    auto cut = [&](const ImageStack& a) {
+      ImageStack s;
+      for (const Image& p : a) s.push_back(p.block(y0, x0, rows, cols));
+      return s;
+    };
+    out.frames = cut(d.frames);
+    out.valid = cut(d.valid);
+    if (d.weights) out.weights = cut(*d.weights);
+    return out;
+  }
+  const Dataset::PixelFiles& files = *d.pixel_files;
+  out.frames = ReadFitsSection(files.frames, y0, x0, rows, cols).planes;
+  const std::size_t n = out.frames.size();
+  std::optional<ImageStack> weights;
+  if (!files.weights.empty()) {
+    weights = ReadFitsSection(files.weights, y0, x0, rows, cols).planes;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!AllFinite((*weights)[i]))
+        throw InvalidArgument(files.weights + " (weights of " + d.manifest_path + "): non-finite values in plane " +
+                              std::to_string(i) + " of the section; allowed: inverse variances with finite values");
+  }
+  ImageStack valid = files.valid.empty() ? ImageStack(n, Image::Ones(rows, cols))
+                                         : ReadFitsSection(files.valid, y0, x0, rows, cols).planes;
+  CleanPixels(d.bias_adu, &out.frames, std::move(valid), std::move(weights), &out.valid, &out.weights,
+              [&](const char* key, const std::string& value, const std::string& allowed) -> void {
+                throw InvalidArgument(d.manifest_path + ": " + key + " = " + value + " (in the section rows " +
+                                      std::to_string(y0) + ".." + std::to_string(y0 + rows - 1) + " x cols " +
+                                      std::to_string(x0) + ".." + std::to_string(x0 + cols - 1) + "); allowed: " + allowed);
+              });
+  return out;
+}
+
+Dataset LoadDataset(const std::string& manifest_or_dir, DatasetPixels pixels) {
   CheckArgument(!manifest_or_dir.empty(), "LoadDataset", "manifest_or_dir", "\"\"", "a manifest.json or its folder");
   std::error_code ec;
   Dataset ds;
@@ -681,9 +754,21 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   root.CheckNoOtherFields();
 
   // ---- The frames and the PSFs. --------------------------------------------------------------------------
+  std::size_t n = 0;
   {
-    FitsData frames = ReadFits(frames_path);
-    ds.frames = std::move(frames.planes);
+    // By sections: the header and the shape only (ReadDatasetSection reads the pixels a job needs).
+    FitsData frames;
+    if (pixels == DatasetPixels::kSections) {
+      FitsImageInfo info = ReadFitsInfo(frames_path);
+      frames.header = std::move(info.header);
+      ds.frame = {info.rows, info.cols};
+      n = std::size_t(info.planes);
+    } else {
+      frames = ReadFits(frames_path);
+      ds.frames = std::move(frames.planes);
+      ds.frame = ShapeOf(ds.frames.front());
+      n = ds.frames.size();
+    }
     if (!wcs_in_manifest && HasWcs(frames.header)) {
       try {
         ds.wcs = WcsFromHeader(frames.header);
@@ -693,9 +778,7 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
       }
     }
   }
-  ds.frame = ShapeOf(ds.frames.front());
   ds.hr_frame = {ds.frame.rows * ds.r, ds.frame.cols * ds.r};
-  const std::size_t n = ds.frames.size();
   // np: the per-phase inputs' count (the slots' range with a sequence's slots, else one per frame).
   std::size_t np = n;
   if (has_slots) {
@@ -827,28 +910,30 @@ Dataset LoadDataset(const std::string& manifest_or_dir) {
   if (border >= 0) ds.trustworthy_border_px = border;
 
   // ---- Masks, weights, truth. ----------------------------------------------------------------------------
-  if (!valid_path.empty()) {
-    ds.valid = ReadCube(root, "valid", valid_path, n, ds.frame, "masks of the frames' shape");
-    for (std::size_t i = 0; i < n; ++i)
-      if (!((ds.valid[i] == 0) || (ds.valid[i] == 1)).all())
-        root.Fail("valid", "plane " + std::to_string(i) + " holds values other than 0 and 1", "1 (usable) or 0 (not)");
-  } else {
-    ds.valid.assign(n, Image::Ones(ds.frame.rows, ds.frame.cols));
+  if (pixels == DatasetPixels::kSections) {
+    // Only that the files are there and of the frames' shape; their values are checked section by section.
+    auto check = [&](const char* key, const std::string& path, const char* what) {
+      if (path.empty()) return;
+      const FitsImageInfo info = ReadFitsInfo(path);
+      if (std::size_t(info.planes) != n || info.rows != ds.frame.rows || info.cols != ds.frame.cols)
+        root.Fail(key, "a " + std::to_string(info.planes) + " x " + std::to_string(info.rows) + "x" +
+                           std::to_string(info.cols) + " cube (" + path + ")",
+                  std::string(what) + ": " + std::to_string(n) + " x " + ToString(ds.frame));
+    };
+    check("valid", valid_path, "masks of the frames' shape");
+    check("weights", weights_path, "inverse variances of the frames' shape");
+    ds.pixel_files = Dataset::PixelFiles{frames_path, valid_path, weights_path, int(n)};
+    if (ds.camera_pixel_rad == 0.0 && scene) ds.camera_pixel_rad = scene->CameraPixelRad();
+    return ds;
   }
-  // FITS marks bad pixels NaN; solvers multiply data by weights, so a NaN would poison them (detector.hpp:
-  // dead pixels read the bias for the same reason).
-  for (std::size_t i = 0; i < n; ++i) {
-    const auto bad = !ds.frames[i].isFinite();
-    ds.valid[i] = bad.select(0.0, ds.valid[i]);
-    ds.frames[i] = bad.select(ds.bias_adu, ds.frames[i]);
-  }
-  if (!weights_path.empty()) {
-    ImageStack w = ReadCube(root, "weights", weights_path, n, ds.frame, "inverse variances of the frames' shape");
-    for (std::size_t i = 0; i < n; ++i) {
-      if ((w[i] < 0).any()) root.Fail("weights", "negative values in plane " + std::to_string(i), "inverse variances >= 0");
-      w[i] *= ds.valid[i];
-    }
-    ds.weights = std::move(w);
+  {
+    std::optional<ImageStack> weights;
+    if (!weights_path.empty()) weights = ReadCube(root, "weights", weights_path, n, ds.frame, "inverse variances of the frames' shape");
+    CleanPixels(ds.bias_adu, &ds.frames,
+                valid_path.empty() ? ImageStack(n, Image::Ones(ds.frame.rows, ds.frame.cols))
+                                   : ReadCube(root, "valid", valid_path, n, ds.frame, "masks of the frames' shape"),
+                std::move(weights), &ds.valid, &ds.weights,
+                [&](const char* key, const std::string& value, const std::string& allowed) { root.Fail(key, value, allowed); });
   }
   if (!truth_path.empty()) ds.truth = ReadCube(root, "truth", truth_path, 1, ds.hr_frame, "one HR image").front();
   if (!truth_frames_path.empty())
@@ -864,6 +949,7 @@ namespace aosr {
 Dataset SelectFrames(const Dataset& d, const std::vector<int>& frames) {
   constexpr const char* kFn = "SelectFrames";
   CheckArgument(!frames.empty(), kFn, "frames", "[]", "at least one frame index");
+  CheckArgument(!d.pixel_files, kFn, "d", "a dataset loaded by sections", "one whose pixels are held (LoadDataset kAll)");
   std::vector<char> seen(d.frames.size(), 0);
   for (int f : frames) {
     CheckArgument(f >= 0 && std::size_t(f) < d.frames.size(), kFn, "frames", f,

@@ -5,8 +5,10 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 
 #include "../io/temp_dir.hpp"
 #include "aosr/io/config.hpp"
@@ -199,6 +201,61 @@ TEST_F(DatasetTest, RealDataManifestWithMeasuredPsfsAndBadPixels) {
   ASSERT_EQ(ds.stars.size(), 1u);
   EXPECT_DOUBLE_EQ(ds.stars[0].y, 21.0);  // camera -> HR
   EXPECT_DOUBLE_EQ(ds.stars[0].x, 41.5);
+}
+
+// A dataset loaded by sections (a job that solves one tile) holds no pixel; each section read from the files
+// is exactly the held dataset's cut, bad pixels, mask and weights included.
+TEST_F(DatasetTest, SectionsReadFromTheFilesEqualTheHeldPixels) {
+  TempDir real;
+  const Dataset sim = LoadDataset(dir_->File("sim"));
+  ImageStack frames = sim.frames, valid = sim.valid;
+  frames[1](3, 4) = std::nan("");
+  frames[0](20, 30) = std::numeric_limits<double>::infinity();
+  valid[0](7, 9) = 0;
+  WriteFitsCube(real.File("frames.fits"), frames, {}, FitsType::kFloat64);
+  WriteFitsCube(real.File("valid.fits"), valid, {}, FitsType::kFloat64);
+  WriteFitsCube(real.File("w.fits"), *sim.weights, {}, FitsType::kFloat64);
+  WriteFits(real.File("psf.fits"), sim.psfs[0], {}, FitsType::kFloat64);
+  test::WriteJson(real.File("manifest.json"), {{"format", "aosr-manifest"}, {"version", 1}, {"frames", "frames.fits"},
+                                               {"valid", "valid.fits"}, {"weights", "w.fits"}, {"psfs", "psf.fits"},
+                                               {"r", 2}, {"gain_e_per_adu", 2.0}, {"bias_adu", 100.0}});
+  const Dataset held = LoadDataset(real.path().string());
+  const Dataset lazy = LoadDataset(real.path().string(), DatasetPixels::kSections);
+  EXPECT_TRUE(lazy.frames.empty() && lazy.valid.empty() && !lazy.weights);
+  ASSERT_TRUE(lazy.pixel_files.has_value());
+  EXPECT_EQ(lazy.size(), 2);
+  EXPECT_EQ(lazy.frame, held.frame);
+  for (const auto& [y0, x0, rows, cols] : std::vector<std::array<Index, 4>>{{0, 0, 32, 32}, {2, 3, 5, 7}, {18, 25, 14, 7}}) {
+    const DatasetSection a = ReadDatasetSection(lazy, y0, x0, rows, cols);
+    const DatasetSection b = ReadDatasetSection(held, y0, x0, rows, cols);
+    ASSERT_EQ(a.frames.size(), 2u);
+    ASSERT_TRUE(a.weights && b.weights);
+    for (int i = 0; i < 2; ++i) {
+      EXPECT_TRUE((a.frames[i] == held.frames[i].block(y0, x0, rows, cols)).all()) << y0 << " " << x0;
+      EXPECT_TRUE((a.frames[i] == b.frames[i]).all());
+      EXPECT_TRUE((a.valid[i] == held.valid[i].block(y0, x0, rows, cols)).all());
+      EXPECT_TRUE(((*a.weights)[i] == (*held.weights)[i].block(y0, x0, rows, cols)).all());
+    }
+  }
+  const DatasetSection bad = ReadDatasetSection(lazy, 0, 0, 32, 32);
+  EXPECT_EQ(bad.valid[1](3, 4), 0.0);  // NaN: invalid, read as the bias, weight 0
+  EXPECT_EQ(bad.frames[1](3, 4), 100.0);
+  EXPECT_EQ((*bad.weights)[1](3, 4), 0.0);
+  EXPECT_EQ(bad.valid[0](20, 30), 0.0);  // Inf likewise
+  EXPECT_EQ(bad.valid[0](7, 9), 0.0);    // the mask file's
+  EXPECT_THROW(ReadDatasetSection(lazy, 30, 0, 5, 5), InvalidArgument);  // past the last row
+  EXPECT_THROW(ReadDatasetSection(lazy, 0, -1, 5, 5), InvalidArgument);
+  EXPECT_THROW(SelectFrames(lazy, {0}), InvalidArgument);  // needs the pixels held
+  // A bad value is found in the section that holds it, naming the manifest.
+  valid[1](30, 30) = 0.5;
+  WriteFitsCube(real.File("valid.fits"), valid, {}, FitsType::kFloat64);
+  EXPECT_NO_THROW(ReadDatasetSection(lazy, 0, 0, 16, 16));
+  try {
+    ReadDatasetSection(lazy, 16, 16, 16, 16);
+    ADD_FAILURE() << "a mask value of 0.5 was accepted";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("manifest.json: valid"), std::string::npos) << e.what();
+  }
 }
 
 TEST_F(DatasetTest, RewritingAFolderReplacesTheDataset) {

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 #include "aosr/core/fft.hpp"
@@ -590,6 +591,93 @@ TEST(TilingTest, TilesAsSeparateJobsGiveTheSerialBytes) {
   bad.only_tiles = {0};
   bad.plan_only = true;
   EXPECT_THROW(ReconstructTiled(f, Fixed(ReconstructionMethod::kTikhonov), bad), InvalidArgument);
+}
+
+// Frames read by sections (FieldData::sections: a job that reads only its tile's window from shared storage):
+// the same bytes as the held frames, serial and as separate jobs, and no read larger than a tile's window. A
+// tile whose window's data changed is refused on resume (each tile's fingerprint covers its own window).
+TEST(TilingTest, FramesReadBySectionsGiveTheHeldBytes) {
+  namespace fs = std::filesystem;
+  const Scene s = MakeScene();
+  FieldData held = FieldOf(s);
+  for (std::size_t i = 0; i < held.frames.size(); ++i) {
+    Image w = Image::Constant(held.lr.rows, held.lr.cols, 0.5 + 0.25 * double(i));
+    w(10, 11) = 0;  // a bad pixel
+    held.frames[i](10, 11) = std::nan("");
+    held.weights.push_back(w);
+  }
+  struct Read {
+    Index y0, x0, rows, cols;
+  };
+  auto reads = std::make_shared<std::vector<Read>>();
+  auto mutex = std::make_shared<std::mutex>();
+  auto by_sections = [&](const FieldData& from) {
+    FieldData f = from;
+    f.frames.clear();
+    f.weights.clear();
+    auto sec = std::make_shared<FieldData::Sections>();
+    sec->frames = int(from.frames.size());
+    sec->read = [from, reads, mutex](Index y0, Index x0, Index rows, Index cols, ImageStack* fr, ImageStack* w) {
+      {
+        const std::lock_guard<std::mutex> lock(*mutex);
+        reads->push_back({y0, x0, rows, cols});
+      }
+      fr->clear();
+      w->clear();
+      for (const Image& a : from.frames) fr->push_back(a.block(y0, x0, rows, cols));
+      for (const Image& a : from.weights) w->push_back(a.block(y0, x0, rows, cols));
+    };
+    f.sections = sec;
+    return f;
+  };
+  const FieldData lazy = by_sections(held);
+  ReconstructOptions o;
+  o.method = ReconstructionMethod::kTikhonov;  // GCV on the central window: read by sections too
+  TilingOptions t;
+  t.tile = 32;  // 3 x 3 of the 96² field, windows of 32 + 2 x 12
+  t.overlap = 12;
+  t.regularisation_window = 64;
+  const Reconstruction a = ReconstructTiled(held, o, t);
+  const Reconstruction b = ReconstructTiled(lazy, o, t);
+  ASSERT_EQ(a.image.size(), b.image.size());
+  EXPECT_EQ(std::memcmp(a.image.data(), b.image.data(), sizeof(double) * a.image.size()), 0);
+  ASSERT_FALSE(reads->empty());
+  for (const Read& r : *reads) {
+    EXPECT_TRUE(r.y0 >= 0 && r.x0 >= 0 && r.y0 + r.rows <= held.lr.rows && r.x0 + r.cols <= held.lr.cols);
+    EXPECT_LE(r.rows, 64);  // the central regularisation window at most; a tile's window is 56
+    EXPECT_LE(r.cols, 64);
+  }
+  // As separate jobs through a checkpoint folder, then the blend: the serial bytes.
+  const fs::path dir = fs::temp_directory_path() / ("aosr_tiling_sections_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  TilingOptions plan = t;
+  plan.plan_only = true;
+  TilingSummary ps;
+  ReconstructTiled(lazy, o, plan, &ps);
+  TilingOptions job = t;
+  job.checkpoint_dir = dir.string();
+  job.parallel_tiles = false;
+  for (int k = 0; k < 9; ++k) {
+    job.only_tiles = {k};
+    ReconstructTiled(lazy, ps.options, job);
+  }
+  job.only_tiles.clear();
+  TilingSummary bs;
+  const Reconstruction blended = ReconstructTiled(lazy, ps.options, job, &bs);
+  EXPECT_EQ(bs.tiles_resumed, 9);
+  EXPECT_EQ(std::memcmp(blended.image.data(), a.image.data(), sizeof(double) * a.image.size()), 0);
+  // Other data in the central tile's window only (its window is 20..75, its neighbours' end at 43 or start at 52):
+  // that tile is refused, not mixed in.
+  FieldData changed = held;
+  changed.frames[0](48, 48) += 1.0;
+  try {
+    ReconstructTiled(by_sections(changed), ps.options, job);
+    ADD_FAILURE() << "a tile of other data was resumed";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("tile_4.bin"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
 }
 
 // The tiling under a memory limit: the largest tile whose run fits, smaller under a smaller limit, and a clear

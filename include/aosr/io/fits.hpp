@@ -198,4 +198,17 @@ FitsData ReadFits(const std::string& path);
 // ReadFits that requires exactly one plane; IoError naming the path and the cube's shape otherwise.
 Image ReadFitsImage(const std::string& path);
 
+// The header and the shape (planes x rows x cols) of the image ReadFits would read, without its pixels.
+struct FitsImageInfo {
+  FitsHeader header;
+  Index planes = 0, rows = 0, cols = 0;
+};
+FitsImageInfo ReadFitsInfo(const std::string& path);
+
+// Rows [y0, y0 + rows) x columns [x0, x0 + cols) of every plane of the image ReadFits would read, as ReadFits
+// converts them (fits_read_subset: only that section is read from the file), and the header. A tile's window of
+// a detector too large to hold, or a job that solves one tile (solvers/tiling.hpp). InvalidArgument for a
+// section outside the image; IoError as ReadFits.
+FitsData ReadFitsSection(const std::string& path, Index y0, Index x0, Index rows, Index cols);
+
 }  // namespace aosr

@@ -204,7 +204,15 @@ struct Dataset {
   // not counted, as in the registration offsets of solvers/dataset_problem.hpp). Empty without a wcs.
   std::optional<Wcs> HrWcs() const;
 
-  int size() const { return int(frames.size()); }
+  // LoadDataset(..., DatasetPixels::kSections): the files whose sections ReadDatasetSection reads, and the frame
+  // count; frames, valid, weights and truth are then empty. Unset: the pixels are held above.
+  struct PixelFiles {
+    std::string frames, valid, weights;  // valid, weights: "" when the manifest has none
+    int count = 0;
+  };
+  std::optional<PixelFiles> pixel_files;
+
+  int size() const { return pixel_files ? pixel_files->count : int(frames.size()); }
   Index psf_size() const { return psfs.empty() ? 0 : psfs.front().rows(); }
   // The frames in electrons: (ADU − bias) · gain.
   ImageStack FramesElectrons() const;
@@ -221,7 +229,24 @@ ImageStack PerPhase(const SceneSpec& scene, const ImageStack& per_exposure);
 // missing manifest or an unreadable / non-FITS file; InvalidArgument "<manifest>: <field> = <value>; allowed:
 // <rule>" for everything else, including a file the manifest names that does not exist (the value shows the
 // resolved path). With "scene", the scene's own errors name the scene file.
-Dataset LoadDataset(const std::string& manifest_or_dir);
+// How much of the pixels LoadDataset reads:
+//   kAll       the frames, masks, weights and truth, held whole (their values checked);
+//   kSections  none of them: their headers only (shapes checked), Dataset::pixel_files set. Each job then reads
+//              the section it needs with ReadDatasetSection, which checks that section's values: a tile of a
+//              detector too large to hold, or one of many jobs that each solve one tile (aosr.distributed).
+enum class DatasetPixels { kAll, kSections };
+Dataset LoadDataset(const std::string& manifest_or_dir, DatasetPixels pixels = DatasetPixels::kAll);
+
+// Camera px rows [y0, y0 + rows) x cols [x0, x0 + cols) of every frame, its mask and its weights, as LoadDataset
+// holds them (a non-finite pixel invalid and read as the bias, weights times the mask): read from the files
+// (cfitsio reads the section only) for a dataset loaded by sections, else cut from memory; the same values either
+// way. InvalidArgument for a section outside the frames, or bad values in it (naming the manifest); IoError for
+// an unreadable file.
+struct DatasetSection {
+  ImageStack frames, valid;            // ADU; 1 usable / 0 not
+  std::optional<ImageStack> weights;   // ADU⁻², when the dataset has them
+};
+DatasetSection ReadDatasetSection(const Dataset& d, Index y0, Index x0, Index rows, Index cols);
 
 // The dataset of frames `frames` (indices into d's frames, each once, in the order given) of `d`: an ordinary
 // dataset (slots 0..K-1 in that order, slot_count K) whose PSFs, offsets, masks, weights and times are those

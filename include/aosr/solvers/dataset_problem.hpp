@@ -95,6 +95,28 @@ DatasetWeights AutoWeights(ReconstructionMethod method);
 // shift-add-median, tikhonov): the ones source-dependent weights turn flux-dependent.
 bool IsLinearMethod(ReconstructionMethod method);
 
+// What each pixel's weight is made of, decided once on the whole dataset (the pooled background variance, whether
+// any pixel is invalid): a job that reads the frames by sections (FieldData::sections) takes the rule of the plan
+// and applies it to its section, with the bytes of the whole field's weights.
+struct WeightsRule {
+  enum class Kind {
+    kUniform,     // no weights (uniform 1: no invalid pixel anywhere)
+    kValid,       // the validity mask
+    kBackground,  // valid / σ_i² (variance_e2)
+    kDataset,     // the dataset's inverse variances · valid / gain²
+  };
+  Kind kind = Kind::kUniform;
+  std::vector<double> variance_e2;  // kBackground: σ_i² per frame (e⁻²)
+  double gain2 = 1.0;               // kDataset: gain² (ADU⁻² → e⁻⁻²)
+  bool any_invalid = false;         // some pixel of the dataset has weight 0 (masked, bad or non-finite)
+  // Whether the weights are one positive value everywhere (the Fourier path; EstimateTiledBytes).
+  bool Uniform() const;
+};
+// The weights of frames (or a section of them) under `rule`: `valid` their masks, `weights_adu` the dataset's
+// inverse variances there (kDataset). Empty for kUniform. InvalidArgument for kDataset without weights_adu or
+// counts that do not match.
+ImageStack ApplyWeightsRule(const WeightsRule& rule, const ImageStack& valid, const std::optional<ImageStack>& weights_adu);
+
 struct DatasetProblemOptions {
   DatasetWeights weights = DatasetWeights::kAuto;
   // The method the problem is for: resolves kAuto (top of the file) and sets DatasetProblem::warning. Empty:
@@ -121,6 +143,11 @@ struct DatasetProblemOptions {
   // not fit in memory (WholeGridFits). Not with offsets kEstimate or psf_field operator (both need the
   // whole-grid model).
   bool whole_grid_model = true;
+  // A dataset loaded by sections (LoadDataset(..., DatasetPixels::kSections), whole_grid_model false): the weights'
+  // rule decided on the whole dataset (DatasetProblem::weights_rule of a run that read it whole: the plan of
+  // aosr.distributed.reconstruct_tiles), required. The problem's FieldData then reads each window's frames and
+  // weights by sections (FieldData::sections).
+  std::optional<WeightsRule> weights_rule;
 };
 
 struct DatasetProblem {
@@ -146,6 +173,7 @@ struct DatasetProblem {
     std::vector<ImageStack> psfs;
   };
   std::optional<Field> psf_field;
+  WeightsRule weights_rule;    // how the weights were made (the rule a job reading sections is given)
   // DatasetProblemOptions::whole_grid_model false: the frames, weights and offsets (moved out of `problem`,
   // whose model is then null) with the model's PSFs as centred kernels (as the model takes them, not folded).
   std::optional<FieldData> field;
@@ -164,6 +192,7 @@ DatasetProblem ProblemFromDataset(const Dataset& dataset, const DatasetProblemOp
 // frames in electrons (d.FramesElectrons()): what a caller that does not need the model (solvers/video_stream.hpp,
 // which makes the model of the N phases once for M frames) uses. `weights` is empty for uniform weights of 1.
 struct DatasetFrameWeights {
+  WeightsRule rule;                        // what `weights` were made by
   ImageStack weights;
   std::string source;                      // as DatasetProblem::weights_source
   std::vector<double> background_sigma_e;  // as DatasetProblem::background_sigma_e

@@ -230,6 +230,18 @@ struct FieldData {
   ImageStack frames, weights;
   std::vector<FrameOffset> offsets;
   ImageStack kernels;
+  // The frames read by sections instead of held (`frames` and `weights` then empty): a job that solves one tile
+  // of a dataset on shared storage reads only its window (aosr.distributed.reconstruct_tiles). Read(y0, x0, rows,
+  // cols) returns the frames and weights of that window (camera px, inside the field), with the values the held
+  // frames would have there; it may be called from several tiles at once. (An edge tile's window, which wraps
+  // around the periodic field, is read in up to four sections.)
+  struct Sections {
+    int frames = 0;
+    bool uniform_weights = false;  // every weight one positive value (or none): EstimateTiledBytes' rule
+    std::function<void(Index y0, Index x0, Index rows, Index cols, ImageStack* frames, ImageStack* weights)> read;
+  };
+  std::shared_ptr<const Sections> sections;
+  int frame_count() const { return sections ? sections->frames : int(frames.size()); }
   // InvalidArgument naming `function` unless the shapes and counts agree (the pixels are checked per tile).
   void Validate(const std::string& function) const;
 };
