@@ -15,6 +15,8 @@
 #include "aosr/solvers/frame_power_spectrum.hpp"
 #include "aosr/solvers/mtf_comparison.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/reconstruction_header.hpp"
+#include "aosr/io/fits.hpp"
 #include "aosr/solvers/target_psf.hpp"
 #include "aosr/solvers/psf_field_model.hpp"
 #include "aosr/solvers/tiling.hpp"
@@ -472,6 +474,30 @@ void ApplyRegularisationDict(const py::dict& d, ReconstructOptions* o) {
   }
 }
 
+// The weights rule of a plan (DatasetProblem::weights_rule) as a dict and back: the tasks that read sections of
+// the frames apply the rule decided on the whole dataset. Doubles pass through Python floats exactly.
+py::dict WeightsRuleDict(const WeightsRule& rule) {
+  py::dict d;
+  d["kind"] = int(rule.kind);
+  d["variance_e2"] = rule.variance_e2;
+  d["gain2"] = rule.gain2;
+  d["any_invalid"] = rule.any_invalid;
+  return d;
+}
+
+WeightsRule WeightsRuleFromDict(const py::dict& d) {
+  WeightsRule rule;
+  const int kind = d["kind"].cast<int>();
+  if (kind < 0 || kind > int(WeightsRule::Kind::kDataset))
+    throw InvalidArgument("aosr.distributed.reconstruct_tiles", "plan['weights_rule']['kind']", std::to_string(kind),
+                          "0..3 (a plan's)");
+  rule.kind = WeightsRule::Kind(kind);
+  rule.variance_e2 = d["variance_e2"].cast<std::vector<double>>();
+  rule.gain2 = d["gain2"].cast<double>();
+  rule.any_invalid = d["any_invalid"].cast<bool>();
+  return rule;
+}
+
 // What a Dask worker keeps between the tiles it solves of one dataset (aosr.distributed.reconstruct_tiles): the
 // dataset and its FieldData, so that each further tile costs its solve, not a read of the frames and their
 // kernels again. One dataset at a time, keyed by the path, the size and time of every file in its folder and the
@@ -802,8 +828,11 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
       [](py::object dataset, const std::string& method, const std::string& phase, py::dict plan,
          std::vector<int> tiles, const std::string& checkpoint_dir, int tile, int tile_overlap,
          py::object memory_limit, const std::string& weights, const std::string& offsets,
-         py::dict options, bool keep) -> py::object {
+         py::dict options, bool keep, const std::string& output, const std::string& dtype) -> py::object {
         const char* fn = "aosr.distributed.reconstruct_tiles";
+        if (dtype != "float32" && dtype != "float64") throw InvalidArgument(fn, "dtype", dtype, "float32 | float64");
+        if (!output.empty() && phase != "blend")
+          throw InvalidArgument(fn, "output", output, "only with phase 'blend'");
         if (phase != "plan" && phase != "solve" && phase != "blend")
           throw InvalidArgument(fn, "phase", phase, "'plan' | 'solve' | 'blend'");
         ReconstructOptions o = CliDefaults();
@@ -816,7 +845,9 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
         dpo.whole_grid_model = false;
         const MemoryLimit limit = MemoryLimitArgument(memory_limit, fn);
         TilingOptions tiling;
-        tiling.parallel_tiles = false;  // one tile per task; the task's threads work inside it
+        // One tile per task, the task's threads inside it; the client's blend reads and checks the finished tiles
+        // one per thread (then blends them in tile order: the same bytes).
+        tiling.parallel_tiles = phase == "blend";
         tiling.checkpoint_key = "aosr.distributed.reconstruct_tiles " + method + " " + weights + " " + offsets;
         if (phase == "plan") {
           tiling.tile = tile;
@@ -854,10 +885,30 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
             cache.problem.reset();
             cache.models.reset();
           }
-          d = DatasetArgument(dataset, fn);
+          if (phase == "solve" && by_path && plan.contains("weights_rule")) {
+            // A task reads only its tile's window of the frames (shared storage), under the plan's weights rule.
+            dpo.weights_rule = WeightsRuleFromDict(plan["weights_rule"].cast<py::dict>());
+            const std::string path = PathString(dataset);
+            d = std::make_shared<const Dataset>(WithoutGil([&] { return LoadDataset(path, DatasetPixels::kSections); }));
+          } else {
+            d = DatasetArgument(dataset, fn);
+          }
         }
         auto out = std::make_shared<PyReconstruction>();
         TilingSummary ts;
+        // The blend written by rows into `output` (the image is then not held), with the aux map beside it.
+        std::unique_ptr<FitsRowWriter> image_writer, aux_writer;
+        const FitsType fits_type = dtype == "float64" ? FitsType::kFloat64 : FitsType::kFloat32;
+        const std::string aux_path = output.empty() ? "" : ReconstructionAuxPath(output, o.method);
+        if (!output.empty()) {
+          image_writer = std::make_unique<FitsRowWriter>(output, d->hr_frame, fits_type);
+          tiling.rows = [&](Index y0, const Image& rows, const Image& aux_rows) {
+            image_writer->WriteRows(y0, rows);
+            if (aux_rows.size() == 0) return;
+            if (!aux_writer) aux_writer = std::make_unique<FitsRowWriter>(aux_path, d->hr_frame, fits_type);
+            aux_writer->WriteRows(y0, aux_rows);
+          };
+        }
         WithoutGil([&] {
           if (o.linear.kind == TargetPsfKind::kImage && o.linear.image.size() == 0) {  // target_psf='diffraction'
             if (o.method == ReconstructionMethod::kLinear) o.linear.image = DiffractionTargetPsf(*d);
@@ -885,6 +936,18 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
           out->offsets_source = dp.offsets_source;
           out->masked_pixels = dp.masked_pixels;
           out->r = d->r;
+          if (image_writer) {
+            FitsHeader h = ReconstructionHeader(*d, o.method, out->rec, problem.get(), &ts);
+            const FitsHeader common = h;
+            SetHrImageKeywords(*d, "electron", &h);
+            image_writer->Finish(h);
+            if (aux_writer) {
+              FitsHeader a = common;
+              a.Set("AOSRDATA", out->rec.aux_name, "content of this HDU");
+              SetHrImageKeywords(*d, "electron", &a);
+              aux_writer->Finish(a);
+            }
+          }
         });
         if (phase == "blend") return py::cast(out);
         py::dict result;
@@ -897,6 +960,7 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
           result["tiles_x"] = ts.tiles_x;
           result["regularisation"] = RegularisationDict(ts.options);
           result["regularisation_source"] = ts.regularisation_source;
+          result["weights_rule"] = WeightsRuleDict(problem->weights_rule);
         } else {
           py::list terms;
           for (Termination t : ts.tile_terminations) terms.append(ToString(t));
@@ -911,6 +975,7 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
       py::arg("tiles") = std::vector<int>{}, py::arg("checkpoint_dir") = "", py::arg("tile") = 0,
       py::arg("tile_overlap") = -1, py::arg("memory_limit") = py::none(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("options") = py::dict(), py::arg("keep") = false,
+      py::arg("output") = "", py::arg("dtype") = "float32",
       "Internal: the phases of aosr.distributed.reconstruct_tiles (plan, solve tiles, blend).");
   m.def(
       "_tiles_forget",
