@@ -124,11 +124,14 @@ std::shared_ptr<const MultiFrameModel> CutModel(const ImageStack& kernels, Shape
 ReconstructionProblem CutWindow(Shape lr, const ImageStack& frames, const ImageStack& weights,
                                 const std::vector<FrameOffset>& offsets, const TileWindow& tile,
                                 std::shared_ptr<const MultiFrameModel> model) {
+  std::vector<Index> fx(std::size_t(tile.cols));  // the field column of each window column (wrapped)
+  for (Index x = 0; x < tile.cols; ++x) fx[std::size_t(x)] = WrapIndex(tile.x0 + x, lr.cols);
   auto cut = [&](const Image& a) {
     Image s(tile.rows, tile.cols);
     for (Index y = 0; y < tile.rows; ++y) {
-      const Index fy = WrapIndex(tile.y0 + y, lr.rows);
-      for (Index x = 0; x < tile.cols; ++x) s(y, x) = a(fy, WrapIndex(tile.x0 + x, lr.cols));
+      const double* row = &a(WrapIndex(tile.y0 + y, lr.rows), 0);
+      double* out = &s(y, 0);
+      for (Index x = 0; x < tile.cols; ++x) out[x] = row[fx[std::size_t(x)]];
     }
     return s;
   };
@@ -581,19 +584,23 @@ class RowBlend {
   RowBlend(Shape hr, bool aux) : hr_(hr), aux_(aux), rows_(hr.rows) {}
 
   void Add(const TileWindow& t, int r, const Image& w, const Image& image, const Image* aux_image) {
+    std::vector<Index> fx(std::size_t(w.cols()));  // the field column of each window column (wrapped)
+    for (Index x = 0; x < w.cols(); ++x) fx[std::size_t(x)] = WrapIndex(t.x0 * r + x, hr_.cols);
     for (Index y = 0; y < w.rows(); ++y) {
       const Index fy = WrapIndex(t.y0 * r + y, hr_.rows);
       Row* row = nullptr;
+      const double* wy = &w(y, 0);
+      const double* iy = &image(y, 0);
       for (Index x = 0; x < w.cols(); ++x) {
-        const double wk = w(y, x);
+        const double wk = wy[x];
         if (wk == 0) continue;
         if (!row) row = Get(fy);
-        const Index fx = WrapIndex(t.x0 * r + x, hr_.cols);
-        row->num[fx] += wk * image(y, x);
-        row->den[fx] += wk;
+        const Index c = fx[std::size_t(x)];
+        row->num[c] += wk * iy[x];
+        row->den[c] += wk;
         if (aux_image) {
-          row->anum[fx] += wk * (*aux_image)(y, x);
-          row->aden[fx] += wk;
+          row->anum[c] += wk * (*aux_image)(y, x);
+          row->aden[c] += wk;
         }
       }
     }
