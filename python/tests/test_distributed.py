@@ -4,6 +4,7 @@ import contextlib
 import importlib.util
 import json
 import os
+import pathlib
 import shutil
 import signal
 import subprocess
@@ -242,6 +243,16 @@ def test_tiles_survive_a_killed_worker(batch, tiles_serial, fresh_cluster, tmp_p
     assert workers[1].wait(timeout=10) == -signal.SIGKILL
     assert bits_equal(rec.image, tiles_serial.image)
     assert not [p for p in folder.iterdir() if not p.name.endswith(".bin")]  # no temporary left
+
+
+def test_reconstruct_tiles_never_overwrites_an_input(batch):
+    folder = batch[0]
+    manifest = json.loads((pathlib.Path(folder) / "manifest.json").read_text())
+    frames = pathlib.Path(folder) / manifest["frames"]
+    before = frames.read_bytes()
+    with pytest.raises(aosr.InvalidArgument, match="output"):
+        ad.reconstruct_tiles(folder, frames, "tikhonov", client="serial", **TILES)
+    assert frames.read_bytes() == before
 
 
 @pytest.mark.parametrize("kwargs,needle", [
