@@ -241,7 +241,7 @@ DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frame
       out.warning = std::string("the dataset's inverse variances (source photon noise included) with ") +
                     ToString(*options.method) +
                     ": source-dependent weights make the output flux-dependent and bias bright sources low "
-                    "(bench/results/science.md: -11 % for linear, -16 % for tikhonov, -42 % for drizzle at K 14-15 on "
+                    "(bench/results/science.md: -12 % for linear, -16 % for tikhonov, -42 % for drizzle at K 14-15 on "
                     "crowded-stars); "
                     "weights 'auto' or 'background' do not depend on the sources";
   } else if (choice == DatasetWeights::kBackground) {

@@ -77,7 +77,7 @@ Stats MeanAndError(const std::vector<double>& v) {
 // errors of the Monte-Carlo mean (the realisations' scatter, ~0.2 % per star) plus 0.1 % for the stamp and the
 // simulation's PSF window (measured: see the printed line). With the dataset's Poisson inverse variances the
 // combination down-weights the star's own core, so its flux comes out low by far more than that: the test
-// has the power to see the bias the defaults remove (crowded-stars K 14-15: -11 %, bench/results/science.md).
+// has the power to see the bias the defaults remove (crowded-stars K 14-15: -12 %, bench/results/science.md).
 TEST(DefaultWeightsPhotometryPhysicsTest, BrightIsolatedStarIsUnbiasedWithDefaultWeights) {
   std::vector<double> by_default, by_poisson;
   for (std::uint64_t seed = 1; seed <= 8; ++seed) {

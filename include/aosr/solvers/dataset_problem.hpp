@@ -7,14 +7,14 @@
 // Weights (DatasetWeights):
 //   kAuto       the method's safe default (DatasetProblemOptions::method): kBackground for the methods whose
 //               output is linear in the data (drizzle, linear, shift-add, shift-add-median, tikhonov: the ones
-//               bench/results/science.md shows biased by source-dependent weights, bright stars -11 % to -42 %);
+//               bench/results/science.md shows biased by source-dependent weights, bright stars -12 % to -42 %);
 //               for tv and map (non-linear: their bias is the regulariser's, and inverse variances help their
 //               fit) and when no method is given, the dataset's inverse-variance weights when it has them
 //               (simulations write them), else the validity mask.
 //   kDataset    the dataset's weights ("dataset", also named "poisson": for a simulation they are the inverse
 //               variances at the expected signal, the sources' own photon noise included); an error if it has
 //               none. Source-dependent weights make any weighted combination flux-dependent: bright stars come
-//               out low (bench/results/science.md: -11 % for linear, -16 % for Tikhonov, -42 % for Drizzle at
+//               out low (bench/results/science.md: -12 % for linear, -16 % for Tikhonov, -42 % for Drizzle at
 //               K 14-15 on crowded-stars); DatasetProblem::warning says so when they meet a linear method.
 //   kMask       the validity mask only (uniform weights on usable pixels). With no bad pixel this makes the
 //               problem Fourier-exact (ReconstructionProblem::HasUniformWeights), the fastest path, at the
