@@ -115,6 +115,38 @@ TEST(FitsErrorsTest, AHeaderPromisingMoreDataThanTheFileHoldsIsTruncated) {
   EXPECT_THAT(msg, HasSubstr("truncated: its header promises 1 plane(s) of 1000x1000 pixels (BITPIX -64, 7.63 MiB of data)"));
 }
 
+// A section of a cube: the planes' block, and a clear error outside the image or for a missing file.
+TEST(FitsErrorsTest, SectionsOutsideTheImageAreRefused) {
+  TempDir dir;
+  const std::string path = dir.File("cube.fits");
+  ImageStack planes;
+  for (int p = 0; p < 2; ++p) {
+    Image a(8, 10);
+    for (Index y = 0; y < 8; ++y)
+      for (Index x = 0; x < 10; ++x) a(y, x) = 100.0 * p + 10.0 * double(y) + double(x);
+    planes.push_back(a);
+  }
+  WriteFitsCube(path, planes, {}, FitsType::kFloat64);
+  const FitsImageInfo info = ReadFitsInfo(path);
+  EXPECT_EQ(info.planes, 2);
+  EXPECT_EQ(info.rows, 8);
+  EXPECT_EQ(info.cols, 10);
+  const FitsData s = ReadFitsSection(path, 3, 4, 5, 6);
+  ASSERT_EQ(s.planes.size(), 2u);
+  for (int p = 0; p < 2; ++p) EXPECT_TRUE((s.planes[p] == planes[p].block(3, 4, 5, 6)).all()) << p;
+  EXPECT_THROW(ReadFitsSection(path, 4, 0, 5, 10), InvalidArgument);  // past the last row
+  EXPECT_THROW(ReadFitsSection(path, 0, 5, 8, 6), InvalidArgument);   // past the last column
+  EXPECT_THROW(ReadFitsSection(path, -1, 0, 2, 2), InvalidArgument);
+  EXPECT_THROW(ReadFitsSection(path, 0, 0, 0, 2), InvalidArgument);
+  try {
+    ReadFitsSection(dir.File("missing.fits"), 0, 0, 1, 1);
+    ADD_FAILURE() << "a missing file was read";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing.fits"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ReadFitsInfo(dir.File("missing.fits")), IoError);
+}
+
 TEST(FitsErrorsTest, ReadFitsImageOnACubeMentionsPlanes) {
   TempDir dir;
   const std::string path = dir.File("cube.fits");

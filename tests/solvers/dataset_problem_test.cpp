@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -136,6 +137,51 @@ TEST(DatasetWeightsTest, EstimateBackgroundSigmaOfWhiteNoiseOnASlope) {
 // equivalent-area FWHM of psf_metrics.hpp, a bilinear interpolant, is good to ~1 % at 8 px per λ/D), at λ/(4D)
 // within 4 % (measured 1.024 and 1.005). At the demo's r = 2 (λ/(2D) per HR px) the bilinear measure itself is
 // biased (0.90): there the PSF must be the same pattern point-sampled, i.e. every 4th pixel of the r = 8 one.
+// The weights' rule applied to a section gives what the whole field's weights hold there, and refuses a rule it
+// cannot apply; a dataset opened by sections is refused where its whole frames would be needed.
+TEST(DatasetWeightsTest, RuleAppliedToASectionAndItsRefusals) {
+  const ImageStack valid{Image::Ones(4, 5), Image::Ones(4, 5)};
+  WeightsRule rule;
+  EXPECT_TRUE(ApplyWeightsRule(rule, valid, std::nullopt).empty());
+  EXPECT_TRUE(rule.Uniform());
+  rule.kind = WeightsRule::Kind::kBackground;
+  rule.variance_e2 = {4.0, 4.0};
+  const ImageStack w = ApplyWeightsRule(rule, valid, std::nullopt);
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_EQ(w[1](2, 3), 0.25);
+  EXPECT_TRUE(rule.Uniform());
+  rule.any_invalid = true;
+  EXPECT_FALSE(rule.Uniform());
+  rule.variance_e2 = {4.0};  // one per frame
+  EXPECT_THROW(ApplyWeightsRule(rule, valid, std::nullopt), InvalidArgument);
+  rule.kind = WeightsRule::Kind::kDataset;
+  EXPECT_THROW(ApplyWeightsRule(rule, valid, std::nullopt), InvalidArgument);  // no dataset weights
+  rule.gain2 = 4.0;
+  const ImageStack wd = ApplyWeightsRule(rule, valid, ImageStack{Image::Constant(4, 5, 8.0), Image::Constant(4, 5, 8.0)});
+  EXPECT_EQ(wd[0](1, 1), 2.0);
+
+  Dataset lazy;
+  lazy.r = 2;
+  lazy.frame = {8, 8};
+  lazy.hr_frame = {16, 16};
+  lazy.psfs.assign(2, Image::Constant(4, 4, 1.0 / 16));
+  lazy.offsets.assign(2, DmOffset{});
+  lazy.pixel_files = Dataset::PixelFiles{"/nonexistent/frames.fits", "", "", 2};
+  DatasetProblemOptions o;
+  EXPECT_THROW(ProblemFromDataset(lazy, o), InvalidArgument);  // a whole-grid model needs the whole frames
+  o.whole_grid_model = false;
+  EXPECT_THROW(ProblemFromDataset(lazy, o), InvalidArgument);  // no weights rule from a plan
+  o.weights_rule = WeightsRule{};
+  o.stars_psfs = true;
+  EXPECT_THROW(ProblemFromDataset(lazy, o), InvalidArgument);  // stars need the whole frames
+  o.stars_psfs = false;
+  const DatasetProblem dp = ProblemFromDataset(lazy, o);  // reads nothing until a window is asked for
+  ASSERT_TRUE(dp.field && dp.field->sections);
+  EXPECT_TRUE(dp.field->frames.empty());
+  ImageStack f, ww;
+  EXPECT_THROW(dp.field->sections->read(0, 0, 4, 4, &f, &ww), IoError);  // the missing file, by name
+}
+
 TEST(DiffractionTargetTest, AiryFwhmAtTheDatasetsWavelengthAndSampling) {
   const TelescopePreset preset = LoadTelescopePreset("paper-8m");
   std::map<int, Image> psfs;
