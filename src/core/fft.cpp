@@ -522,18 +522,27 @@ ComplexImage ExpandHalfSpectrum(const ComplexImage& half, Index cols) {
   return full;
 }
 
-ComplexImage HermitianProjection(const ComplexImage& half, Index cols) {
-  CheckArgument(cols / 2 + 1 == half.cols(), "HermitianProjection", "cols", cols,
-                "consistent with half.cols() = " + std::to_string(half.cols()));
-  ComplexImage out = half;
-  const Index R = half.rows();
+void HermitianProjectInPlace(ComplexImage* half, Index cols) {
+  CheckArgument(cols / 2 + 1 == half->cols(), "HermitianProjection", "cols", cols,
+                "consistent with half.cols() = " + std::to_string(half->cols()));
+  ComplexImage& h = *half;
+  const Index R = h.rows();
   std::vector<Index> self_conjugate_cols = {0};
   if (cols % 2 == 0 && cols > 1) self_conjugate_cols.push_back(cols / 2);
+  // Each pair (u, w = −u mod R) from both originals, so that the result is the copying projection's bytes.
   for (Index v : self_conjugate_cols)
     for (Index u = 0; u < R; ++u) {
       const Index w = (R - u) % R;
-      out(u, v) = 0.5 * (half(u, v) + std::conj(half(w, v)));
+      if (w < u) continue;
+      const Complex a = h(u, v), b = h(w, v);
+      h(u, v) = 0.5 * (a + std::conj(b));
+      if (w != u) h(w, v) = 0.5 * (b + std::conj(a));
     }
+}
+
+ComplexImage HermitianProjection(const ComplexImage& half, Index cols) {
+  ComplexImage out = half;
+  HermitianProjectInPlace(&out, cols);
   return out;
 }
 

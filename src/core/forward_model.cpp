@@ -124,34 +124,48 @@ class AliasedStack final : public LinearOperator {
 
 }  // namespace
 
-MultiFrameModel::MultiFrameModel(Shape hr, int r, std::vector<ComplexImage> otfs)
-    : hr_(hr), r_(r), otfs_(std::move(otfs)) {
+MultiFrameModel::MultiFrameModel(Shape hr, int r, std::vector<ComplexImage> otfs) : hr_(hr), r_(r) {
   CheckArgument(hr.rows > 0 && hr.cols > 0, "MultiFrameModel", "hr_shape", ToString(hr), "positive");
   CheckArgument(r >= 1, "MultiFrameModel", "r", r, ">= 1");
   if (hr.rows % r || hr.cols % r)
     throw InvalidArgument("MultiFrameModel", "r", std::to_string(r), "a divisor of the HR grid " + ToString(hr));
-  CheckArgument(!otfs_.empty(), "MultiFrameModel", "otfs", "empty", "at least one frame");
+  CheckArgument(!otfs.empty(), "MultiFrameModel", "otfs", "empty", "at least one frame");
   const OperatorPtr decimate = Decimate(hr, r);
   std::vector<OperatorPtr> parts;
-  for (std::size_t i = 0; i < otfs_.size(); ++i) {
-    if (ShapeOf(otfs_[i]) != Shape{hr.rows, hr.cols / 2 + 1})
-      throw InvalidArgument("MultiFrameModel", "otf " + std::to_string(i) + " shape", ToString(ShapeOf(otfs_[i])),
+  for (std::size_t i = 0; i < otfs.size(); ++i) {
+    if (ShapeOf(otfs[i]) != Shape{hr.rows, hr.cols / 2 + 1})
+      throw InvalidArgument("MultiFrameModel", "otf " + std::to_string(i) + " shape", ToString(ShapeOf(otfs[i])),
                             ToString(Shape{hr.rows, hr.cols / 2 + 1}) + " (half spectrum of the HR grid)");
+    CheckArgument(AllFinite(otfs[i]), "MultiFrameModel", "otf " + std::to_string(i), "non-finite values",
+                  "finite values");
     // The explicit Fourier formulas below must see the same (real-kernel) transfer function that the
-    // spatial operator's c2r applies.
-    otfs_[i] = HermitianProjection(otfs_[i], hr.cols);
-    frame_ops_.push_back(Compose(decimate, PeriodicConvolution(hr, otfs_[i])));
+    // spatial operator's c2r applies. One copy, shared with the frame's convolution (a whole-detector tile's
+    // window model holds N half spectra of ~45 MB each: a copy per operator tripled it).
+    HermitianProjectInPlace(&otfs[i], hr.cols);
+    otfs_.push_back(std::make_shared<const ComplexImage>(std::move(otfs[i])));
+    frame_ops_.push_back(Compose(decimate, PeriodicConvolution(hr, otfs_.back())));
     parts.push_back(frame_ops_.back());
   }
   box_y_ = BoxTransfer(hr.rows, r);
   box_x_ = BoxTransfer(hr.cols, r);
   // The stack through the aliasing structure (Stack(parts) is the same operator at N times the FFT cost).
-  std::vector<ComplexImage> transfer(otfs_.size(), ComplexImage(hr.rows, hr.cols / 2 + 1));
   const double inv = 1.0 / double(r * r);
-  for (std::size_t i = 0; i < otfs_.size(); ++i)
-    for (Index fy = 0; fy < hr.rows; ++fy)
-      for (Index fx = 0; fx < hr.cols / 2 + 1; ++fx) transfer[i](fy, fx) = inv * PixelTransfer(fy, fx) * otfs_[i](fy, fx);
+  std::vector<ComplexImage> transfer;
+  for (std::size_t i = 0; i < otfs_.size(); ++i) {
+    ComplexImage t(hr.rows, hr.cols / 2 + 1);
+    const ComplexImage& h = *otfs_[i];
+    ParallelFor(hr.rows, [&](Index fy) {
+      for (Index fx = 0; fx < hr.cols / 2 + 1; ++fx) t(fy, fx) = inv * PixelTransfer(fy, fx) * h(fy, fx);
+    });
+    transfer.push_back(std::move(t));
+  }
   op_ = std::make_shared<AliasedStack>(hr, r, std::move(transfer));
+}
+
+MultiFrameModel MultiFrameModel::Isoplanatic() const {
+  std::vector<ComplexImage> otfs;
+  for (const auto& h : otfs_) otfs.push_back(*h);  // projected again: the projection is exact on its own result
+  return MultiFrameModel(hr_, r_, std::move(otfs));
 }
 
 MultiFrameModel MultiFrameModel::FromKernels(Shape hr, int r, const ImageStack& centred_psfs) {
@@ -220,7 +234,7 @@ ImageStack MultiFrameModel::Unflatten(const Vector& y) const {
 Complex MultiFrameModel::PixelTransfer(Index fy, Index fx) const { return box_y_[fy] * box_x_[fx]; }
 
 Complex MultiFrameModel::Otf(int i, Index fy, Index fx) const {
-  const ComplexImage& h = otfs_[i];
+  const ComplexImage& h = *otfs_[i];
   if (fx < h.cols()) return h(fy, fx);
   return std::conj(h(fy == 0 ? 0 : hr_.rows - fy, hr_.cols - fx));  // (−fy) mod rows without a division
 }
@@ -237,10 +251,10 @@ Eigen::MatrixXcd MultiFrameModel::AliasedSystem(Index uy, Index ux) const {
       const Complex b = PixelTransfer(fy, fx) * inv;
       // Otf(i, fy, fx) for every frame: the stored half spectrum, or the conjugate of its mirror.
       if (fx < half_cols) {
-        for (int i = 0; i < n; ++i) a(i, ky * r_ + kx) = b * otfs_[i](fy, fx);
+        for (int i = 0; i < n; ++i) a(i, ky * r_ + kx) = b * (*otfs_[i])(fy, fx);
       } else {
         const Index my = fy == 0 ? 0 : hr_.rows - fy, mx = hr_.cols - fx;
-        for (int i = 0; i < n; ++i) a(i, ky * r_ + kx) = b * std::conj(otfs_[i](my, mx));
+        for (int i = 0; i < n; ++i) a(i, ky * r_ + kx) = b * std::conj((*otfs_[i])(my, mx));
       }
     }
   return a;

@@ -16,12 +16,12 @@ Image ToImage(const Eigen::Ref<const Vector>& v, Shape s) {
   return img;
 }
 
-bool AllFinite(const Image& img) {
+namespace {
+
+bool AllFiniteDoubles(const double* p, Index n) {
   // A double is NaN or ±Inf exactly when its exponent bits are all ones: an integer OR over the bits, which the
   // compiler vectorises (Eigen's isFinite().all() tests element by element: 4 ns per pixel, a tenth of a second
   // per whole-detector frame, paid at every boundary check).
-  const double* p = img.data();
-  const Index n = img.size();
   std::uint64_t bad = 0;
   for (Index i = 0; i < n; ++i) {
     std::uint64_t bits;
@@ -29,6 +29,15 @@ bool AllFinite(const Image& img) {
     bad |= std::uint64_t((bits & 0x7ff0000000000000ull) == 0x7ff0000000000000ull);
   }
   return bad == 0;
+}
+
+}  // namespace
+
+bool AllFinite(const Image& img) { return AllFiniteDoubles(img.data(), img.size()); }
+
+// std::complex<double> is two doubles in a row (the standard's array-oriented access guarantee).
+bool AllFinite(const ComplexImage& img) {
+  return AllFiniteDoubles(reinterpret_cast<const double*>(img.data()), 2 * img.size());
 }
 
 Image CentredToOrigin(const Image& kernel, Shape s) {

@@ -10,22 +10,23 @@ namespace {
 
 class PeriodicConvolutionOp final : public LinearOperator {
  public:
-  PeriodicConvolutionOp(Shape s, ComplexImage otf)
+  PeriodicConvolutionOp(Shape s, std::shared_ptr<const ComplexImage> otf)
       : LinearOperator(s.size(), s.size(), "Convolve(" + ToString(s) + ")"), s_(s), otf_(std::move(otf)) {}
 
  private:
   void Filter(ConstRef x, Ref y, int mode) const {
     ComplexImage X = FftR2C(AsImage(Vector(x), s_));
-    if (mode == 0) X *= otf_;
-    else if (mode == 1) X *= otf_.conjugate();
-    else X *= otf_.abs2().cast<Complex>();
+    const ComplexImage& h = *otf_;
+    if (mode == 0) X *= h;
+    else if (mode == 1) X *= h.conjugate();
+    else X *= h.abs2().cast<Complex>();
     y = AsVector(FftC2R(X, s_.cols));
   }
   void ApplyImpl(ConstRef x, Ref y) const override { Filter(x, y, 0); }
   void ApplyAdjointImpl(ConstRef y, Ref x) const override { Filter(y, x, 1); }
   void ApplyNormalImpl(ConstRef x, Ref z) const override { Filter(x, z, 2); }
   Shape s_;
-  ComplexImage otf_;
+  std::shared_ptr<const ComplexImage> otf_;  // shared with a MultiFrameModel's transfer functions (no copy)
 };
 
 class DecimateOp final : public LinearOperator {
@@ -180,8 +181,18 @@ OperatorPtr PeriodicConvolution(Shape s, ComplexImage otf_half) {
   if (otf_half.rows() != s.rows || otf_half.cols() != s.cols / 2 + 1)
     throw InvalidArgument("PeriodicConvolution", "otf_half shape", ToString(ShapeOf(otf_half)),
                           ToString(Shape{s.rows, s.cols / 2 + 1}) + " (half spectrum of the grid)");
-  CheckArgument(otf_half.isFinite().all(), "PeriodicConvolution", "otf_half", "non-finite values", "finite values");
-  return std::make_shared<PeriodicConvolutionOp>(s, HermitianProjection(otf_half, s.cols));
+  CheckArgument(AllFinite(otf_half), "PeriodicConvolution", "otf_half", "non-finite values", "finite values");
+  HermitianProjectInPlace(&otf_half, s.cols);
+  return std::make_shared<PeriodicConvolutionOp>(s, std::make_shared<const ComplexImage>(std::move(otf_half)));
+}
+
+OperatorPtr PeriodicConvolution(Shape s, std::shared_ptr<const ComplexImage> otf_half_hermitian) {
+  CheckShape("PeriodicConvolution", s);
+  CheckArgument(otf_half_hermitian != nullptr, "PeriodicConvolution", "otf_half", "null", "a transfer function");
+  if (otf_half_hermitian->rows() != s.rows || otf_half_hermitian->cols() != s.cols / 2 + 1)
+    throw InvalidArgument("PeriodicConvolution", "otf_half shape", ToString(ShapeOf(*otf_half_hermitian)),
+                          ToString(Shape{s.rows, s.cols / 2 + 1}) + " (half spectrum of the grid)");
+  return std::make_shared<PeriodicConvolutionOp>(s, std::move(otf_half_hermitian));
 }
 
 OperatorPtr PeriodicConvolutionFromKernel(Shape s, const Image& centred_kernel) {

@@ -95,6 +95,8 @@ ComplexImage ExpandHalfSpectrum(const ComplexImage& half, Index cols);
 // averaging each pair. A transfer function that is not Hermitian (e.g. a fractional phase ramp at the
 // Nyquist bin) would otherwise be applied differently by c2r and by an explicit Fourier-domain solver.
 ComplexImage HermitianProjection(const ComplexImage& half, Index cols);
+// The same projection applied in place (no copy of the half spectrum).
+void HermitianProjectInPlace(ComplexImage* half, Index cols);
 
 // Signed DFT frequency index of bin k in a transform of length n: k for k <= n/2, else k - n.
 inline Index SignedFrequency(Index k, Index n) { return k <= n / 2 ? k : k - n; }

@@ -32,6 +32,7 @@
 
 #include <Eigen/Dense>
 #include <vector>
+#include <memory>
 
 #include "aosr/core/linear_operator.hpp"
 #include "aosr/core/psf_field.hpp"
@@ -57,7 +58,7 @@ class MultiFrameModel {
   Shape lr_shape() const { return {hr_.rows / r_, hr_.cols / r_}; }
   int r() const { return r_; }
   int frames() const { return static_cast<int>(otfs_.size()); }
-  const ComplexImage& otf(int i) const { return otfs_.at(i); }
+  const ComplexImage& otf(int i) const { return *otfs_.at(i); }
 
   // D_r ∘ H_i, and the stack over frames (rows = N · lr size, cols = hr size).
   const OperatorPtr& FrameOperator(int i) const { return frame_ops_.at(i); }
@@ -83,13 +84,13 @@ class MultiFrameModel {
   MultiFrameModel WithPsfField(const PsfFieldGrid& grid, const std::vector<ImageStack>& node_psfs) const;
   bool space_variant() const { return !field_grid_.empty(); }
   // The isoplanatic model of the same transfer functions (this model without WithPsfField's operator).
-  MultiFrameModel Isoplanatic() const { return MultiFrameModel(hr_, r_, otfs_); }
+  MultiFrameModel Isoplanatic() const;
   const PsfFieldGrid& field_grid() const { return field_grid_; }
 
  private:
   Shape hr_;
   int r_;
-  std::vector<ComplexImage> otfs_;
+  std::vector<std::shared_ptr<const ComplexImage>> otfs_;  // Hermitian, shared with frame_ops_
   std::vector<OperatorPtr> frame_ops_;
   OperatorPtr op_;
   std::vector<Complex> box_y_, box_x_;  // 1-D pixel transfer per axis

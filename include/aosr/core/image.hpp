@@ -56,6 +56,7 @@ Image ToImage(const Eigen::Ref<const Vector>& v, Shape s);
 
 // True when every value is finite (no NaN, no Inf).
 bool AllFinite(const Image& img);
+bool AllFinite(const ComplexImage& img);
 
 // Places a centred kernel (centre at (p/2, q/2)) into a periodic grid of shape `s` with its centre
 // at (0, 0), wrapping negative offsets: the layout an FFT convolution expects. Kernel must fit.

@@ -24,6 +24,9 @@ enum class Boundary { kPeriodic, kNeumann };
 // Periodic convolution on grid `s` by the transfer function `otf_half` (R x (C/2+1) half spectrum of a
 // real kernel whose centre is at (0,0); see FftR2C). Throws on shape mismatch or non-finite values.
 OperatorPtr PeriodicConvolution(Shape s, ComplexImage otf_half);
+// Same, sharing a transfer function that is already Hermitian (HermitianProjection's result) and finite, as a
+// MultiFrameModel keeps it: the operator holds no copy of its own.
+OperatorPtr PeriodicConvolution(Shape s, std::shared_ptr<const ComplexImage> otf_half_hermitian);
 // Same, from a centred kernel (centre at (p/2, q/2)) that fits in `s`.
 OperatorPtr PeriodicConvolutionFromKernel(Shape s, const Image& centred_kernel);
 // The half-spectrum transfer function of a centred kernel on grid `s`.

@@ -48,9 +48,15 @@
 //               3 for tikhonov and linear before their regularisation is fixed, 1 for shift-add and drizzle
 //               (their drops reach one pixel, plus the offsets: ceil(max |offset| / r) more);
 //     then doubled (the ramp uses the inner half of the overlap, see Blending).
+//   tiles with local PSFs (TilingOptions::local_psfs, a field-varying model): the rule of the other methods for
+//     every method. A tile's PSF is right only near its centre, so a wider window adds model error faster than
+//     the measured reach removes truncation error (measured against the exact space-variant operator: tiling.cpp).
 // Either way P is capped so that P <= every core and the window fits in the field, and at max_overlap (a memory
-// plan's). The measured errors against the whole-grid solution are in tests/solvers/tiling_test.cpp; give a
-// larger overlap where more accuracy is needed.
+// plan's); an automatic P is then raised by up to a quarter, within those caps, to the first overlap whose
+// windows' HR sides are products of 2, 3, 5 and 7, where FFTW is fast (at r = 4 and tiles of 512, P = 42 gave
+// windows of 2384 = 2^4 · 149 HR px and one FFT pair 0.49 s; P = 44 gives 2400 and 0.24 s). The measured errors
+// against the whole-grid solution are in tests/solvers/tiling_test.cpp; give a larger overlap where more accuracy
+// is needed.
 //
 // One regularisation for the whole field (what a user expects: the same λ or TV weight everywhere, so the
 // image's resolution and noise do not change from tile to tile). The method's automatic choices are made
