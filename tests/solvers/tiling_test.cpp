@@ -317,6 +317,16 @@ TEST(TilingTest, LocalPsfHookIsUsedPerTile) {
   const Reconstruction hooked = ReconstructTiled(s.problem, o, t);
   for (int k = 0; k < 9; ++k) EXPECT_GE(calls[k], 1) << k;
   EXPECT_LT(MaxAbs(hooked.image - base.image) / MaxAbs(base.image), 1e-9);
+  // An automatic overlap with local PSFs is the PSF-and-reach rule's, not the measured reach (tiling.hpp, "The
+  // overlap rule"); without them, Tikhonov's is measured.
+  for (const bool local : {true, false}) {
+    TilingOptions a = t;
+    a.overlap = -1;
+    if (!local) a.local_psfs = nullptr;
+    TilingSummary ts;
+    ReconstructTiled(s.problem, o, a, &ts);
+    EXPECT_THAT(ts.overlap_rule, ::testing::HasSubstr(local ? "2 x (psf" : "measured")) << ts.overlap_rule;
+  }
 }
 
 TEST(TilingTest, SameBytesOnOneAndTwoThreads) {
