@@ -479,9 +479,9 @@ double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, i
   const double solve = EstimateSolveBytes(method, field.frame_count(), window_hr, weighted) + 8.0 * 3 * window_hr;
   // Two tile rows of output accumulators (numerator and denominator, twice with a second map).
   const double band = 2.0 * side * field.r * double(field.lr.cols) * field.r * 8.0 * (aux ? 4 : 2);
-  // The window models, one per window shape, kept for the run (N half spectra each, ~8 bytes per HR px per
-  // frame). Up to 9 shapes (first, inner, last along each axis): at 8192² from 4 frames, tiles of 512, that is
-  // 1.4 GB, which TV's run at --memory-limit 4G showed the estimate had left out (peak RSS 4.6 GiB).
+  // The window models, one per window shape, kept for the run: per frame its half-spectrum OTF and the aliased
+  // stack's transfer function (MultiFrameModel), ~8 bytes per HR px each. Up to 9 shapes (first, inner, last
+  // along each axis); TV's run at --memory-limit 4G showed the estimate had once left them out (peak RSS 4.6 GiB).
   int shapes = 9;
   try {
     std::set<std::pair<Index, Index>> distinct;
@@ -489,7 +489,7 @@ double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, i
     shapes = int(distinct.size());
   } catch (const InvalidArgument&) {
   }
-  const double models = double(shapes) * 8.0 * double(field.frame_count()) * window_hr;
+  const double models = double(shapes) * 2.0 * 8.0 * double(field.frame_count()) * window_hr;
   return data + concurrent * solve + band + models;
 }
 

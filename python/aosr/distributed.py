@@ -259,22 +259,6 @@ def _tile_task(task):
     return record
 
 
-def _dataset_input_files(dataset):
-    """The resolved paths of a dataset's manifest and the files it names (what an output must never replace)."""
-    manifest = os.path.join(dataset, "manifest.json") if os.path.isdir(dataset) else dataset
-    try:
-        with open(manifest) as f:
-            fields = json.load(f)
-    except (OSError, ValueError):
-        return set()  # the plan reports an unreadable dataset by name
-    files = {os.path.realpath(manifest)}
-    for key in ("frames", "valid", "weights", "psfs", "nominal_psfs", "truth", "truth_frames", "expected", "scene"):
-        value = fields.get(key) if isinstance(fields, dict) else None
-        if isinstance(value, str):
-            files.add(os.path.realpath(os.path.join(os.path.dirname(manifest), value)))
-    return files
-
-
 def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, tile=0, tile_overlap=-1,
                       memory_limit=None, checkpoint_dir=None, weights="auto", offsets="auto", threads=1,
                       dtype="float32", progress=False, n_workers=2, **options):
@@ -319,7 +303,7 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
                                    "allowed: an existing folder (on storage the workers share)")
     dataset = os.path.abspath(os.fspath(dataset))
     if output:
-        inputs = _dataset_input_files(dataset)
+        inputs = set(aosr._aosr._dataset_input_files(dataset))  # the CLI's rule (scene/dataset.hpp)
         stem, ext = os.path.splitext(os.path.abspath(os.fspath(output)))
         for path in (os.fspath(output), stem + "_std" + ext, stem + "_weight" + ext):
             if os.path.realpath(path) in inputs:

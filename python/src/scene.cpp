@@ -494,6 +494,17 @@ Arrays are copied into the dataset (float64, C order); non-finite frame pixels b
       "measured frames (include/aosr/scene/dataset.hpp). Errors name the manifest and field.");
 
   m.def(
+      "_dataset_input_files",
+      [](py::handle path) {
+        std::vector<std::string> out;
+        for (const auto& f : DatasetInputFiles(PathString(path))) out.push_back(f.string());
+        return out;
+      },
+      py::arg("path"),
+      "Internal: the resolved paths of a dataset's manifest and the files it names (what an output must never\n"
+      "replace; the CLI's rule). Empty for a manifest it cannot read.");
+
+  m.def(
       "evaluate",
       [](py::handle estimate, py::handle truth, py::handle dataset, std::optional<int> crop, double peak, int stars,
          double aperture, std::optional<bool> subtract_sky, int rings, py::object ring_centre) {

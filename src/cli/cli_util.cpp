@@ -62,20 +62,6 @@ void CheckWritableFile(const std::string& path) {
   if (!fs::is_directory(dir, ec)) throw IoError(path, "its folder " + dir.string() + " does not exist");
 }
 
-std::set<std::filesystem::path> DatasetInputFiles(const Dataset& d) {
-  namespace fs = std::filesystem;
-  std::set<fs::path> in;
-  const fs::path manifest = fs::weakly_canonical(d.manifest_path);
-  in.insert(manifest);
-  for (const char* key : {"frames", "valid", "weights", "psfs", "nominal_psfs", "truth", "expected", "scene"})
-    if (d.manifest.contains(key) && d.manifest[key].is_string()) {
-      fs::path p = d.manifest[key].get<std::string>();
-      if (p.is_relative()) p = manifest.parent_path() / p;
-      in.insert(fs::weakly_canonical(p));
-    }
-  return in;
-}
-
 namespace {
 std::string& CommandLineStorage() {
   static std::string line;

@@ -77,10 +77,6 @@ void AddExecutionOptions(CLI::App* cmd, ExecutionArgs* args, bool with_threads =
 // Sets aosr's default thread count and FFT planner from `args`.
 void ApplyExecution(const ExecutionArgs& args);
 
-// Every file a dataset reads (its manifest and the files the manifest names), resolved with
-// std::filesystem::weakly_canonical: a command's outputs must not be one of them.
-std::set<std::filesystem::path> DatasetInputFiles(const Dataset& d);
-
 // The command line the program was started with (main() records it), shell-quoted where needed, for reports
 // that say what produced them. Empty until SetCommandLine.
 void SetCommandLine(int argc, const char* const* argv);

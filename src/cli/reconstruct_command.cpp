@@ -118,12 +118,6 @@ void ParseTargetPsf(const std::string& spec, TargetPsfOptions* o) {
   }
 }
 
-std::string AuxPath(const std::string& out, const std::string& aux) {
-  fs::path p(out);
-  const std::string stem = p.stem().string();
-  return (p.parent_path() / (stem + "_" + aux + p.extension().string())).string();
-}
-
 void RunReconstruct(const ReconstructArgs& a) {
   ApplyExecution(a.exec);
   const Progress progress(!a.json, a.progress);
@@ -279,7 +273,8 @@ void RunReconstruct(const ReconstructArgs& a) {
   }
   const fs::path out_canonical = fs::weakly_canonical(a.out);
   const std::set<fs::path> inputs = DatasetInputFiles(d);
-  for (const std::string& p : {a.out, AuxPath(a.out, "weight"), AuxPath(a.out, "std"), a.stars_psf_out})
+  for (const std::string& p : {a.out, ReconstructionAuxPath(a.out, ReconstructionMethod::kDrizzle),
+                               ReconstructionAuxPath(a.out, ReconstructionMethod::kTikhonov), a.stars_psf_out})
     if (!p.empty() && inputs.count(fs::weakly_canonical(p)))
       throw InvalidArgument("aosr reconstruct", "-o", a.out, "a path that is not one of the dataset's input files (" + p + ")");
   if (a.model_psfs == "nominal") {
@@ -421,7 +416,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   }
   std::string aux_path;
   if (!rec.aux_name.empty()) {
-    aux_path = AuxPath(a.out, rec.aux_name == "weight" ? "weight" : "std");
+    aux_path = ReconstructionAuxPath(a.out, o.method);
     FitsHeader ha = common;
     ha.Set("AOSRDATA", rec.aux_name, "content of this HDU");
     // std: electrons, as the image; Drizzle's weight: summed input weights, no unit of its own.

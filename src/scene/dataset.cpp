@@ -594,6 +594,37 @@ DatasetSection ReadDatasetSection(const Dataset& d, Index y0, Index x0, Index ro
   return out;
 }
 
+namespace {
+
+std::set<fs::path> InputFilesOf(const std::string& manifest_path, const nlohmann::json& manifest) {
+  const fs::path m = fs::weakly_canonical(manifest_path);
+  std::set<fs::path> in{m};
+  if (!manifest.is_object()) return in;
+  for (const char* key :
+       {"frames", "valid", "weights", "psfs", "nominal_psfs", "truth", "truth_frames", "expected", "scene"})
+    if (manifest.contains(key) && manifest[key].is_string()) {
+      fs::path p = manifest[key].get<std::string>();
+      if (p.is_relative()) p = m.parent_path() / p;
+      in.insert(fs::weakly_canonical(p));
+    }
+  return in;
+}
+
+}  // namespace
+
+std::set<fs::path> DatasetInputFiles(const Dataset& d) { return InputFilesOf(d.manifest_path, d.manifest); }
+
+std::set<fs::path> DatasetInputFiles(const std::string& manifest_or_dir) {
+  std::error_code ec;
+  const std::string path =
+      fs::is_directory(manifest_or_dir, ec) ? Join(manifest_or_dir, kManifestFileName) : manifest_or_dir;
+  try {
+    return InputFilesOf(path, ReadJsonFile(path));
+  } catch (const std::exception&) {
+    return {};
+  }
+}
+
 Dataset LoadDataset(const std::string& manifest_or_dir, DatasetPixels pixels) {
   CheckArgument(!manifest_or_dir.empty(), "LoadDataset", "manifest_or_dir", "\"\"", "a manifest.json or its folder");
   std::error_code ec;

@@ -8,7 +8,9 @@
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
+#include <set>
 
 #include "../io/temp_dir.hpp"
 #include "aosr/io/config.hpp"
@@ -256,6 +258,38 @@ TEST_F(DatasetTest, SectionsReadFromTheFilesEqualTheHeldPixels) {
   } catch (const InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("manifest.json: valid"), std::string::npos) << e.what();
   }
+}
+
+// What an output must never replace: the manifest and every file it names, resolved, from the folder, the
+// manifest's path or the loaded dataset alike (the CLI's and aosr.distributed's rule). A manifest naming every
+// kind of file (truth_frames, which the CLI's own copy of this list once left out, among them) gives them all.
+TEST_F(DatasetTest, InputFilesAreTheManifestAndEveryFileItNames) {
+  const std::string sim = dir_->File("sim");
+  const auto canonical = [](const std::string& p) { return fs::weakly_canonical(p); };
+  const std::set<fs::path> from_folder = DatasetInputFiles(sim);
+  EXPECT_EQ(from_folder, DatasetInputFiles(sim + "/manifest.json"));
+  EXPECT_EQ(from_folder, DatasetInputFiles(LoadDataset(sim, DatasetPixels::kSections)));
+  for (const char* f : {"manifest.json", "frames.fits", "valid.fits", "weights.fits", "psfs.fits", "truth.fits",
+                        "expected.fits"})
+    EXPECT_EQ(from_folder.count(canonical(sim + "/" + f)), 1u) << f;
+  EXPECT_EQ(from_folder.size(), 7u);
+
+  const std::string other = dir_->File("every_key");
+  fs::create_directories(other + "/sub");
+  nlohmann::json m = {{"frames", "f.fits"},        {"valid", "sub/v.fits"},    {"weights", "w.fits"},
+                      {"psfs", "p.fits"},          {"nominal_psfs", "n.fits"}, {"truth", "t.fits"},
+                      {"truth_frames", "tf.fits"}, {"expected", "e.fits"},     {"scene", "../s.json"},
+                      {"r", 2}};
+  std::ofstream(other + "/manifest.json") << m.dump();
+  const std::set<fs::path> all = DatasetInputFiles(other);
+  EXPECT_EQ(all.size(), 10u);
+  for (const char* f : {"manifest.json", "f.fits", "sub/v.fits", "w.fits", "p.fits", "n.fits", "t.fits", "tf.fits",
+                        "e.fits", "../s.json"})
+    EXPECT_EQ(all.count(canonical(other + "/" + f)), 1u) << f;
+  // A manifest that cannot be read names nothing (LoadDataset reports it by name).
+  std::ofstream(other + "/broken.json") << "{ not json";
+  EXPECT_TRUE(DatasetInputFiles(other + "/broken.json").empty());
+  EXPECT_TRUE(DatasetInputFiles(other + "/missing.json").empty());
 }
 
 TEST_F(DatasetTest, RewritingAFolderReplacesTheDataset) {

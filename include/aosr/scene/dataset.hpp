@@ -111,8 +111,10 @@
 // scene (the scene file, design file, object images, bad-pixel map): InvalidArgument before any write.
 #pragma once
 
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -236,6 +238,13 @@ ImageStack PerPhase(const SceneSpec& scene, const ImageStack& per_exposure);
 //              detector too large to hold, or one of many jobs that each solve one tile (aosr.distributed).
 enum class DatasetPixels { kAll, kSections };
 Dataset LoadDataset(const std::string& manifest_or_dir, DatasetPixels pixels = DatasetPixels::kAll);
+
+// The manifest and every file it names (frames, valid, weights, psfs, nominal_psfs, truth, truth_frames,
+// expected, scene), resolved (weakly canonical): what an output must never replace. The second form reads only
+// the manifest (of a folder or a path) and gives an empty set for one it cannot read, which LoadDataset then
+// reports by name.
+std::set<std::filesystem::path> DatasetInputFiles(const Dataset& d);
+std::set<std::filesystem::path> DatasetInputFiles(const std::string& manifest_or_dir);
 
 // Camera px rows [y0, y0 + rows) x cols [x0, x0 + cols) of every frame, its mask and its weights, as LoadDataset
 // holds them (a non-finite pixel invalid and read as the bias, weights times the mask): read from the files
