@@ -479,9 +479,12 @@ double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, i
   const double solve = EstimateSolveBytes(method, field.frame_count(), window_hr, weighted) + 8.0 * 3 * window_hr;
   // Two tile rows of output accumulators (numerator and denominator, twice with a second map).
   const double band = 2.0 * side * field.r * double(field.lr.cols) * field.r * 8.0 * (aux ? 4 : 2);
-  // The window models, one per window shape, kept for the run: per frame its half-spectrum OTF and the aliased
-  // stack's transfer function (MultiFrameModel), ~8 bytes per HR px each. Up to 9 shapes (first, inner, last
-  // along each axis); TV's run at --memory-limit 4G showed the estimate had once left them out (peak RSS 4.6 GiB).
+  // The window models, one per window shape, kept for the run (~8 bytes per HR px per frame for each half
+  // spectrum). Up to 9 shapes (first, inner, last along each axis): TV's run at --memory-limit 4G showed the
+  // estimate had once left them out (peak RSS 4.6 GiB). A model holds two half spectra per frame (its OTF and
+  // the aliased stack's transfer); one is counted, because the measured peaks stay well inside the limit with
+  // the other terms' margins (2.9 GiB at 4G, bench/results/whole_detector.md), and counting both moves the
+  // 8192² linear plan's overlap from 44 to 42, a window size where FFTW is twice as slow.
   int shapes = 9;
   try {
     std::set<std::pair<Index, Index>> distinct;
@@ -489,7 +492,7 @@ double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, i
     shapes = int(distinct.size());
   } catch (const InvalidArgument&) {
   }
-  const double models = double(shapes) * 2.0 * 8.0 * double(field.frame_count()) * window_hr;
+  const double models = double(shapes) * 8.0 * double(field.frame_count()) * window_hr;
   return data + concurrent * solve + band + models;
 }
 
