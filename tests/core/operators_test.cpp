@@ -1,6 +1,11 @@
 #include "aosr/core/operators.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <memory>
 
 #include <random>
 
@@ -43,6 +48,39 @@ TEST(OperatorsTest, EveryPrimitivePassesTheAdjointTest) {
     EXPECT_LT(r.adjoint_error, kAdjointTol) << op->name();
     EXPECT_LT(r.normal_error, kAdjointTol) << op->name();
   }
+}
+
+// The shared-spectrum form (what MultiFrameModel's frame operators use): the same operator, bit for bit, as the
+// copying form; adjoint-exact; and its refusals. HermitianProjectInPlace gives HermitianProjection's bytes.
+TEST(OperatorsTest, SharedTransferFunctionConvolutionIsTheCopyingOne) {
+  for (const Shape s : {Shape{24, 30}, Shape{23, 31}}) {
+    const ComplexImage h = TransferFunction(s, GaussianKernel(7, 1.5));
+    ComplexImage rough = h;
+    rough(1, 0) += Complex(0.3, 0.2);  // not Hermitian on the self-conjugate column
+    ComplexImage in_place = rough;
+    HermitianProjectInPlace(&in_place, s.cols);
+    const ComplexImage copied = HermitianProjection(rough, s.cols);
+    EXPECT_EQ(std::memcmp(in_place.data(), copied.data(), sizeof(Complex) * copied.size()), 0) << ToString(s);
+    const OperatorPtr a = PeriodicConvolution(s, rough);
+    const OperatorPtr b = PeriodicConvolution(s, std::make_shared<const ComplexImage>(copied));
+    const Vector x = AsVector(RandomImage(s, 5));
+    const Vector ya = a->Apply(x), yb = b->Apply(x);
+    EXPECT_EQ(std::memcmp(ya.data(), yb.data(), sizeof(double) * ya.size()), 0) << ToString(s);
+    const AdjointTestResult r = AdjointTest(*b, 7);
+    EXPECT_LT(r.adjoint_error, kAdjointTol);
+    EXPECT_LT(r.normal_error, kAdjointTol);
+  }
+  const Shape s{24, 30};
+  EXPECT_THAT(test::ErrorOf([&] { PeriodicConvolution(s, std::shared_ptr<const ComplexImage>()); }),
+              ::testing::HasSubstr("otf_half"));
+  EXPECT_THAT(test::ErrorOf([&] {
+                PeriodicConvolution(s, std::make_shared<const ComplexImage>(ComplexImage::Zero(24, 15)));
+              }),
+              ::testing::HasSubstr("half spectrum"));
+  ComplexImage bad = TransferFunction(s, GaussianKernel(7, 1.5));
+  bad(2, 3) = Complex(std::nan(""), 0);
+  EXPECT_FALSE(AllFinite(bad));
+  EXPECT_THAT(test::ErrorOf([&] { PeriodicConvolution(s, bad); }), ::testing::HasSubstr("non-finite"));
 }
 
 TEST(OperatorsTest, CompositionsPassTheAdjointTest) {
