@@ -155,7 +155,8 @@ MapObjective::MapObjective(const ReconstructionProblem& problem, const MapOption
   const MultiFrameModel& model = *problem.model;
   hr_ = model.hr_shape();
   frames_ = problem.frame_count();
-  lr_size_ = model.lr_shape().size();
+  lr_ = model.lr_shape();
+  lr_size_ = lr_.size();
   CheckArgument(hr_.size() <= std::numeric_limits<int>::max(), "MapObjective", "problem.model HR size",
                 hr_.size(), "at most INT_MAX parameters (Ceres counts them in int)");
   a_ = model.Operator();
@@ -346,19 +347,25 @@ Vector MapObjective::ToParameters(const Image& x, Index* raised) const {
   return z;
 }
 
-std::vector<double> MapObjective::FrameResidualRms(const Image& x) const {
+std::vector<double> MapObjective::FrameResidualRms(const Image& x, const LrRegion& region) const {
   CheckArgument(ShapeOf(x) == hr_, "MapObjective::FrameResidualRms", "x shape", ToString(ShapeOf(x)),
                 ToString(hr_));
+  const LrRegion g = region.all() ? LrRegion{0, 0, lr_.rows, lr_.cols} : region;
+  CheckArgument(g.rows > 0 && g.cols > 0 && g.y0 >= 0 && g.x0 >= 0 && g.y0 + g.rows <= lr_.rows &&
+                    g.x0 + g.cols <= lr_.cols,
+                "MapObjective::FrameResidualRms", "region", std::to_string(g.rows) + " x " + std::to_string(g.cols),
+                "a rectangle inside " + ToString(lr_));
   const Vector ax = a_->Apply(AsVector(x));
   std::vector<double> rms;
   for (int i = 0; i < frames_; ++i) {
     double sum = 0, count = 0;
-    for (Index p = i * lr_size_; p < (i + 1) * lr_size_; ++p)
-      if (w_[p] > 0) {
-        const double e = y_[p] - ax[p] - options_.background;
-        sum += e * e;
-        count += 1;
-      }
+    for (Index y = g.y0; y < g.y0 + g.rows; ++y)
+      for (Index p = i * lr_size_ + y * lr_.cols + g.x0, e = p + g.cols; p < e; ++p)
+        if (w_[p] > 0) {
+          const double d = y_[p] - ax[p] - options_.background;
+          sum += d * d;
+          count += 1;
+        }
     rms.push_back(count > 0 ? std::sqrt(sum / count) : 0.0);
   }
   return rms;
@@ -551,7 +558,7 @@ MapResult MapReconstruct(const ReconstructionProblem& problem, const MapOptions&
     s.final_cost = v.total;
     s.data_cost = v.data;
     s.prior_cost = v.prior;
-    s.frame_residual_rms = objective.FrameResidualRms(result.image);
+    s.frame_residual_rms = objective.FrameResidualRms(result.image, problem.residual_region);
     s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
 

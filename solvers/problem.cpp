@@ -15,6 +15,12 @@ void ReconstructionProblem::Validate(const std::string& function) const {
                 "0 or the frame count " + std::to_string(frames.size()));
   CheckArgument(offsets.empty() || offsets.size() == frames.size(), function, "problem.offsets.size()", offsets.size(),
                 "0 or the frame count " + std::to_string(frames.size()));
+  const LrRegion& g = residual_region;
+  if (!g.all() && !(g.rows > 0 && g.cols > 0 && g.y0 >= 0 && g.x0 >= 0 && g.y0 + g.rows <= lr.rows &&
+                    g.x0 + g.cols <= lr.cols))
+    throw InvalidArgument(function + ": problem.residual_region = " + std::to_string(g.rows) + " x " +
+                          std::to_string(g.cols) + " at (" + std::to_string(g.y0) + ", " + std::to_string(g.x0) +
+                          "); allowed: 0 x 0 (every pixel) or a non-empty rectangle inside " + ToString(lr));
   for (std::size_t i = 0; i < frames.size(); ++i) {
     const std::string f = "problem.frames[" + std::to_string(i) + "]";
     CheckArgument(ShapeOf(frames[i]) == lr, function, f + " shape", ToString(ShapeOf(frames[i])), "the model's LR shape " + ToString(lr));
@@ -67,8 +73,16 @@ double WeightedDataMisfit(const ReconstructionProblem& problem, const Image& x, 
     const Image r = (w.array() > 0).select(clean[i] - predicted[i], 0.0);
     cost += 0.5 * (w.array() * r.array().square()).sum();
     if (frame_rms) {
-      const double n = (w.array() > 0).count();
-      frame_rms->push_back(n > 0 ? std::sqrt(r.array().square().sum() / n) : 0.0);
+      const LrRegion& g = problem.residual_region;
+      double n = 0, ss = 0;
+      if (g.all()) {
+        n = double((w.array() > 0).count());
+        ss = r.array().square().sum();
+      } else {
+        n = double((w.block(g.y0, g.x0, g.rows, g.cols) > 0).count());
+        ss = r.block(g.y0, g.x0, g.rows, g.cols).square().sum();
+      }
+      frame_rms->push_back(n > 0 ? std::sqrt(ss / n) : 0.0);
     }
   }
   return cost;

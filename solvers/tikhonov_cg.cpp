@@ -115,10 +115,15 @@ TikhonovResult ConjugateGradientPath(const char* function, const ReconstructionP
     grid.model = padded->periodic_ptr();
     grid.frames = padded->EmbedFrames(problem.CleanFrames());
     grid.weights = padded->EmbedWeights(problem.weights);
+    // The residuals where the caller asked, moved into the padded grid (outside the frames' window every
+    // weight is 0, so every pixel of the grid means the frames' window).
+    const LrRegion& g = problem.residual_region;
+    if (!g.all()) grid.residual_region = LrRegion{g.y0 + pad, g.x0 + pad, g.rows, g.cols};
   } else {
     grid.model = problem.model;
     grid.frames = problem.CleanFrames();
     for (int i = 0; i < n; ++i) grid.weights.push_back(problem.Weight(i));
+    grid.residual_region = problem.residual_region;
   }
   const MultiFrameModel& pm = *grid.model;
   const Shape hr = pm.hr_shape(), lr = pm.lr_shape();

@@ -45,11 +45,13 @@ struct TileFnv {
   }
 };
 
-// A little-endian-as-in-memory writer/reader of the fields (the file is read back by the same build).
+// A little-endian-as-in-memory writer/reader of the fields (the file is read back by the same build), straight to
+// and from the file: a tile's arrays are tens of MB at 8192², and large stream reads and writes go between the
+// file and the arrays' own memory with no intermediate buffer.
 struct TileWriter {
-  std::vector<char> buf;
+  std::ostream& out;
   void Bytes(const void* p, std::size_t n) {
-    if (n > 0) buf.insert(buf.end(), (const char*)p, (const char*)p + n);
+    if (n > 0) out.write(static_cast<const char*>(p), std::streamsize(n));
   }
   template <class T>
   void Value(const T& v) {
@@ -67,16 +69,21 @@ struct TileWriter {
 };
 
 struct TileReader {
-  const std::vector<char>& buf;
-  std::size_t at = 0;
+  std::istream& in;
+  std::uint64_t size = 0;  // the file's
+  std::uint64_t at = 0;
   bool ok = true;
+  std::uint64_t left() const { return size - at; }
   void Bytes(void* p, std::size_t n) {
-    if (!ok || at + n > buf.size()) {
+    if (!ok || n > left()) {
       ok = false;
       return;
     }
-    if (n == 0) return;  // an empty array's data() may be null, which memcpy may not be given
-    std::memcpy(p, buf.data() + at, n);
+    if (n == 0) return;  // an empty array's data() may be null
+    if (!in.read(static_cast<char*>(p), std::streamsize(n))) {
+      ok = false;
+      return;
+    }
     at += n;
   }
   template <class T>
@@ -87,17 +94,17 @@ struct TileReader {
   }
   std::string String() {
     const std::uint64_t n = Value<std::uint64_t>();
-    if (!ok || n > buf.size() - at) {
+    if (!ok || n > left()) {
       ok = false;
       return {};
     }
-    std::string s(buf.data() + at, n);
-    at += n;
+    std::string s(std::size_t(n), '\0');
+    Bytes(s.data(), s.size());
     return s;
   }
   Image Array() {
     const std::int64_t rows = Value<std::int64_t>(), cols = Value<std::int64_t>();
-    if (!ok || rows < 0 || cols < 0 || (rows * cols) > std::int64_t((buf.size() - at) / sizeof(double))) {
+    if (!ok || rows < 0 || cols < 0 || (cols > 0 && rows > std::int64_t(left() / sizeof(double)) / cols)) {
       ok = false;
       return {};
     }
@@ -195,39 +202,40 @@ std::string TilePath(const std::string& dir, int index) {
 
 void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, const Reconstruction& r,
                const std::vector<double>& misfit) {
-  TileWriter w;
-  w.Bytes(kTileMagic, sizeof kTileMagic);
-  w.Value(fingerprint);
-  w.Value(std::int32_t(index));
-  w.Array(r.image);
-  w.Array(r.aux);
-  w.String(r.aux_name);
-  w.Value(r.regularisation);
-  w.String(r.summary.method);
-  w.Value(std::int32_t(r.summary.termination));
-  w.String(r.summary.message);
-  w.Value(std::int32_t(r.summary.iterations));
-  w.Value(r.summary.final_cost);
-  w.Array(r.effective_psf);
-  w.Array(r.noise_correlation);
-  w.Array(r.leakage_spectrum);
-  w.Value(char(r.linear.has_value()));
-  if (r.linear) {
-    const TargetPsfSummary& s = *r.linear;
-    w.String(s.method), w.Value(std::int32_t(s.termination)), w.String(s.message), w.String(s.target);
-    for (double v : {s.target_fwhm_hr_px, s.effective_fwhm_hr_px, s.effective_psf_window_fraction, s.kappa, s.leakage,
-                     s.leakage_unreachable, s.leakage_max_in_band, s.band_cycles_per_hr_px, s.dc_transfer,
-                     s.noise_sigma, s.noise_rms, s.noise_rms_error})
-      w.Value(v);
-    w.Value(char(s.leakage_met)), w.Value(std::int64_t(s.unreachable_frequencies));
-    w.Value(std::int32_t(s.noise_probes)), w.Value(char(s.fourier_exact));
-  }
-  // Appended last: files written before it was added end above and are read without it.
-  w.Value(std::uint64_t(misfit.size()));
-  for (double v : misfit) w.Value(v);
+  // Straight to the temporary file (AtomicWrite renames it into place once whole).
   AtomicWrite(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary);
-    out.write(w.buf.data(), std::streamsize(w.buf.size()));
+    TileWriter w{out};
+    w.Bytes(kTileMagic, sizeof kTileMagic);
+    w.Value(fingerprint);
+    w.Value(std::int32_t(index));
+    w.Array(r.image);
+    w.Array(r.aux);
+    w.String(r.aux_name);
+    w.Value(r.regularisation);
+    w.String(r.summary.method);
+    w.Value(std::int32_t(r.summary.termination));
+    w.String(r.summary.message);
+    w.Value(std::int32_t(r.summary.iterations));
+    w.Value(r.summary.final_cost);
+    w.Array(r.effective_psf);
+    w.Array(r.noise_correlation);
+    w.Array(r.leakage_spectrum);
+    w.Value(char(r.linear.has_value()));
+    if (r.linear) {
+      const TargetPsfSummary& s = *r.linear;
+      w.String(s.method), w.Value(std::int32_t(s.termination)), w.String(s.message), w.String(s.target);
+      for (double v : {s.target_fwhm_hr_px, s.effective_fwhm_hr_px, s.effective_psf_window_fraction, s.kappa, s.leakage,
+                       s.leakage_unreachable, s.leakage_max_in_band, s.band_cycles_per_hr_px, s.dc_transfer,
+                       s.noise_sigma, s.noise_rms, s.noise_rms_error})
+        w.Value(v);
+      w.Value(char(s.leakage_met)), w.Value(std::int64_t(s.unreachable_frequencies));
+      w.Value(std::int32_t(s.noise_probes)), w.Value(char(s.fourier_exact));
+    }
+    // Appended last: files written before it was added end above and are read without it.
+    w.Value(std::uint64_t(misfit.size()));
+    for (double v : misfit) w.Value(v);
+    out.flush();
     if (!out) throw IoError(tmp, "could not write the tile checkpoint");
   });
 }
@@ -236,12 +244,10 @@ bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Rec
               std::vector<double>* misfit) {
   std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) return false;
-  // In one read of the file's size (a character iterator costs more than the disk: 45 MB tiles at 8192²).
   const std::streamoff size = in.tellg();
-  std::vector<char> buf(size > 0 ? std::size_t(size) : 0);
   in.seekg(0);
-  if (size > 0 && !in.read(buf.data(), size)) RefuseTile(path, "an unreadable tile file");
-  TileReader rd{buf};
+  if (size < 0 || !in) RefuseTile(path, "an unreadable tile file");
+  TileReader rd{in, std::uint64_t(size)};
   char magic[sizeof kTileMagic];
   rd.Bytes(magic, sizeof magic);
   if (!rd.ok || std::memcmp(magic, kTileMagic, sizeof kTileMagic) != 0) RefuseTile(path, "not an aosr tile file");
@@ -277,14 +283,14 @@ bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Rec
     t.linear = s;
   }
   std::vector<double> m;
-  if (rd.ok && rd.at < buf.size()) {
+  if (rd.ok && rd.at < rd.size) {
     const std::uint64_t n = rd.Value<std::uint64_t>();
-    if (rd.ok && n <= (buf.size() - rd.at) / sizeof(double))
+    if (rd.ok && n <= rd.left() / sizeof(double))
       for (std::uint64_t i = 0; i < n; ++i) m.push_back(rd.Value<double>());
     else
       rd.ok = false;
   }
-  if (!rd.ok || rd.at != buf.size()) RefuseTile(path, "a truncated or damaged tile file");
+  if (!rd.ok || rd.at != rd.size) RefuseTile(path, "a truncated or damaged tile file");
   if (misfit) *misfit = std::move(m);
   *r = std::move(t);
   return true;

@@ -427,15 +427,14 @@ bool UniformWeights(const FieldData& field) {
   return true;
 }
 
-}  // namespace
-
-double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, int tile, int overlap, int concurrent,
-                          bool aux) {
+// The memory plan's functions with the weights' kind decided once (`weighted`: not UniformWeights, a scan of every
+// weight, which the plan's loops would otherwise repeat for each candidate tile and overlap).
+double TiledBytes(const FieldData& field, ReconstructionMethod method, int tile, int overlap, int concurrent, bool aux,
+                  bool weighted) {
   const double lr_px = double(field.lr.rows) * double(field.lr.cols);
   const double data = 8.0 * lr_px * double(field.frames.size() + field.weights.size());  // 0 when read by sections
   const double side = double(std::min<Index>(tile + 2 * Index(overlap), std::max(field.lr.rows, field.lr.cols)));
   const double window_hr = side * side * double(field.r) * double(field.r);
-  const bool weighted = !UniformWeights(field);
   // A tile's solve, its cut frames and the result it hands back (image, second map, the blend weight).
   const double solve = EstimateSolveBytes(method, field.frame_count(), window_hr, weighted) + 8.0 * 3 * window_hr;
   // Two tile rows of output accumulators (numerator and denominator, twice with a second map).
@@ -457,11 +456,10 @@ double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, i
   return data + concurrent * solve + band + models;
 }
 
-int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod method, double limit_bytes) {
+int RegularisationWindow(const FieldData& field, ReconstructionMethod method, double limit_bytes, bool weighted) {
   const double data =
       8.0 * double(field.lr.rows) * double(field.lr.cols) * double(field.frames.size() + field.weights.size());
   const Index largest = std::max(field.lr.rows, field.lr.cols);
-  const bool weighted = !UniformWeights(field);
   for (const int w : {512, 384, 256, 192, 128, 96, 64, 48, 32}) {
     const Index wy = std::min<Index>(w, field.lr.rows), wx = std::min<Index>(w, field.lr.cols);
     const double hr = double(wy * field.r) * double(wx * field.r);
@@ -471,13 +469,13 @@ int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod meth
   return 32;
 }
 
-TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, int overlap, int threads,
-                           double limit_bytes, bool aux) {
+TilingOptions Tiling(const FieldData& field, ReconstructionMethod method, int overlap, int threads, double limit_bytes,
+                     bool aux, bool weighted) {
   CheckArgument(overlap >= 0, "ChooseTiling", "overlap", overlap, ">= 0 camera px");
   CheckArgument(threads >= 1, "ChooseTiling", "threads", threads, ">= 1");
   TilingOptions t;
   t.overlap = overlap;
-  t.regularisation_window = ChooseRegularisationWindow(field, method, limit_bytes);
+  t.regularisation_window = RegularisationWindow(field, method, limit_bytes, weighted);
   double smallest = 0;
   int smallest_tile = 0;
   for (const int tile : {512, 384, 256, 192, 128, 96, 64, 48, 32, 24, 16}) {
@@ -486,7 +484,7 @@ TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, 
     smallest_tile = tile;
     for (const bool parallel : {true, false}) {
       if (parallel && threads == 1) continue;
-      const double need = EstimateTiledBytes(field, method, tile, overlap, parallel ? threads : 1, aux);
+      const double need = TiledBytes(field, method, tile, overlap, parallel ? threads : 1, aux, weighted);
       smallest = need;
       if (need <= limit_bytes) {
         t.tile = tile;
@@ -503,6 +501,22 @@ TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, 
                       FormatBytes(limit_bytes) + ": raise --memory-limit (AOSR_MEMORY_LIMIT) or give fewer or smaller frames");
 }
 
+}  // namespace
+
+double EstimateTiledBytes(const FieldData& field, ReconstructionMethod method, int tile, int overlap, int concurrent,
+                          bool aux) {
+  return TiledBytes(field, method, tile, overlap, concurrent, aux, !UniformWeights(field));
+}
+
+int ChooseRegularisationWindow(const FieldData& field, ReconstructionMethod method, double limit_bytes) {
+  return RegularisationWindow(field, method, limit_bytes, !UniformWeights(field));
+}
+
+TilingOptions ChooseTiling(const FieldData& field, ReconstructionMethod method, int overlap, int threads,
+                           double limit_bytes, bool aux) {
+  return Tiling(field, method, overlap, threads, limit_bytes, aux, !UniformWeights(field));
+}
+
 void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options, double limit_bytes,
                        TilingOptions* tiling) {
   // The overlap the memory is planned for. A reach measured only once the regularisation is fixed (RunTiles)
@@ -511,6 +525,7 @@ void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options
   // A measured reach whose tiles do not fit falls back to that rule's overlap (max_overlap: the summary's rule
   // says "capped by the memory plan").
   const bool aux = options.method == ReconstructionMethod::kTikhonov && options.tikhonov.compute_std;
+  const bool weighted = !UniformWeights(field);
   const int rule = OverlapRule(field, options, *tiling, nullptr, false);
   int plan = tiling->overlap;
   const bool fixed_here = plan < 0 && !(options.method == ReconstructionMethod::kTikhonov ||
@@ -521,7 +536,7 @@ void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options
     if (linear) {
       if (tiling->tile <= 0) {
         try {
-          ChooseTiling(field, options.method, plan, DefaultThreads(), limit_bytes, aux);
+          Tiling(field, options.method, plan, DefaultThreads(), limit_bytes, aux, weighted);
         } catch (const ResourceError&) {
           plan = std::min(plan, rule);
         }
@@ -532,7 +547,7 @@ void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options
     }
   }
   if (tiling->tile <= 0) {
-    const TilingOptions chosen = ChooseTiling(field, options.method, plan, DefaultThreads(), limit_bytes, aux);
+    const TilingOptions chosen = Tiling(field, options.method, plan, DefaultThreads(), limit_bytes, aux, weighted);
     tiling->tile = chosen.tile;
     tiling->parallel_tiles = chosen.parallel_tiles;
     // A reach still to measure may use more than the plan where the chosen tiles leave the memory for it: up to
@@ -544,7 +559,7 @@ void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options
       const int largest = tiling_internal::LargestMeasuredOverlap(field.lr);
       for (int p = largest + largest / 4; p > plan; --p)
         if (p <= tiling->tile &&
-            EstimateTiledBytes(field, options.method, tiling->tile, p, concurrent, aux) <= limit_bytes) {
+            TiledBytes(field, options.method, tiling->tile, p, concurrent, aux, weighted) <= limit_bytes) {
           tiling->max_overlap = p;
           break;
         }
@@ -557,10 +572,10 @@ void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options
     const int fast = tiling_internal::FftFriendlyOverlap(field.lr, tiling->tile, field.r, tiling->overlap,
                                                          tiling->overlap + tiling->overlap / 4);
     if (fast != tiling->overlap &&
-        EstimateTiledBytes(field, options.method, tiling->tile, fast, concurrent, aux) <= limit_bytes)
+        TiledBytes(field, options.method, tiling->tile, fast, concurrent, aux, weighted) <= limit_bytes)
       tiling->overlap = fast;
   }
-  tiling->regularisation_window = ChooseRegularisationWindow(field, options.method, limit_bytes);
+  tiling->regularisation_window = RegularisationWindow(field, options.method, limit_bytes, weighted);
 }
 
 namespace {
@@ -789,8 +804,10 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
       !checkpoint ? 0
       : whole_model ? tiling_internal::RunFingerprint(*in.problem, fingerprint_options, tiling, overlap)
                     : tiling_internal::RunFingerprint(*in.field, fingerprint_options, tiling, overlap);
-  // Without a whole image at the end, the residual is each tile's over its core.
-  const bool misfit_by_tiles = !whole_model || bool(tiling.rows);
+  // Without a whole image at the end, the residual is each tile's over its core. So it is for the linear output,
+  // whose residual is that of its ridge solution (target_psf.hpp), which only the tiles have.
+  const bool misfit_by_tiles =
+      !whole_model || bool(tiling.rows) || options.method == ReconstructionMethod::kLinear;
   const int n = in.n;
   struct TileOutcome {
     Reconstruction rec;
@@ -819,6 +836,8 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     } else {
       if (p) p->model = tile_model(t);
       else p = window_problem(t);
+      // The solver reports its residuals over the core: no second render of the tile for them below.
+      if (misfit_by_tiles) p->residual_region = {t.core_y0 - t.y0, t.core_x0 - t.x0, t.core_rows, t.core_cols};
       if (!AnyWeighted(*p)) {  // nothing observed in the window: zeros, said in the summary
         out->empty = true;
         out->rec.image = Image::Zero(p->model->hr_shape().rows, p->model->hr_shape().cols);
@@ -833,20 +852,30 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
       solved = true;
     }
     if (misfit_by_tiles && !out->empty && out->ss.empty()) {
-      if (!p) p = window_problem(t);
-      if (!p->model) p->model = tile_model(t);
-      const ImageStack predicted = p->model->Render(out->rec.image);
+      // Per frame Σ r² and the weighted pixels over the core: from the solver's RMS there (each method's own
+      // residual, as its whole-grid run reports), else (a method that reports none) from a render of the tile.
+      const Index cy = t.core_y0 - t.y0, cx = t.core_x0 - t.x0;
+      if (!p) p = window_data(t);
+      const std::vector<double>& rms = out->rec.summary.frame_residual_rms;
+      const bool from_solver = solved && int(rms.size()) == n;
+      ImageStack predicted;
+      if (!from_solver) {
+        if (!p->model) p->model = tile_model(t);
+        predicted = p->model->Render(out->rec.image);
+      }
       out->ss.assign(n, 0.0);
       out->px.assign(n, 0.0);
-      const Index cy = t.core_y0 - t.y0, cx = t.core_x0 - t.x0;
-      for (int i = 0; i < n; ++i)
+      for (int i = 0; i < n; ++i) {
         for (Index y = cy; y < cy + t.core_rows; ++y)
           for (Index x = cx; x < cx + t.core_cols; ++x) {
             if (!p->weights.empty() && !(p->weights[i](y, x) > 0)) continue;
+            out->px[i] += 1;
+            if (from_solver) continue;
             const double d = p->frames[i](y, x) - predicted[i](y, x);
             out->ss[i] += d * d;
-            out->px[i] += 1;
           }
+        if (from_solver) out->ss[i] = rms[i] * rms[i] * out->px[i];
+      }
     }
     if (solved && checkpoint) {
       std::vector<double> misfit = out->ss;
@@ -936,6 +965,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
   bool cancelled = false;
   for (int b0 = 0; b0 < count && !cancelled; b0 += batch) {
     const int b1 = std::min(count, b0 + batch);
+    if (tiling.await_tiles) tiling.await_tiles(b0, b1);
     std::vector<TileOutcome> outcomes(b1 - b0);
     if (tiling.parallel_tiles) {
       ParallelFor(b1 - b0, [&](Index j) { solve(b0 + int(j), &outcomes[j]); });

@@ -270,8 +270,8 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
     central window) and the weights' rule (e.g. the background variance estimated from the whole frames). Each
     task opens the dataset from its path (shared storage: frames are not shipped through the scheduler), reads
     only its tile's window of the frames, masks and weights (cfitsio reads the section), solves the tile with the
-    plan's options and writes it to ``checkpoint_dir``. The client then blends the tiles in order, written by rows
-    into ``output`` (the image is never held whole). The image has the bytes of the serial run
+    plan's options and writes it to ``checkpoint_dir``. The client blends the tiles in order as their tasks
+    finish, beside the tasks still running, written by rows into ``output`` (the image is never held whole). The image has the bytes of the serial run
     ``aosr.reconstruct(dataset, method, tile=..., tile_overlap=..., memory_limit=...)`` by tiles without a
     whole-grid model, whoever solved which tile; a task whose worker dies is run again by Dask, and a rerun with
     the same ``checkpoint_dir`` solves only the tiles that are missing.
@@ -324,10 +324,28 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
                       threads=threads) for k in range(plan["tiles"])]
         key = hashlib.sha256(json.dumps([dataset, method, plan, weights, offsets, repr(sorted(options.items())),
                                          checkpoint_dir], sort_keys=True, default=str).encode()).hexdigest()[:16]
-        map_tasks(_tile_task, tasks, client=client, progress=progress, n_workers=n_workers,
-                  key_prefix=f"aosr-tile-{key}")
-        rec = aosr._aosr._tiles(dataset, method, phase="blend", plan=plan, checkpoint_dir=checkpoint_dir, keep=True,
-                                output=os.fspath(output) if output else "", dtype=dtype, **common)
+        blend = dict(common, plan=plan, checkpoint_dir=checkpoint_dir, keep=True,
+                     output=os.fspath(output) if output else "", dtype=dtype)
+        if client == "serial":
+            map_tasks(_tile_task, tasks, client="serial")
+            rec = aosr._aosr._tiles(dataset, method, phase="blend", **blend)
+        else:
+            with get_client(client, n_workers=n_workers) as c:
+                futures = c.map(_tile_task, tasks, pure=False, key=[f"aosr-tile-{key}-{k}" for k in range(len(tasks))])
+                try:
+                    if progress:
+                        from dask.distributed import progress as dask_progress
+
+                        dask_progress(futures)
+                    # The blend takes the tiles in order as their tasks finish, beside the tasks still running
+                    # (its bytes do not depend on when a tile came): only the last tiles' share of it is left
+                    # once the last task ends. A failed task raises here, as map_tasks would.
+                    rec = aosr._aosr._tiles(dataset, method, phase="blend",
+                                            await_tiles=lambda first, last: [f.result() for f in futures[first:last]],
+                                            **blend)
+                except BaseException:
+                    c.cancel(futures)
+                    raise
     finally:
         aosr._aosr._tiles_forget()
         _remove_stale_temporaries([os.path.join(checkpoint_dir, f"tile_{k}.bin") for k in range(plan["tiles"])])

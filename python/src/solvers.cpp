@@ -828,13 +828,17 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
       [](py::object dataset, const std::string& method, const std::string& phase, py::dict plan,
          std::vector<int> tiles, const std::string& checkpoint_dir, int tile, int tile_overlap,
          py::object memory_limit, const std::string& weights, const std::string& offsets,
-         py::dict options, bool keep, const std::string& output, const std::string& dtype) -> py::object {
+         py::dict options, bool keep, const std::string& output, const std::string& dtype,
+         py::object await_tiles) -> py::object {
         const char* fn = "aosr.distributed.reconstruct_tiles";
         if (dtype != "float32" && dtype != "float64") throw InvalidArgument(fn, "dtype", dtype, "float32 | float64");
         if (!output.empty() && phase != "blend")
           throw InvalidArgument(fn, "output", output, "only with phase 'blend'");
         if (phase != "plan" && phase != "solve" && phase != "blend")
           throw InvalidArgument(fn, "phase", phase, "'plan' | 'solve' | 'blend'");
+        if (!await_tiles.is_none() && (phase != "blend" || !PyCallable_Check(await_tiles.ptr())))
+          throw InvalidArgument(fn, "await_tiles", py::str(py::repr(await_tiles)).cast<std::string>(),
+                                "None, or a callable(first, last) with phase 'blend'");
         ReconstructOptions o = CliDefaults();
         o.method = ParseReconstructionMethod(method);
         ReconstructTable().Apply(o, options);
@@ -862,6 +866,12 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
           tiling.regularisation_window = plan["regularisation_window"].cast<int>();
           ApplyRegularisationDict(plan["regularisation"].cast<py::dict>(), &o);
           tiling.checkpoint_dir = checkpoint_dir;
+          // The blend beside the tasks: before taking tiles [first, last), wait (in Python) for their jobs.
+          if (!await_tiles.is_none())
+            tiling.await_tiles = [&await_tiles](int first, int last) {
+              py::gil_scoped_acquire gil;
+              await_tiles(first, last);
+            };
           if (phase == "solve") {
             if (tiles.empty()) throw InvalidArgument(fn, "tiles", "[]", "at least one tile index");
             tiling.only_tiles = tiles;
@@ -975,8 +985,9 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
       py::arg("tiles") = std::vector<int>{}, py::arg("checkpoint_dir") = "", py::arg("tile") = 0,
       py::arg("tile_overlap") = -1, py::arg("memory_limit") = py::none(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("options") = py::dict(), py::arg("keep") = false,
-      py::arg("output") = "", py::arg("dtype") = "float32",
-      "Internal: the phases of aosr.distributed.reconstruct_tiles (plan, solve tiles, blend).");
+      py::arg("output") = "", py::arg("dtype") = "float32", py::arg("await_tiles") = py::none(),
+      "Internal: the phases of aosr.distributed.reconstruct_tiles (plan, solve tiles, blend; await_tiles(first, "
+      "last) is called before the blend takes those tiles).");
   m.def(
       "_tiles_forget",
       [] {

@@ -245,6 +245,19 @@ def test_tiles_survive_a_killed_worker(batch, tiles_serial, fresh_cluster, tmp_p
     assert not [p for p in folder.iterdir() if not p.name.endswith(".bin")]  # no temporary left
 
 
+def test_a_failed_tile_task_raises_and_writes_nothing(batch, cluster, tmp_path):
+    # The blend runs beside the tasks: a task's error (here a file in the folder that is not a tile) reaches the
+    # caller, the other tasks are cancelled and no output appears.
+    client, _ = cluster
+    folder = tmp_path / "tiles"
+    folder.mkdir()
+    (folder / "tile_5.bin").write_bytes(b"not a tile")
+    out = tmp_path / "out.fits"
+    with pytest.raises(aosr.InvalidArgument, match="tile_5.bin"):
+        ad.reconstruct_tiles(batch[0], out, "tikhonov", client=client, checkpoint_dir=folder, **TILES)
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith("out")]
+
+
 def test_reconstruct_tiles_never_overwrites_an_input(batch):
     folder = batch[0]
     manifest = json.loads((pathlib.Path(folder) / "manifest.json").read_text())

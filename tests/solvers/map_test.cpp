@@ -151,6 +151,19 @@ TEST(MapTest, HittingTheIterationLimitIsReportedWithAFiniteImage) {
   ASSERT_EQ(r.summary.frame_residual_rms.size(), 4u);
   for (double rms : r.summary.frame_residual_rms) EXPECT_TRUE(std::isfinite(rms) && rms > 0);
   EXPECT_NEAR(r.summary.final_cost, r.summary.data_cost + r.summary.prior_cost, 1e-12 * r.summary.final_cost);
+
+  // With a residual region (a tile's core): the RMS of y − A x − b over it, by hand, and the same image.
+  ReconstructionProblem q = problem;
+  q.residual_region = {3, 5, 20, 11};
+  const MapResult rq = MapReconstruct(q, o);
+  EXPECT_EQ((rq.image - r.image).abs().maxCoeff(), 0.0);
+  const ImageStack predicted = model->Render(r.image);
+  ASSERT_EQ(rq.summary.frame_residual_rms.size(), 4u);
+  for (int i = 0; i < 4; ++i) {
+    const Image d = problem.frames[i] - predicted[i] - o.background;
+    const double expected = std::sqrt(d.block(3, 5, 20, 11).square().mean());
+    EXPECT_NEAR(rq.summary.frame_residual_rms[i], expected, 1e-12 * expected) << i;
+  }
 }
 
 // A point source on a dark sky: the unconstrained solution rings below zero; softplus keeps x >= 0 and

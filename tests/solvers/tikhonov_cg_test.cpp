@@ -1,6 +1,7 @@
 // The conjugate-gradient path of tikhonov.hpp: weights, masks and zero-padded boundaries.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <limits>
 
@@ -111,6 +112,25 @@ TEST(TikhonovCgTest, WeightedSolutionSolvesTheWeightedNormalEquations) {
   EXPECT_NEAR(res.summary.weighted_residual, 2 * misfit, 1e-12 * misfit);
   ASSERT_EQ(res.summary.frame_residual_rms.size(), 4u);
   for (int i = 0; i < 4; ++i) EXPECT_DOUBLE_EQ(res.summary.frame_residual_rms[i], rms[i]);
+
+  // A residual region (a tile's core, solvers/tiling.cpp): the RMS over its weighted pixels, by hand; the cost
+  // still covers every pixel.
+  ReconstructionProblem q = p;
+  q.residual_region = {2, 1, 5, 6};
+  const TikhonovResult in_region = ReconstructTikhonov(q, o);
+  EXPECT_EQ((in_region.image - res.image).abs().maxCoeff(), 0.0);
+  EXPECT_DOUBLE_EQ(in_region.summary.weighted_residual, res.summary.weighted_residual);
+  const ImageStack predicted = p.model->Render(res.image);
+  ASSERT_EQ(in_region.summary.frame_residual_rms.size(), 4u);
+  for (int i = 0; i < 4; ++i) {
+    double ss = 0, n = 0;
+    for (Index y = 2; y < 7; ++y)
+      for (Index x = 1; x < 7; ++x)
+        if (p.weights[i](y, x) > 0) ss += std::pow(p.frames[i](y, x) - predicted[i](y, x), 2), n += 1;
+    EXPECT_NEAR(in_region.summary.frame_residual_rms[i], std::sqrt(ss / n), 1e-12 * std::sqrt(ss / n)) << i;
+  }
+  q.residual_region = {4, 4, 5, 5};  // beyond the 8 x 8 frames
+  EXPECT_THROW(ReconstructTikhonov(q, o), InvalidArgument);
 }
 
 // A masked pixel is never read: NaN there gives exactly the answer that any finite value gives.
@@ -234,6 +254,15 @@ TEST(TikhonovCgTest, ZeroPaddedBoundaryRemovesTheWrapAroundError) {
   std::printf("interior RMS error: periodic %.4g, zero-padded %.4g (%s)\n", rms(periodic.image),
               rms(zp.image), zp.summary.message.c_str());
   EXPECT_LT(rms(zp.image), 0.2 * rms(periodic.image));
+
+  // The residual region moves into the padded grid with the frames: the whole frame as a region is every pixel.
+  ReconstructionProblem q = p;
+  q.residual_region = {0, 0, hr.rows / r, hr.cols / r};
+  const TikhonovResult zq = ReconstructTikhonov(q, o);
+  ASSERT_EQ(zq.summary.frame_residual_rms.size(), zp.summary.frame_residual_rms.size());
+  for (std::size_t i = 0; i < zq.summary.frame_residual_rms.size(); ++i)
+    EXPECT_NEAR(zq.summary.frame_residual_rms[i], zp.summary.frame_residual_rms[i],
+                1e-12 * zp.summary.frame_residual_rms[i]) << i;
 }
 
 }  // namespace

@@ -13,6 +13,8 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "aosr/core/fft.hpp"
@@ -597,6 +599,37 @@ TEST(TilingTest, TilesAsSeparateJobsGiveTheSerialBytes) {
     EXPECT_EQ(std::memcmp(blended.image.data(), serial.image.data(), sizeof(double) * serial.image.size()), 0)
         << ToString(m);
     EXPECT_EQ(blended.regularisation, serial.regularisation);
+
+    // The blend beside the jobs (aosr.distributed): await_tiles is called in tile order before the tiles are
+    // taken. Here it runs those tiles' jobs just then, into an empty folder: the serial bytes again.
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::vector<std::pair<int, int>> awaited;
+    TilingOptions beside = job;
+    beside.await_tiles = [&](int first, int last) {
+      awaited.push_back({first, last});
+      for (int k = first; k < last; ++k) {
+        TilingOptions one = job;
+        one.only_tiles = {k};
+        ReconstructTiled(f, ps.options, one);
+      }
+    };
+    TilingSummary as;
+    const Reconstruction overlapped = ReconstructTiled(f, ps.options, beside, &as);
+    EXPECT_EQ(as.tiles_resumed, 9) << ToString(m);
+    ASSERT_EQ(overlapped.image.size(), serial.image.size());
+    EXPECT_EQ(std::memcmp(overlapped.image.data(), serial.image.data(), sizeof(double) * serial.image.size()), 0)
+        << ToString(m);
+    int next = 0;
+    for (const auto& [first, last] : awaited) {
+      EXPECT_EQ(first, next);
+      EXPECT_GT(last, first);
+      next = last;
+    }
+    EXPECT_EQ(next, 9);
+    // A job that failed (the hook throws) ends the blend with its error.
+    beside.await_tiles = [](int, int) { throw std::runtime_error("tile job failed"); };
+    EXPECT_THROW(ReconstructTiled(f, ps.options, beside), std::runtime_error);
     fs::remove_all(dir);
   }
   // Jobs need a folder to put their tiles in, and real tile indices.

@@ -208,8 +208,9 @@ class MapObjective {
   // z(x). With positivity, pixels below s·ln 2 (including negative ones) map to z = 0 (x = s ln 2); their
   // number is written to *raised if non-null. x must be finite and of the HR shape.
   Vector ToParameters(const Image& x, Index* raised = nullptr) const;
-  // Per-frame RMS of y − A x − b over each frame's unmasked pixels (frame units; 0 for a fully masked frame).
-  std::vector<double> FrameResidualRms(const Image& x) const;
+  // Per-frame RMS of y − A x − b over each frame's unmasked pixels of `region` (problem.hpp; frame units; 0
+  // for a fully masked frame).
+  std::vector<double> FrameResidualRms(const Image& x, const LrRegion& region = {}) const;
 
  private:
   MapOptions options_;
@@ -217,6 +218,7 @@ class MapObjective {
   OperatorPtr gamma_;  // Γ (kTikhonov, non-identity) or ∇ (TV priors); null for the identity
   Shape hr_;
   int frames_ = 0;
+  Shape lr_;
   Index lr_size_ = 0;
   Vector y_;            // stacked frames, masked pixels set to 0
   Vector w_;            // stacked weights (kPoisson: 0/1 mask)

@@ -25,11 +25,21 @@
 
 namespace aosr {
 
+// LR pixels [y0, y0 + rows) x [x0, x0 + cols), the same in every frame; rows = cols = 0: every pixel.
+struct LrRegion {
+  Index y0 = 0, x0 = 0, rows = 0, cols = 0;
+  bool all() const { return rows == 0 && cols == 0; }
+};
+
 struct ReconstructionProblem {
   std::shared_ptr<const MultiFrameModel> model;  // required
   ImageStack frames;                             // N frames of model->lr_shape()
   ImageStack weights;                            // empty: every pixel weight 1; else N maps, finite, >= 0
   std::vector<FrameOffset> offsets;              // empty or N entries (HR pixels)
+  // Where the summary's frame_residual_rms is measured (default: every pixel). A tile's core
+  // (solvers/tiling.cpp): the tiled run then takes its cores' residuals from each solver's own final misfit
+  // instead of rendering every tile once more. Costs and objectives always cover every pixel.
+  LrRegion residual_region;
 
   int frame_count() const { return static_cast<int>(frames.size()); }
   // Throws InvalidArgument "<function>: <field> ..." unless the rules at the top of the file hold.
@@ -44,7 +54,7 @@ struct ReconstructionProblem {
 };
 
 // ½ Σ w (y − A x)² and, if `frame_rms` is non-null, the RMS of y_i − A_i x over each frame's weighted pixels
-// (frame units). x is on model->hr_shape().
+// of problem.residual_region (frame units). x is on model->hr_shape().
 double WeightedDataMisfit(const ReconstructionProblem& problem, const Image& x, std::vector<double>* frame_rms = nullptr);
 
 }  // namespace aosr

@@ -179,6 +179,11 @@ struct TilingOptions {
   //    the whole tiling with the same checkpoint_dir resumes every tile: the bytes of one serial run.
   bool plan_only = false;
   std::vector<int> only_tiles;
+  //  * await_tiles: the blend of tiles other processes are still solving (aosr.distributed): called from the
+  //    calling thread before tiles [first, last) are taken (read from checkpoint_dir, or solved if missing), so
+  //    that the caller can wait there for those jobs and the blend runs beside the rest. An exception it throws
+  //    ends the run.
+  std::function<void(int first, int last)> await_tiles;
   // Jobs of one field in one process (only_tiles, a call per tile): window models kept across the calls, so that
   // tiles of one shape share a model as they do in one run. The caller keeps one store per field (same kernels,
   // r and model options). Empty: the models live for one call.
@@ -282,14 +287,15 @@ void FitTilingToMemory(const FieldData& field, const ReconstructOptions& options
                        TilingOptions* tiling);
 
 // Reconstruct a FieldData by tiles (tiling.tile >= 1), as the overload below does a problem. The summary's
-// frame_residual_rms is that of each tile's solution over its core (the blended image is never held whole).
+// frame_residual_rms is that of each tile's solution over its core (the blended image is never held whole), as
+// each method reports it (ReconstructionProblem::residual_region; the linear output's is its ridge solution's).
 Reconstruction ReconstructTiled(const FieldData& field, const ReconstructOptions& options, const TilingOptions& tiling,
                                 TilingSummary* summary = nullptr);
 
 // Reconstruct `problem` by tiles (see the top of the file). The result is a Reconstruction of the whole field
 // as Reconstruct returns it: image (and aux) on the whole HR grid; summary with the worst tile's termination,
-// the summed iterations, the whole field's per-frame residual RMS and a message saying how it was tiled.
-// Validates like Reconstruct, plus the tiling (InvalidArgument naming "ReconstructTiled" and the field).
+// the summed iterations, the whole field's per-frame residual RMS (the linear output's: the tiles' ridge
+// solutions' over their cores) and a message saying how it was tiled. Validates like Reconstruct, plus the tiling (InvalidArgument naming "ReconstructTiled" and the field).
 Reconstruction ReconstructTiled(const ReconstructionProblem& problem, const ReconstructOptions& options,
                                 const TilingOptions& tiling, TilingSummary* summary = nullptr);
 
