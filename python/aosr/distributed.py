@@ -6,7 +6,9 @@ here: Dask schedules, retries and reports progress; aosr computes.
 
 Which client (the ``client`` argument of every function):
 
-* ``None`` (default): a ``LocalCluster`` of ``n_workers`` processes with one thread each, closed at the end;
+* ``None`` (default): a ``LocalCluster`` of ``n_workers`` processes with one thread each, closed at the end,
+  whose workers start with aosr's malloc settings and transparent huge pages (``_allocator_environment``; for
+  a cluster of your own, start ``dask worker`` with the same ``GLIBC_TUNABLES``);
 * a scheduler address such as ``"tcp://10.0.0.5:8786"``: the same code on every machine whose
   ``dask worker`` joined that scheduler (each needs ``import aosr`` to work, and the dataset paths to be
   visible, e.g. on a shared filesystem);
@@ -59,6 +61,9 @@ def get_client(client=None, n_workers=2, threads_per_worker=1, **cluster_kwargs)
     if client is None:
         cluster_kwargs.setdefault("dashboard_address", None)
         cluster_kwargs.setdefault("processes", True)
+        env = _allocator_environment()
+        if env and cluster_kwargs["processes"]:
+            cluster_kwargs.setdefault("env", env)
         with LocalCluster(n_workers=n_workers, threads_per_worker=threads_per_worker, **cluster_kwargs) as cluster:
             with Client(cluster) as c:
                 yield c
@@ -68,6 +73,23 @@ def get_client(client=None, n_workers=2, threads_per_worker=1, **cluster_kwargs)
             yield c
         return
     yield client
+
+
+def _allocator_environment():
+    """The environment a new worker process starts with for glibc's malloc (what the ``aosr`` launcher gives its
+    engine, src/cli/launcher/launcher.cpp): the thresholds aosr.tune_allocator sets, and transparent huge pages for
+    malloc's memory, which only a process's starting environment can ask for. Empty when the user chose malloc
+    settings (GLIBC_TUNABLES with glibc.malloc.*, MALLOC_*_ variables) or set AOSR_MALLOC_TUNING=0."""
+    if os.environ.get("AOSR_MALLOC_TUNING") == "0":
+        return {}
+    if any(name in os.environ for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "MALLOC_TOP_PAD_")):
+        return {}
+    tunables = os.environ.get("GLIBC_TUNABLES", "")
+    if "glibc.malloc." in tunables:
+        return {}
+    ours = ("glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=33554432:glibc.malloc.trim_threshold=1073741824:"
+            "glibc.malloc.mmap_max=0")
+    return {"GLIBC_TUNABLES": f"{tunables}:{ours}" if tunables else ours}
 
 
 def map_tasks(fn, items, client=None, progress=False, n_workers=2, key_prefix=None):

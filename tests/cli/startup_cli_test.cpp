@@ -21,6 +21,7 @@ using aosr::test::CliRun;
 using aosr::test::RunCli;
 using aosr::test::RunShell;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 std::string Engine() {
   return (fs::path(AOSR_CLI_PATH).parent_path() / "libexec" / "aosr" / "aosr-engine").string();
@@ -98,6 +99,26 @@ TEST(StartupCliTest, AMissingEngineIsACleanError) {
   const CliRun v =
       RunShell("AOSR_ENGINE=/nonexistent/aosr-engine " + std::string(AOSR_CLI_PATH) + " --version");
   EXPECT_EQ(v.status, 0);
+}
+
+// The engine starts with glibc's malloc tunables (launcher.cpp: the thresholds and transparent huge pages), unless
+// the user chose malloc settings or opted out. /usr/bin/env as the engine prints what it was given.
+TEST(StartupCliTest, TheEngineGetsTheAllocatorTunablesUnlessTheUserChoseOthers) {
+  const std::string launch = "env -u GLIBC_TUNABLES -u MALLOC_TRIM_THRESHOLD_ -u MALLOC_MMAP_THRESHOLD_ -u "
+                             "MALLOC_TOP_PAD_ -u AOSR_MALLOC_TUNING AOSR_ENGINE=/usr/bin/env ";
+  const std::string cli = std::string(AOSR_CLI_PATH);
+  const CliRun plain = RunShell(launch + cli);
+  ASSERT_EQ(plain.status, 0) << plain.out;
+  EXPECT_THAT(plain.out, HasSubstr("GLIBC_TUNABLES=glibc.malloc.hugetlb=1:glibc.malloc.mmap_threshold=33554432:"
+                                   "glibc.malloc.trim_threshold=1073741824:glibc.malloc.mmap_max=0\n"));
+  // Other tunables are kept, ours appended.
+  EXPECT_THAT(RunShell(launch + "GLIBC_TUNABLES=glibc.rtld.nns=4 " + cli).out,
+              HasSubstr("GLIBC_TUNABLES=glibc.rtld.nns=4:glibc.malloc.hugetlb=1:"));
+  for (const std::string user : {"GLIBC_TUNABLES=glibc.malloc.arena_max=2", "MALLOC_TRIM_THRESHOLD_=65536",
+                                 "AOSR_MALLOC_TUNING=0"}) {
+    const CliRun r = RunShell(launch + user + " " + cli);
+    EXPECT_THAT(r.out, Not(HasSubstr("hugetlb"))) << user;
+  }
 }
 
 }  // namespace
