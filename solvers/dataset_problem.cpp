@@ -1,10 +1,11 @@
 #include "aosr/solvers/dataset_problem.hpp"
 
 #include <algorithm>
-#include <mutex>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <mutex>
 
 #include "aosr/core/error.hpp"
 #include "aosr/core/memory.hpp"
@@ -218,22 +219,27 @@ ImageStack ApplyWeightsRule(const WeightsRule& rule, const ImageStack& valid, co
   return out;
 }
 
-DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frames_e, const DatasetProblemOptions& options) {
-  const std::size_t n = d.frames.size();
-  CheckArgument(frames_e.size() == n, "WeightsFromDataset", "frames_e", std::to_string(frames_e.size()) + " frames",
-                "the dataset's " + std::to_string(n) + " frames in electrons");
+namespace {
+
+// The weights' rule from what it depends on: the dataset's metadata, whether any pixel is invalid, and (background
+// weights without a detector model) each frame's background variance and its relative standard error, given by
+// `estimate` on demand. One rule for frames held whole and for frames read by sections.
+DatasetFrameWeights ChooseWeightsRule(const Dataset& d, const DatasetProblemOptions& options, bool any_invalid,
+                                      const std::function<void(std::vector<double>*, std::vector<double>*)>& estimate) {
+  const std::size_t n = std::size_t(d.size());
   DatasetFrameWeights out;
   WeightsRule& rule = out.rule;
   DatasetWeights choice = options.weights;
   if (choice == DatasetWeights::kAuto && options.method) choice = AutoWeights(*options.method);
-  const bool use_dataset = choice == DatasetWeights::kDataset || (choice == DatasetWeights::kAuto && d.weights);
-  for (const Image& v : d.valid) rule.any_invalid = rule.any_invalid || (v == 0).any();
+  const bool has_weights = d.weights || (d.pixel_files && !d.pixel_files->weights.empty());
+  const bool use_dataset = choice == DatasetWeights::kDataset || (choice == DatasetWeights::kAuto && has_weights);
+  rule.any_invalid = any_invalid;
   auto use_mask = [&] {
     rule.kind = rule.any_invalid ? WeightsRule::Kind::kValid : WeightsRule::Kind::kUniform;
     out.source = "validity mask";
   };
   if (use_dataset) {
-    CheckArgument(bool(d.weights), kDatasetProblemFn, "weights", "dataset", "a dataset whose manifest gives `weights`");
+    CheckArgument(has_weights, kDatasetProblemFn, "weights", "dataset", "a dataset whose manifest gives `weights`");
     rule.kind = WeightsRule::Kind::kDataset;
     rule.gain2 = d.gain_e_per_adu * d.gain_e_per_adu;
     out.source = "dataset inverse variances (e-^-2)";
@@ -252,10 +258,7 @@ DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frame
       out.source = "background variances from the detector model (e-^-2)";
     } else {
       std::vector<double> se(n, 0.0);
-      for (std::size_t i = 0; i < n; ++i) {
-        const double sigma = EstimateBackgroundSigma(frames_e[i], d.valid[i], &se[i]);
-        var[i] = sigma * sigma;
-      }
+      estimate(&var, &se);
       // Pool the frames' estimates when they agree within 5 standard errors: one exposure sequence, one
       // noise level, and uniform weights keep the problem Fourier-exact.
       const double lo = *std::min_element(var.begin(), var.end()), hi = *std::max_element(var.begin(), var.end());
@@ -278,7 +281,59 @@ DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frame
   } else {
     use_mask();
   }
-  out.weights = ApplyWeightsRule(rule, d.valid, d.weights);
+  return out;
+}
+
+// The frames' background variances and their relative standard errors (EstimateBackgroundSigma, frame by frame).
+void EstimateBackgroundVariances(const ImageStack& frames_e, const ImageStack& valid, std::vector<double>* var,
+                                 std::vector<double>* se) {
+  for (std::size_t i = 0; i < frames_e.size(); ++i) {
+    const double sigma = EstimateBackgroundSigma(frames_e[i], valid[i], &(*se)[i]);
+    (*var)[i] = sigma * sigma;
+  }
+}
+
+// The rule of a dataset loaded by sections, decided as WeightsFromDataset decides it on the held frames (the same
+// rule, bit for bit), with the frames read in bands of rows: a plan that never holds a whole detector's frames.
+// Also counts the pixels of weight 0 (DatasetProblem::masked_pixels). Background weights without a detector model
+// need each frame's whole background estimate: only then are the frames read whole, once.
+DatasetFrameWeights WeightsRuleBySections(const Dataset& d, const DatasetProblemOptions& options, Index* masked) {
+  const Index rows = d.frame.rows, cols = d.frame.cols;
+  const Index band = std::max<Index>(1, (Index(1) << 22) / std::max<Index>(1, cols * d.size()));  // ~32 MB a read
+  bool any_invalid = false;
+  Index invalid = 0, zero_weight = 0;
+  for (Index y0 = 0; y0 < rows; y0 += band) {
+    const DatasetSection s = ReadDatasetSection(d, y0, 0, std::min(band, rows - y0), cols);
+    for (std::size_t i = 0; i < s.valid.size(); ++i) {
+      const Index bad = (s.valid[i] == 0).count();
+      invalid += bad;
+      any_invalid = any_invalid || bad > 0;
+      if (s.weights) zero_weight += ((*s.weights)[i] * s.valid[i] == 0).count();
+    }
+  }
+  DatasetFrameWeights out = ChooseWeightsRule(d, options, any_invalid, [&](std::vector<double>* var, std::vector<double>* se) {
+    const DatasetSection s = ReadDatasetSection(d, 0, 0, rows, cols);
+    ImageStack frames_e;
+    for (const Image& f : s.frames) frames_e.push_back((f - d.bias_adu) * d.gain_e_per_adu);
+    EstimateBackgroundVariances(frames_e, s.valid, var, se);
+  });
+  // As ProblemFromDataset counts them on held weights: w == 0, w the rule's weights (the mask without any).
+  *masked = out.rule.kind == WeightsRule::Kind::kDataset ? zero_weight : invalid;
+  return out;
+}
+
+}  // namespace
+
+DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frames_e, const DatasetProblemOptions& options) {
+  const std::size_t n = d.frames.size();
+  CheckArgument(frames_e.size() == n, "WeightsFromDataset", "frames_e", std::to_string(frames_e.size()) + " frames",
+                "the dataset's " + std::to_string(n) + " frames in electrons");
+  bool any_invalid = false;
+  for (const Image& v : d.valid) any_invalid = any_invalid || (v == 0).any();
+  DatasetFrameWeights out = ChooseWeightsRule(d, options, any_invalid, [&](std::vector<double>* var, std::vector<double>* se) {
+    EstimateBackgroundVariances(frames_e, d.valid, var, se);
+  });
+  out.weights = ApplyWeightsRule(out.rule, d.valid, d.weights);
   return out;
 }
 
@@ -289,8 +344,6 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
     // Only the tiles' windows will be read: nothing here may need the whole frames.
     CheckArgument(!options.whole_grid_model, kDatasetProblemFn, "dataset", "one loaded by sections",
                   "with whole_grid_model false (a tiled run without a whole-grid model)");
-    CheckArgument(bool(options.weights_rule), kDatasetProblemFn, "weights_rule", "none for a dataset loaded by sections",
-                  "the rule decided on the whole dataset (DatasetProblem::weights_rule of the plan)");
     CheckArgument(!options.stars_psfs, kDatasetProblemFn, "stars_psfs", "true for a dataset loaded by sections",
                   "PSFs that need no whole frame (the dataset's, nominal or given)");
   }
@@ -428,12 +481,22 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   if (d.pixel_files) {
     // By sections: each window's frames in electrons and its weights under the plan's rule, the bytes the held
     // frames would give there (FramesElectrons and ApplyWeightsRule pixel by pixel).
-    const WeightsRule rule = *options.weights_rule;
-    out.weights_rule = rule;
-    out.weights_source = rule.kind == WeightsRule::Kind::kDataset      ? "dataset inverse variances (e-^-2)"
-                         : rule.kind == WeightsRule::Kind::kBackground ? "background variances (e-^-2), the plan's"
-                                                                       : "validity mask";
-    for (double v : rule.variance_e2) out.background_sigma_e.push_back(std::sqrt(v));
+    // The rule: the plan's (a job's tile), or decided here by reading the frames in bands (the plan itself).
+    if (options.weights_rule) {
+      out.weights_rule = *options.weights_rule;
+      const WeightsRule& rule = out.weights_rule;
+      out.weights_source = rule.kind == WeightsRule::Kind::kDataset      ? "dataset inverse variances (e-^-2)"
+                           : rule.kind == WeightsRule::Kind::kBackground ? "background variances (e-^-2), the plan's"
+                                                                         : "validity mask";
+      for (double v : rule.variance_e2) out.background_sigma_e.push_back(std::sqrt(v));
+    } else {
+      DatasetFrameWeights fw = WeightsRuleBySections(d, options, &out.masked_pixels);
+      out.weights_rule = std::move(fw.rule);
+      out.weights_source = std::move(fw.source);
+      out.background_sigma_e = std::move(fw.background_sigma_e);
+      out.warning = std::move(fw.warning);
+    }
+    const WeightsRule rule = out.weights_rule;
     auto sections = std::make_shared<FieldData::Sections>();
     sections->frames = int(n);
     sections->uniform_weights = rule.Uniform();

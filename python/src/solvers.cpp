@@ -895,9 +895,12 @@ iteration and raises KeyboardInterrupt. Errors: InvalidArgument (a ValueError) n
             cache.problem.reset();
             cache.models.reset();
           }
-          if (phase == "solve" && by_path && plan.contains("weights_rule")) {
-            // A task reads only its tile's window of the frames (shared storage), under the plan's weights rule.
-            dpo.weights_rule = WeightsRuleFromDict(plan["weights_rule"].cast<py::dict>());
+          if (by_path) {
+            // Nothing holds the frames whole. The plan decides the weights' rule reading them in bands of rows (and
+            // chooses the regularisation on its central window's section); a task reads only its tile's window of
+            // the frames (shared storage) under the plan's rule, and the blend needs no pixel.
+            if (phase != "plan" && plan.contains("weights_rule"))
+              dpo.weights_rule = WeightsRuleFromDict(plan["weights_rule"].cast<py::dict>());
             const std::string path = PathString(dataset);
             d = std::make_shared<const Dataset>(WithoutGil([&] { return LoadDataset(path, DatasetPixels::kSections); }));
           } else {

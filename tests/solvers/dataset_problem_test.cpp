@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <map>
 #include <optional>
+#include <random>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -17,6 +18,8 @@
 #include "aosr/scene/pipeline.hpp"
 #include "aosr/scene/scene_spec.hpp"
 #include "aosr/scene/telescope.hpp"
+#include "../io/temp_dir.hpp"
+#include "scene/dataset_fixture.hpp"
 #include "solvers/tikhonov_fixture.hpp"
 #include "support/testing.hpp"
 
@@ -170,7 +173,7 @@ TEST(DatasetWeightsTest, RuleAppliedToASectionAndItsRefusals) {
   DatasetProblemOptions o;
   EXPECT_THROW(ProblemFromDataset(lazy, o), InvalidArgument);  // a whole-grid model needs the whole frames
   o.whole_grid_model = false;
-  EXPECT_THROW(ProblemFromDataset(lazy, o), InvalidArgument);  // no weights rule from a plan
+  EXPECT_THROW(ProblemFromDataset(lazy, o), IoError);  // no rule from a plan: decided from the frames, here missing
   o.weights_rule = WeightsRule{};
   o.stars_psfs = true;
   EXPECT_THROW(ProblemFromDataset(lazy, o), InvalidArgument);  // stars need the whole frames
@@ -180,6 +183,51 @@ TEST(DatasetWeightsTest, RuleAppliedToASectionAndItsRefusals) {
   EXPECT_TRUE(dp.field->frames.empty());
   ImageStack f, ww;
   EXPECT_THROW(dp.field->sections->read(0, 0, 4, 4, &f, &ww), IoError);  // the missing file, by name
+}
+
+// A plan that opens the dataset by sections (aosr.distributed.reconstruct_tiles) decides the weights' rule by
+// reading the frames in bands: the rule and the masked pixels of the frames held whole, bit for bit, for each way
+// the weights can be made (the dataset's, the background estimated from the frames, the mask), with a NaN pixel, a
+// masked one and a zero weight.
+TEST(DatasetWeightsTest, RuleDecidedBySectionsEqualsTheHeldFramesRule) {
+  testing_io::TempDir dir;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> noise(0.0, 3.0);
+  ImageStack frames(2, Image(40, 36)), valid(2, Image::Ones(40, 36)), weights(2, Image::Constant(40, 36, 0.1));
+  for (Image& f : frames)
+    for (Index p = 0; p < f.size(); ++p) f(p) = 100.0 + noise(rng);
+  frames[1](3, 4) = std::nan("");
+  valid[0](30, 9) = 0;
+  weights[1](12, 20) = 0;
+  WriteFitsCube(dir.File("frames.fits"), frames, {}, FitsType::kFloat64);
+  WriteFitsCube(dir.File("valid.fits"), valid, {}, FitsType::kFloat64);
+  WriteFitsCube(dir.File("w.fits"), weights, {}, FitsType::kFloat64);
+  WriteFits(dir.File("psf.fits"), Image::Constant(4, 4, 1.0 / 16), {}, FitsType::kFloat64);
+  test::WriteJson(dir.File("manifest.json"), {{"format", "aosr-manifest"}, {"version", 1}, {"frames", "frames.fits"},
+                                              {"valid", "valid.fits"}, {"weights", "w.fits"}, {"psfs", "psf.fits"},
+                                              {"r", 2}, {"gain_e_per_adu", 2.0}, {"bias_adu", 100.0}});
+  const Dataset held = LoadDataset(dir.path().string());
+  const Dataset lazy = LoadDataset(dir.path().string(), DatasetPixels::kSections);
+  for (const DatasetWeights choice : {DatasetWeights::kDataset, DatasetWeights::kBackground, DatasetWeights::kMask}) {
+    SCOPED_TRACE(int(choice));
+    DatasetProblemOptions o;
+    o.weights = choice;
+    o.method = ReconstructionMethod::kTikhonov;
+    o.whole_grid_model = false;
+    const DatasetProblem a = ProblemFromDataset(held, o), b = ProblemFromDataset(lazy, o);
+    EXPECT_EQ(a.weights_rule.kind, b.weights_rule.kind);
+    EXPECT_EQ(a.weights_rule.variance_e2, b.weights_rule.variance_e2);  // exactly: the same estimate
+    EXPECT_EQ(a.weights_rule.gain2, b.weights_rule.gain2);
+    EXPECT_TRUE(a.weights_rule.any_invalid && b.weights_rule.any_invalid);
+    EXPECT_EQ(a.weights_source, b.weights_source);
+    EXPECT_EQ(a.masked_pixels, b.masked_pixels);
+    EXPECT_EQ(a.masked_pixels, choice == DatasetWeights::kDataset ? 3 : 2);  // the NaN, the mask (and the zero weight)
+    ASSERT_TRUE(b.field && b.field->sections);
+    ImageStack f, w;
+    b.field->sections->read(0, 0, 40, 36, &f, &w);
+    ASSERT_EQ(w.size(), 2u);
+    for (int i = 0; i < 2; ++i) EXPECT_TRUE((w[i] == a.field->weights[i]).all()) << i;
+  }
 }
 
 TEST(DiffractionTargetTest, AiryFwhmAtTheDatasetsWavelengthAndSampling) {

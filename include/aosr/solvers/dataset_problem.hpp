@@ -144,9 +144,11 @@ struct DatasetProblemOptions {
   // whole-grid model).
   bool whole_grid_model = true;
   // A dataset loaded by sections (LoadDataset(..., DatasetPixels::kSections), whole_grid_model false): the weights'
-  // rule decided on the whole dataset (DatasetProblem::weights_rule of a run that read it whole: the plan of
-  // aosr.distributed.reconstruct_tiles), required. The problem's FieldData then reads each window's frames and
-  // weights by sections (FieldData::sections).
+  // rule decided on the whole dataset (DatasetProblem::weights_rule of the plan of
+  // aosr.distributed.reconstruct_tiles, given to each tile's job). Without it the rule is decided here by reading
+  // the frames in bands of rows (the same rule as on the frames held whole; the frames are read whole only for
+  // background weights without a detector model), and masked_pixels is counted. The problem's FieldData then
+  // reads each window's frames and weights by sections (FieldData::sections).
   std::optional<WeightsRule> weights_rule;
 };
 
