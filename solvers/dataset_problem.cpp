@@ -568,7 +568,7 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
 bool WholeGridFits(const Dataset& d, ReconstructionMethod method, double limit_bytes, double* need) {
   const double hr_pixels = double(d.hr_frame.rows) * double(d.hr_frame.cols);
   const double lr_pixels = double(d.frame.rows) * double(d.frame.cols);
-  const int n = int(d.frames.size());
+  const int n = d.size();
   // The model (N half spectra), the data in electrons and the weights, and the solve.
   const double bytes = 8.0 * n * hr_pixels + 16.0 * n * lr_pixels + EstimateSolveBytes(method, n, hr_pixels, true);
   if (need) *need = bytes;

@@ -237,8 +237,18 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (!a.ring_centre.empty()) ParseRingCentre("aosr reconstruct", a.ring_centre, &ring_y, &ring_x);
 
   progress.Step("reading " + a.dataset);
-  const Dataset d = LoadDataset(a.dataset);
-  if (a.rings > 0 && !d.truth)
+  // A whole detector: when the whole-grid model and solve would pass the memory limit, the reconstruction runs
+  // by tiles without a whole-grid model (solvers/tiling.hpp, "A whole detector"), its output written by rows, and
+  // its frames are not held either: each tile's window is read by sections (as aosr.distributed's tasks read
+  // them; the weights' rule decided reading the frames in bands). The frames are read whole when the whole grid
+  // fits, or when the run needs them whole (stars PSFs, estimated offsets).
+  Dataset d = LoadDataset(a.dataset, DatasetPixels::kSections);
+  const MemoryLimit limit = CurrentMemoryLimit();
+  double whole_need = 0;
+  const bool whole_fits = WholeGridFits(d, o.method, limit.bytes, &whole_need);
+  if (whole_fits || a.model_psfs == "stars" || dpo.offsets == DatasetOffsets::kEstimate) d = LoadDataset(a.dataset);
+  const bool has_truth = d.truth.has_value() || d.manifest.contains("truth");
+  if (a.rings > 0 && !has_truth)
     throw InvalidArgument("aosr reconstruct", "--rings", std::to_string(a.rings),
                           "a dataset with a truth image (the rings score the reconstruction against it)");
   if (!a.ring_centre.empty() && !(ring_y >= -0.5 && ring_y <= d.hr_frame.rows - 0.5 && ring_x >= -0.5 &&
@@ -258,11 +268,6 @@ void RunReconstruct(const ReconstructArgs& a) {
                             "1 .. " + std::to_string(most) + " for this dataset, crop and centre (rings at least " +
                                 ToString(kMinRingWidthPx) + " HR px wide, the SSIM window)");
   }
-  // A whole detector: when the whole-grid model and solve would pass the memory limit, the reconstruction runs
-  // by tiles without a whole-grid model (solvers/tiling.hpp, "A whole detector"), its output written by rows.
-  const MemoryLimit limit = CurrentMemoryLimit();
-  double whole_need = 0;
-  const bool whole_fits = WholeGridFits(d, o.method, limit.bytes, &whole_need);
   if (!whole_fits) {
     if (a.rings > 0)
       throw InvalidArgument("aosr reconstruct", "--rings", std::to_string(a.rings),
@@ -521,7 +526,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   if (streamed) {
     j["output_by_rows"] = {{"whole_grid_bytes", whole_need}, {"memory_limit_bytes", limit.bytes},
                            {"memory_limit_source", limit.source}, {"peak_resident_bytes", PeakResidentBytes()}};
-    if (d.truth) j["metrics_note"] = "not computed: the image was never held whole; score it with aosr evaluate";
+    if (has_truth) j["metrics_note"] = "not computed: the image was never held whole; score it with aosr evaluate";
   }
   std::string aligned_line, rings_table;
   if (d.truth && !streamed) {
