@@ -723,7 +723,17 @@ void BindSolvers(py::module_& m) {
         else if (!model_psfs.is_none())
           dpo.model_psfs = StackFromArray(model_psfs, "model_psfs");
         const MemoryLimit limit = MemoryLimitArgument(memory_limit, "aosr.reconstruct");
-        const std::shared_ptr<const Dataset> d = DatasetArgument(dataset, "aosr.reconstruct");
+        // A dataset path as `aosr reconstruct` opens it: a whole detector's frames are read by sections (each tile's
+        // window), not held, unless the whole grid fits or the run needs the whole frames (stars PSFs, estimated
+        // offsets).
+        std::shared_ptr<const Dataset> d;
+        if (py::isinstance<py::str>(dataset) || py::hasattr(dataset, "__fspath__")) {
+          const std::string path = PathString(dataset);
+          auto lazy = std::make_shared<const Dataset>(WithoutGil([&] { return LoadDataset(path, DatasetPixels::kSections); }));
+          if (!WholeGridFits(*lazy, o.method, limit.bytes) && !dpo.stars_psfs && dpo.offsets != DatasetOffsets::kEstimate)
+            d = std::move(lazy);
+        }
+        if (!d) d = DatasetArgument(dataset, "aosr.reconstruct");
         PythonProgress poll(progress);
         o.progress = poll.Callback();
         auto out = std::make_shared<PyReconstruction>();
