@@ -289,7 +289,8 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
 
     The client plans once: the dataset's tiles (``tile`` camera px, or the largest whose run fits
     ``memory_limit``), their overlap, one regularisation for the whole field (λ, κ or TV's μ, chosen on a
-    central window) and the weights' rule (e.g. the background variance estimated from the whole frames). Each
+    central window) and the weights' rule (the pooled background variance, whether any pixel is masked), read from
+    the frames in bands of rows. Each
     task opens the dataset from its path (shared storage: frames are not shipped through the scheduler), reads
     only its tile's window of the frames, masks and weights (cfitsio reads the section), solves the tile with the
     plan's options and writes it to ``checkpoint_dir``. The client blends the tiles in order as their tasks
