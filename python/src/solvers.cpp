@@ -815,7 +815,8 @@ psf_field   'auto' (a dataset with a psf_field, or stars={'grid': (ny, nx)} with
 memory_limit  None (the process's limit: AOSR_MEMORY_LIMIT, else the machine) | bytes | '512M', '8G': when the
             whole-grid model and solve need more, the run goes by tiles without a whole-grid model, the tiles
             (unless tile is given) and the regularisation's window chosen to fit, as `aosr reconstruct` does for a
-            whole detector; Reconstruction.memory_plan then says so
+            whole detector; Reconstruction.memory_plan then says so. A dataset given by path then has each tile's
+            window of the frames read by sections (never held whole)
 progress    optional callable(dict) called during tikhonov, tv and map (stage, iteration, total, value,
             value_name, elapsed_seconds); returning False cancels (termination 'cancelled')
 **options   the CLI's options under their names (lambda_, lambda_rule, prior, boundary, std, noise_sigma, mu,
