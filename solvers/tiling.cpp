@@ -494,7 +494,7 @@ TilingOptions Tiling(const FieldData& field, ReconstructionMethod method, int ov
     }
   }
   throw ResourceError("ChooseTiling: the smallest tiling of " + ToString(field.lr) + " camera px x " +
-                      std::to_string(field.frames.size()) + " frames at r = " + std::to_string(field.r) + " (" +
+                      std::to_string(field.frame_count()) + " frames at r = " + std::to_string(field.r) + " (" +
                       ToString(method) + ", tiles of " + std::to_string(smallest_tile) +
                       " camera px one at a time, overlap " + std::to_string(overlap) +
                       ") needs about " + FormatBytes(smallest) + " of memory (estimate), more than the limit of " +

@@ -477,6 +477,8 @@ TEST_F(ReconstructCliTest, MemoryLimitReconstructsByTilesWrittenByRows) {
   r = RunCli("reconstruct " + Data() + " -m tikhonov --lambda 0.01 --memory-limit 300K -o " + Out("none"));
   EXPECT_EQ(r.status, 1) << r.out;
   EXPECT_THAT(r.out, HasSubstr("memory"));
+  // The frames it names are the dataset's, though none is held (read by sections).
+  EXPECT_THAT(r.out, HasSubstr(" " + std::to_string(held_json["frames"].get<int>()) + " frames")) << r.out;
   EXPECT_FALSE(fs::exists(Out("none")));
 }
 

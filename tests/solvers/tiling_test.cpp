@@ -751,6 +751,15 @@ TEST(TilingTest, ChooseTilingFitsTheMemoryLimit) {
   EXPECT_LE(EstimateTiledBytes(f, m, mid.tile, 8, mid.parallel_tiles ? 2 : 1, false), limit);
   EXPECT_THAT(test::ErrorOf([&] { ChooseTiling(f, m, 8, 2, 1e5, false); }),
               ::testing::AllOf(::testing::HasSubstr("ChooseTiling"), ::testing::HasSubstr("--memory-limit")));
+  // Frames read by sections (none held): the error names the field's frames all the same.
+  FieldData lazy = f;
+  auto sections = std::make_shared<FieldData::Sections>();
+  sections->frames = f.frame_count();
+  lazy.sections = sections;
+  lazy.frames.clear();
+  lazy.weights.clear();
+  EXPECT_THAT(test::ErrorOf([&] { ChooseTiling(lazy, m, 8, 2, 1e5, false); }),
+              ::testing::HasSubstr(" x " + std::to_string(f.frame_count()) + " frames at r = "));
 }
 
 // A whole detector's memory plan fixes the tiles before λ is known, for twice the PSF-and-reach rule's overlap,
