@@ -299,7 +299,7 @@ void EstimateBackgroundVariances(const ImageStack& frames_e, const ImageStack& v
 // need each frame's whole background estimate: only then are the frames read whole, once.
 DatasetFrameWeights WeightsRuleBySections(const Dataset& d, const DatasetProblemOptions& options, Index* masked) {
   const Index rows = d.frame.rows, cols = d.frame.cols;
-  const Index band = std::max<Index>(1, (Index(1) << 22) / std::max<Index>(1, cols * d.size()));  // ~32 MB a read
+  const Index band = std::max<Index>(1, (Index(1) << 22) / std::max<Index>(1, cols * d.size()));  // 2^22 pixels (32 MB of doubles) of each file a read
   bool any_invalid = false;
   Index invalid = 0, zero_weight = 0;
   for (Index y0 = 0; y0 < rows; y0 += band) {
