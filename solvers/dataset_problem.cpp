@@ -299,7 +299,8 @@ void EstimateBackgroundVariances(const ImageStack& frames_e, const ImageStack& v
 // need each frame's whole background estimate: only then are the frames read whole, once.
 DatasetFrameWeights WeightsRuleBySections(const Dataset& d, const DatasetProblemOptions& options, Index* masked) {
   const Index rows = d.frame.rows, cols = d.frame.cols;
-  const Index band = std::max<Index>(1, (Index(1) << 22) / std::max<Index>(1, cols * d.size()));  // 2^22 pixels (32 MB of doubles) of each file a read
+  // 2^22 pixels of each file a read (32 MB as doubles).
+  const Index band = std::max<Index>(1, (Index(1) << 22) / std::max<Index>(1, cols * d.size()));
   bool any_invalid = false;
   Index invalid = 0, zero_weight = 0;
   for (Index y0 = 0; y0 < rows; y0 += band) {
@@ -311,12 +312,13 @@ DatasetFrameWeights WeightsRuleBySections(const Dataset& d, const DatasetProblem
       if (s.weights) zero_weight += ((*s.weights)[i] * s.valid[i] == 0).count();
     }
   }
-  DatasetFrameWeights out = ChooseWeightsRule(d, options, any_invalid, [&](std::vector<double>* var, std::vector<double>* se) {
+  auto estimate = [&](std::vector<double>* var, std::vector<double>* se) {
     const DatasetSection s = ReadDatasetSection(d, 0, 0, rows, cols);
     ImageStack frames_e;
     for (const Image& f : s.frames) frames_e.push_back((f - d.bias_adu) * d.gain_e_per_adu);
     EstimateBackgroundVariances(frames_e, s.valid, var, se);
-  });
+  };
+  DatasetFrameWeights out = ChooseWeightsRule(d, options, any_invalid, estimate);
   // As ProblemFromDataset counts them on held weights: w == 0, w the rule's weights (the mask without any).
   *masked = out.rule.kind == WeightsRule::Kind::kDataset ? zero_weight : invalid;
   return out;
@@ -330,9 +332,10 @@ DatasetFrameWeights WeightsFromDataset(const Dataset& d, const ImageStack& frame
                 "the dataset's " + std::to_string(n) + " frames in electrons");
   bool any_invalid = false;
   for (const Image& v : d.valid) any_invalid = any_invalid || (v == 0).any();
-  DatasetFrameWeights out = ChooseWeightsRule(d, options, any_invalid, [&](std::vector<double>* var, std::vector<double>* se) {
+  auto estimate = [&](std::vector<double>* var, std::vector<double>* se) {
     EstimateBackgroundVariances(frames_e, d.valid, var, se);
-  });
+  };
+  DatasetFrameWeights out = ChooseWeightsRule(d, options, any_invalid, estimate);
   out.weights = ApplyWeightsRule(out.rule, d.valid, d.weights);
   return out;
 }
