@@ -5,9 +5,13 @@
 #include <memory>
 #include <string>
 
+#include "aosr/core/memory.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
 #include "aosr/solvers/reconstruct.hpp"
+#include "aosr/solvers/registration.hpp"
+#include "aosr/solvers/stars_psf.hpp"
+#include "aosr/solvers/tiling.hpp"
 #include "common.hpp"
 
 namespace aosr::python {
@@ -35,5 +39,25 @@ py::dict ReconstructOptionsHelp();
 const OptionTable<ReconstructOptions>& ReconstructTable();
 ReconstructOptions CliDefaults();
 py::dict SummaryDict(const SolverSummary& summary);
+
+// aosr.Reconstruction (solvers.cpp), what aosr.reconstruct and the blend of aosr.distributed.reconstruct_tiles
+// (tiles.cpp) return: the library's Reconstruction (images viewed, not copied) and where the
+// problem's weights and offsets came from.
+struct PyReconstruction {
+  Reconstruction rec;
+  std::string method, weights_source, offsets_source;
+  bool model_psfs_replaced = false;
+  Index masked_pixels = 0;
+  std::optional<RegistrationResult> registration;
+  std::optional<StarsPsfResult> stars_psf;
+  std::string psf_field = "none";  // the field model used: "none" | "tiles"
+  int r = 1;
+  // Set when the whole grid did not fit the memory limit and the run went by tiles without a whole-grid model.
+  std::optional<TilingOptions> by_tiles_for_memory;
+  double whole_grid_bytes = 0, memory_limit_bytes = 0;
+};
+
+// A memory limit argument: None (the process's), bytes, or '512M' / '8G' (solvers.cpp).
+MemoryLimit MemoryLimitArgument(const py::object& memory_limit, const char* fn);
 
 }  // namespace aosr::python

@@ -207,6 +207,7 @@ PYBIND11_MODULE(_aosr, m) {
   BindOptics(m);
   BindScene(m);
   BindSolvers(m);
+  BindTiles(m);
   BindStreaming(m);
   BindDesign(m);
   BindCalib(m);

@@ -259,6 +259,7 @@ void BindIo(py::module_& m);
 void BindOptics(py::module_& m);
 void BindScene(py::module_& m);
 void BindSolvers(py::module_& m);
+void BindTiles(py::module_& m);
 void BindStreaming(py::module_& m);
 void BindDesign(py::module_& m);
 void BindCalib(py::module_& m);

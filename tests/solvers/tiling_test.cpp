@@ -592,13 +592,17 @@ TEST(TilingTest, TilesAsSeparateJobsGiveTheSerialBytes) {
       EXPECT_TRUE(fs::exists(dir / ("tile_" + std::to_string(k) + ".bin"))) << k;
     }
     job.only_tiles.clear();
-    TilingSummary bs;
-    const Reconstruction blended = ReconstructTiled(f, ps.options, job, &bs);
-    EXPECT_EQ(bs.tiles_resumed, 9) << ToString(m);
-    ASSERT_EQ(blended.image.size(), serial.image.size());
-    EXPECT_EQ(std::memcmp(blended.image.data(), serial.image.data(), sizeof(double) * serial.image.size()), 0)
-        << ToString(m);
-    EXPECT_EQ(blended.regularisation, serial.regularisation);
+    // A blend of every tile from the folder: the serial run's bytes and regularisation.
+    auto expect_serial = [&](const TilingOptions& blend, const char* how) {
+      TilingSummary bs;
+      const Reconstruction blended = ReconstructTiled(f, ps.options, blend, &bs);
+      EXPECT_EQ(bs.tiles_resumed, 9) << ToString(m) << ", " << how;
+      ASSERT_EQ(blended.image.size(), serial.image.size()) << how;
+      EXPECT_EQ(std::memcmp(blended.image.data(), serial.image.data(), sizeof(double) * serial.image.size()), 0)
+          << ToString(m) << ", " << how;
+      EXPECT_EQ(blended.regularisation, serial.regularisation) << how;
+    };
+    expect_serial(job, "after the jobs");
 
     // The blend beside the jobs (aosr.distributed): await_tiles is called in tile order before the tiles are
     // taken. Here it runs those tiles' jobs just then, into an empty folder: the serial bytes again.
@@ -614,12 +618,7 @@ TEST(TilingTest, TilesAsSeparateJobsGiveTheSerialBytes) {
         ReconstructTiled(f, ps.options, one);
       }
     };
-    TilingSummary as;
-    const Reconstruction overlapped = ReconstructTiled(f, ps.options, beside, &as);
-    EXPECT_EQ(as.tiles_resumed, 9) << ToString(m);
-    ASSERT_EQ(overlapped.image.size(), serial.image.size());
-    EXPECT_EQ(std::memcmp(overlapped.image.data(), serial.image.data(), sizeof(double) * serial.image.size()), 0)
-        << ToString(m);
+    expect_serial(beside, "beside the jobs");
     int next = 0;
     for (const auto& [first, last] : awaited) {
       EXPECT_EQ(first, next);
