@@ -105,3 +105,11 @@ def test_a_whole_detector_goes_by_tiles_under_the_memory_limit(demo_dir, cli, tm
 def test_bad_memory_limit_raises_invalid_argument(demo_dir, limit):
     with pytest.raises(aosr.InvalidArgument, match="memory_limit"):
         aosr.reconstruct(demo_dir, "tikhonov", memory_limit=limit)
+
+
+@pytest.mark.parametrize("phase, hook", [("plan", lambda first, last: None), ("blend", "not callable")])
+def test_tile_jobs_refuse_an_await_hook_they_cannot_use(demo_dir, phase, hook):
+    """The jobs' entry point (aosr.distributed.reconstruct_tiles' phases): await_tiles only as a callable, only
+    with the blend, and refused by name before any work."""
+    with pytest.raises(aosr.InvalidArgument, match="await_tiles"):
+        aosr._aosr._tiles(demo_dir, "tikhonov", phase=phase, tile=32, await_tiles=hook)
