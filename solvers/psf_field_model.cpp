@@ -46,36 +46,53 @@ int SuggestFieldTile(const PsfFieldGrid& grid, int r, Shape lr) {
   return std::min(axis(spacing[0], lr.rows), axis(spacing[1], lr.cols));
 }
 
+namespace {
+
+// The tiles of a field model: local PSFs, the default tile and the regularisation's central window, and the
+// nodes' PSFs in the checkpoint fingerprint.
+TilingOptions FieldTiling(const DatasetProblem& problem, TilingOptions tiling) {
+  const int r = problem.field ? problem.field->r : problem.problem.model->r();
+  const Shape lr = problem.field ? problem.field->lr : problem.problem.model->lr_shape();
+  if (tiling.tile == 0) tiling.tile = SuggestFieldTile(problem.psf_field->grid, r, lr);
+  tiling.local_psfs = FieldTilePsfs(problem.psf_field->grid, problem.psf_field->psfs, r);
+  if (tiling.regularisation_from_whole_field &&
+      (tiling.regularisation_window == 0 || tiling.regularisation_window > kFieldRegularisationWindow))
+    tiling.regularisation_window = kFieldRegularisationWindow;
+  // The checkpoint fingerprint covers the whole field's model; the nodes' PSFs enter through this checksum.
+  double checksum = 0.0;
+  for (std::size_t k = 0; k < problem.psf_field->psfs.size(); ++k)
+    for (std::size_t i = 0; i < problem.psf_field->psfs[k].size(); ++i) {
+      const Image& p = problem.psf_field->psfs[k][i];
+      for (Index j = 0; j < p.size(); ++j) checksum += p.data()[j] * double(1 + j % 97) * double(k + 1) * double(i + 1);
+    }
+  char text[64];
+  std::snprintf(text, sizeof text, "|psf_field tiles %dx%d %.17g", problem.psf_field->grid.ny(),
+                problem.psf_field->grid.nx(), checksum);
+  tiling.checkpoint_key += text;
+  return tiling;
+}
+
+}  // namespace
+
 Reconstruction ReconstructDataset(const DatasetProblem& problem, const ReconstructOptions& options,
                                   TilingOptions tiling, TilingSummary* summary) {
   if (problem.psf_field && problem.psf_field->approach == DatasetPsfField::kOperator) {
     if (tiling.tile > 0)
       throw InvalidArgument("ReconstructDataset", "tiling.tile", std::to_string(tiling.tile),
                             "0 with psf_field operator (one space-variant solve over the whole field)");
-    // The regularisation the tiles would use (chosen on the field's centre model), then one solve of the
-    // space-variant operator.
-    ReconstructOptions o = options;
-    ReconstructionProblem centre = problem.problem;
-    centre.model = std::make_shared<const MultiFrameModel>(problem.problem.model->Isoplanatic());
-    FixRegularisation(centre, &o);
+    // The regularisation the tiles would use (their plan: the central window with the centre's local PSFs),
+    // then one solve of the space-variant operator: the reference solves the tiles' problem exactly.
+    TilingOptions plan = FieldTiling(problem, tiling);
+    plan.plan_only = true;
+    plan.checkpoint_dir.clear();
+    TilingSummary planned;
+    ReconstructTiled(problem.problem, options, plan, &planned);
+    ReconstructOptions o = planned.options;
+    o.progress = options.progress;
     return Reconstruct(problem.problem, o);
   }
   if (problem.psf_field) {
-    const int r = problem.field ? problem.field->r : problem.problem.model->r();
-    const Shape lr = problem.field ? problem.field->lr : problem.problem.model->lr_shape();
-    if (tiling.tile == 0) tiling.tile = SuggestFieldTile(problem.psf_field->grid, r, lr);
-    tiling.local_psfs = FieldTilePsfs(problem.psf_field->grid, problem.psf_field->psfs, r);
-    // The checkpoint fingerprint covers the whole field's model; the nodes' PSFs enter through this checksum.
-    double checksum = 0.0;
-    for (std::size_t k = 0; k < problem.psf_field->psfs.size(); ++k)
-      for (std::size_t i = 0; i < problem.psf_field->psfs[k].size(); ++i) {
-        const Image& p = problem.psf_field->psfs[k][i];
-        for (Index j = 0; j < p.size(); ++j) checksum += p.data()[j] * double(1 + j % 97) * double(k + 1) * double(i + 1);
-      }
-    char text[64];
-    std::snprintf(text, sizeof text, "|psf_field tiles %dx%d %.17g", problem.psf_field->grid.ny(),
-                  problem.psf_field->grid.nx(), checksum);
-    tiling.checkpoint_key += text;
+    tiling = FieldTiling(problem, std::move(tiling));
     if (problem.field) return ReconstructTiled(*problem.field, options, tiling, summary);
     return ReconstructTiled(problem.problem, options, tiling, summary);
   }

@@ -148,9 +148,14 @@ int OverlapRule(const ReconstructionProblem& problem, const ReconstructOptions& 
                         options.method == ReconstructionMethod::kMap;
   const int psf = uses_psf ? PaddedModel::SuggestPadding(*problem.model, tiling.psf_tail) : 0;
   const int reg = RegulariserReach(problem.offsets, problem.model->r(), options.method);
-  if (rule)
-    *rule = "2 x (psf " + std::to_string(psf) + " + " + ToString(options.method) + " reach " +
-            std::to_string(reg) + ")";
+  const std::string sum = "psf " + std::to_string(psf) + " + " + ToString(options.method) + " reach " + std::to_string(reg);
+  if (tiling.local_psfs) {
+    // Not doubled: a tile's PSF is right only near its centre, and the window's model error, not its truncation,
+    // sets the error (tiling.hpp, "The overlap rule").
+    if (rule) *rule = sum + " (local PSFs)";
+    return psf + reg;
+  }
+  if (rule) *rule = "2 x (" + sum + ")";
   return 2 * (psf + reg);
 }
 

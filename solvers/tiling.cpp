@@ -609,11 +609,9 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
   // The overlap: given, or the rule capped to what the field allows (measured again below once the
   // regularisation is fixed, for the methods whose reach is measured).
   TilingSummary ts;
-  // Tiles with local PSFs (a field-varying model) take the PSF-and-reach rule, not the measured reach: each
-  // tile's PSF is right only near its centre, so a wider window adds model error faster than it removes the
-  // truncation's. On the wide scene (bench/results/wide_field.md, Tikhonov, tiles of 64) against the exact
-  // space-variant operator: RMS 2.3e-4 of the peak at overlap 8 to 16, 2.5e-4 at 24, 2.9e-4 at 32, 3.4e-4 at
-  // the measured 43, which also took 1.8x the time of 16.
+  // Tiles with local PSFs (a field-varying model) take the PSF-and-reach rule, undoubled, not the measured reach:
+  // each tile's PSF is right only near its centre, so a wider window adds model error faster than it removes
+  // the truncation's (tiling.hpp, "The overlap rule", with the measurements).
   const bool measure = !tiling.local_psfs;
   auto automatic_overlap = [&](const ReconstructOptions& with, std::string* rule) {
     int p = whole_model ? OverlapRule(*in.problem, with, tiling, rule, measure)
@@ -752,7 +750,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
       RemoveWrapJumps(&p);
       chosen = FixRegularisation(p, &fix);
       ts.regularisation_source = "central tile";
-    } else if (tiling.regularisation_window == 0 && whole_model) {
+    } else if (tiling.regularisation_window == 0 && whole_model && !tiling.local_psfs) {
       chosen = FixRegularisation(*in.problem, &fix);
       ts.regularisation_source = "whole field";
     } else {
@@ -806,8 +804,10 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
                     : tiling_internal::RunFingerprint(*in.field, fingerprint_options, tiling, overlap);
   // Without a whole image at the end, the residual is each tile's over its core. So it is for the linear output,
   // whose residual is that of its ridge solution (target_psf.hpp), which only the tiles have.
-  const bool misfit_by_tiles =
-      !whole_model || bool(tiling.rows) || options.method == ReconstructionMethod::kLinear;
+  // So it is for tiles with local PSFs: the whole model's PSF is the field centre's, which is not the one the
+  // tiles fitted (and its render of the whole field cost 15 % of a wide field's run).
+  const bool misfit_by_tiles = !whole_model || bool(tiling.rows) ||
+                               options.method == ReconstructionMethod::kLinear || bool(tiling.local_psfs);
   const int n = in.n;
   struct TileOutcome {
     Reconstruction rec;

@@ -75,6 +75,15 @@ TEST(PsfFieldModelTest, TilesWithLocalPsfsBeatTheGuideStarsPsfOffAxis) {
   const Reconstruction with_field = ReconstructDataset(field, o, {}, &ts);
   EXPECT_EQ(ts.tile, 32);  // half of 127 HR px = 31.75 camera px
   EXPECT_EQ(ts.tiles_y * ts.tiles_x, 4);
+  // λ on the central kFieldRegularisationWindow² camera px: here the whole (smaller) field, with the PSFs of
+  // its centre; a smaller window when asked.
+  EXPECT_EQ(ts.regularisation_source, "whole field");
+  TilingOptions small;
+  small.regularisation_window = 32;
+  TilingSummary ts_small;
+  const Reconstruction with_small = ReconstructDataset(field, o, small, &ts_small);
+  EXPECT_EQ(ts_small.regularisation_source, "central 32 x 32 camera px");
+  EXPECT_NE(with_small.regularisation, with_field.regularisation);
   dpo.psf_field = DatasetPsfField::kNone;
   const DatasetProblem single = ProblemFromDataset(d, dpo);
   EXPECT_FALSE(single.psf_field.has_value());
@@ -89,7 +98,11 @@ TEST(PsfFieldModelTest, TilesWithLocalPsfsBeatTheGuideStarsPsfOffAxis) {
   ASSERT_TRUE(exact.problem.model->space_variant());
   const Reconstruction with_operator = ReconstructDataset(exact, o);
   EXPECT_EQ(with_operator.summary.termination, Termination::kConverged) << with_operator.summary.message;
-  EXPECT_NEAR(with_operator.regularisation, with_field.regularisation, 1e-12 * with_field.regularisation);
+  EXPECT_EQ(with_operator.regularisation, with_field.regularisation);  // the tiles' plan's λ
+  // The operator takes the tiles' plan, window included (only the plan: its λ, not a solve, is compared).
+  ReconstructOptions given = o;
+  given.tikhonov.cg.max_iterations = 1;
+  EXPECT_EQ(ReconstructDataset(exact, given, small).regularisation, with_small.regularisation);
   const double psnr_operator = CompareImagesAligned(*d.truth, with_operator.image, mo).aligned.psnr;
   std::printf("aligned PSNR: tiles %.2f dB, operator %.2f dB, guide star's PSF %.2f dB\n", psnr_field,
               psnr_operator, psnr_axis);

@@ -319,15 +319,24 @@ TEST(TilingTest, LocalPsfHookIsUsedPerTile) {
   const Reconstruction hooked = ReconstructTiled(s.problem, o, t);
   for (int k = 0; k < 9; ++k) EXPECT_GE(calls[k], 1) << k;
   EXPECT_LT(MaxAbs(hooked.image - base.image) / MaxAbs(base.image), 1e-9);
-  // An automatic overlap with local PSFs is the PSF-and-reach rule's, not the measured reach (tiling.hpp, "The
-  // overlap rule"); without them, Tikhonov's is measured.
+  // An automatic overlap with local PSFs is the PSF-and-reach rule's, undoubled, not the measured reach
+  // (tiling.hpp, "The overlap rule"): here the PSF's 3 camera px and Tikhonov's 3, raised by at most a quarter
+  // for FFT-friendly windows. Without them, Tikhonov's is measured.
   for (const bool local : {true, false}) {
     TilingOptions a = t;
     a.overlap = -1;
     if (!local) a.local_psfs = nullptr;
     TilingSummary ts;
-    ReconstructTiled(s.problem, o, a, &ts);
-    EXPECT_THAT(ts.overlap_rule, ::testing::HasSubstr(local ? "2 x (psf" : "measured")) << ts.overlap_rule;
+    const Reconstruction rec = ReconstructTiled(s.problem, o, a, &ts);
+    EXPECT_THAT(ts.overlap_rule, ::testing::HasSubstr(local ? "psf 3 + tikhonov reach 3 (local PSFs)" : "measured"))
+        << ts.overlap_rule;
+    if (local) {
+      EXPECT_GE(ts.overlap, 6);
+      EXPECT_LE(ts.overlap, 6 + 6 / 4);
+      // The residuals are the tiles' own, through their local PSFs, not a render with the whole model's PSF.
+      EXPECT_THAT(rec.summary.message, ::testing::HasSubstr("residuals are the tiles' over their cores"));
+      EXPECT_EQ(rec.summary.frame_residual_rms.size(), s.problem.frames.size());
+    }
   }
 }
 

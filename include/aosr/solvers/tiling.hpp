@@ -48,9 +48,13 @@
 //               3 for tikhonov and linear before their regularisation is fixed, 1 for shift-add and drizzle
 //               (their drops reach one pixel, plus the offsets: ceil(max |offset| / r) more);
 //     then doubled (the ramp uses the inner half of the overlap, see Blending).
-//   tiles with local PSFs (TilingOptions::local_psfs, a field-varying model): the rule of the other methods for
-//     every method. A tile's PSF is right only near its centre, so a wider window adds model error faster than
-//     the measured reach removes truncation error (measured against the exact space-variant operator: tiling.cpp).
+//   tiles with local PSFs (TilingOptions::local_psfs, a field-varying model): psf_reach + regulariser_reach for
+//     every method, not doubled. A tile's PSF is right only near its centre, so a wider window adds model error
+//     faster than it removes truncation error. Against the exact space-variant operator on the wide scene
+//     (bench/results/wide_field.md; Tikhonov at one λ, RMS of tiles − operator over the peak), tiles of 64
+//     camera px with overlaps 8, 11, 16, 22 and 43 gave 2.33, 2.30, 2.30, 2.43 and 3.43e-4, and tiles of 128
+//     with 11, 16 and 22 gave 3.82, 3.79 and 3.82e-4; the rule gives 11 there (raised to 13 for FFT sizes),
+//     and its windows hold 1.9x the field's pixels instead of 2.9x.
 // Either way P is capped so that P <= every core and the window fits in the field, and at max_overlap (a memory
 // plan's); an automatic P is then raised by up to a quarter, within those caps, to the first overlap whose
 // windows' HR sides are products of 2, 3, 5 and 7, where FFTW is fast (at r = 4 and tiles of 512, P = 42 gave
