@@ -19,21 +19,21 @@ packages=(cmake g++ make pkg-config
           # ninja schedules the build with less overhead than make, mold links in a fraction of GNU ld's time, and
           # ccache skips files compiled before with the same flags (cmake/BuildSpeed.cmake, bench/results/build.md)
           ninja-build mold ccache
-          libeigen3-dev libceres-dev libfftw3-dev libopencv-dev libopenimageio-dev libcfitsio-dev
-          nlohmann-json3-dev libcli11-dev
+          libeigen3-dev libceres-dev libfftw3-dev libopenimageio-dev libcfitsio-dev nlohmann-json3-dev libcli11-dev
+          # OpenCV's three modules that aosr links, not libopencv-dev and its every module (Qt, VTK, GDAL, MPI:
+          # 118 packages more; cmake/OpenCVModules.cmake finds the modules without OpenCV's CMake config).
+          libopencv-core-dev libopencv-imgproc-dev libopencv-videoio-dev
           # CMake configures the test targets (built only with --tests) and needs GoogleTest's config for that.
           libgtest-dev libgmock-dev
-          # OpenImageIO's CMake config names its command-line tools as imported targets and fails
-          # when they are absent, which --no-install-recommends leaves them.
-          openimageio-tools
           # The Python package (python/, `import aosr`): pybind11 bindings built for Debian's /usr/bin/python3,
           # numpy, and `pip install .` (pyproject.toml, setup.py) with Debian's pip, setuptools and wheel.
           pybind11-dev python3-dev python3-numpy python3-pip python3-setuptools python3-wheel)
 if ((${#targets[@]} > 1)); then
   # --tests (command 2) adds what the tests and the optional parts use: astropy reads aosr's FITS WCS in the
   # checks (tests/cli/wcs_astropy_check.py), Dask's distributed scheduler runs aosr.distributed, pytest the Python
-  # tests, python3-venv the pip-install test's virtualenv.
-  packages+=(python3-astropy python3-dask python3-distributed python3-pytest python3-venv)
+  # tests, python3-venv the pip-install test's virtualenv, OpenCV's superres module the BTV-L1 comparison of
+  # bench/reconstruct_bench.
+  packages+=(python3-astropy python3-dask python3-distributed python3-pytest python3-venv libopencv-superres-dev)
 fi
 missing=()
 for p in "${packages[@]}"; do
