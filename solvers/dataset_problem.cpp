@@ -442,7 +442,12 @@ DatasetProblem ProblemFromDataset(const Dataset& d, const DatasetProblemOptions&
   }
   std::vector<FrameOffset> centroids;  // of the kernels as given: folding moves their first moments
   for (const Image& k : psfs) centroids.push_back(KernelCentroid(k));
-  if (!options.whole_grid_model) {
+  // Tiles with local PSFs need no whole-grid model either: each tile builds its own from the field's PSFs, the
+  // regularisation is chosen on a window and the residuals come from the tiles (psf_field_model.hpp). Its
+  // transfer functions would cost a field's run a fifth of its time.
+  const bool whole_grid_model =
+      options.whole_grid_model && !(out.psf_field && out.psf_field->approach == DatasetPsfField::kTiles);
+  if (!whole_grid_model) {
     CheckArgument(options.offsets != DatasetOffsets::kEstimate, kDatasetProblemFn, "offsets",
                   "estimate without a whole-grid model", "dm, centroids or auto (registration needs the whole grid)");
     CheckArgument(!(out.psf_field && out.psf_field->approach == DatasetPsfField::kOperator), kDatasetProblemFn,

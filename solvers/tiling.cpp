@@ -613,9 +613,30 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
   // each tile's PSF is right only near its centre, so a wider window adds model error faster than it removes
   // the truncation's (tiling.hpp, "The overlap rule", with the measurements).
   const bool measure = !tiling.local_psfs;
+  auto local_psfs = [&](const TileWindow& t) {
+    ImageStack psfs = tiling.local_psfs(t);
+    CheckArgument(int(psfs.size()) == in.n, kTilingFn, "local_psfs", std::to_string(psfs.size()) + " kernels",
+                  "one per frame (" + std::to_string(in.n) + ")");
+    return psfs;
+  };
   auto automatic_overlap = [&](const ReconstructOptions& with, std::string* rule) {
-    int p = whole_model ? OverlapRule(*in.problem, with, tiling, rule, measure)
-                        : OverlapRule(*in.field, with, tiling, rule, measure);
+    int p = 0;
+    if (tiling.local_psfs) {
+      // The rule on the local PSFs of the field's centre, from the kernels themselves: the whole grid's model
+      // would cost an HR-sized inverse FFT per frame for the same reach.
+      TileWindow centre;
+      centre.core_rows = centre.rows = lr.rows;
+      centre.core_cols = centre.cols = lr.cols;
+      FieldData probe;
+      probe.lr = lr;
+      probe.r = r;
+      probe.offsets = *in.offsets;
+      probe.kernels = local_psfs(centre);
+      p = OverlapRule(probe, with, tiling, rule, false);
+    } else {
+      p = whole_model ? OverlapRule(*in.problem, with, tiling, rule, measure)
+                      : OverlapRule(*in.field, with, tiling, rule, measure);
+    }
     Index cap = p;
     for (const Index m : {lr.rows, lr.cols}) {
       const std::vector<Index> c = Cuts(m, tiling.tile);
@@ -716,10 +737,7 @@ Reconstruction RunTiles(const TiledInput& in, const ReconstructOptions& options,
     const Shape window{t.rows * r, t.cols * r};
     std::shared_ptr<const MultiFrameModel> model;
     if (tiling.local_psfs) {
-      const ImageStack psfs = tiling.local_psfs(t);
-      CheckArgument(int(psfs.size()) == in.n, kTilingFn, "local_psfs", std::to_string(psfs.size()) + " kernels",
-                    "one per frame (" + std::to_string(in.n) + ")");
-      model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(window, r, psfs));
+      model = std::make_shared<const MultiFrameModel>(MultiFrameModel::FromKernels(window, r, local_psfs(t)));
     } else {
       model = share_model ? shared_model(window) : window_model(window);
     }

@@ -642,7 +642,7 @@ void BindSolvers(py::module_& m) {
           if (!WholeGridFits(*d, o.method, limit.bytes, &out->whole_grid_bytes)) dpo.whole_grid_model = false;
           const DatasetProblem dp = ProblemFromDataset(*d, dpo);
           warning = dp.warning;
-          if (dp.field) {
+          if (!dpo.whole_grid_model) {  // (a field model by tiles has dp.field too, and fits)
             if (dp.psf_field) tiling.regularisation_window = ChooseRegularisationWindow(*dp.field, o.method, limit.bytes);
             else FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
             out->by_tiles_for_memory = tiling;

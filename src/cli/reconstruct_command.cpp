@@ -338,7 +338,8 @@ void RunReconstruct(const ReconstructArgs& a) {
   o.progress = bar.Callback();
   // Without a whole-grid model: tiles chosen under the memory limit (unless given), the regularisation on the
   // largest central window that fits (512 camera px at most), and the output written by rows as tiles finish.
-  const bool streamed = dp.field.has_value();
+  // (A field model by tiles also comes without a whole-grid model, dp.field, but fits: it is not streamed.)
+  const bool streamed = !whole_fits;
   std::unique_ptr<FitsRowWriter> image_writer, aux_writer;
   const std::string streamed_aux_path = ReconstructionAuxPath(a.out, o.method);
   if (streamed) {

@@ -176,8 +176,9 @@ struct DatasetProblem {
   };
   std::optional<Field> psf_field;
   WeightsRule weights_rule;    // how the weights were made (the rule a job reading sections is given)
-  // DatasetProblemOptions::whole_grid_model false: the frames, weights and offsets (moved out of `problem`,
-  // whose model is then null) with the model's PSFs as centred kernels (as the model takes them, not folded).
+  // DatasetProblemOptions::whole_grid_model false, or a field model by tiles (psf_field kTiles: each tile
+  // builds its own model): the frames, weights and offsets (moved out of `problem`, whose model is then null)
+  // with the model's PSFs as centred kernels (as the model takes them, not folded).
   std::optional<FieldData> field;
 };
 

@@ -43,7 +43,7 @@
 //   the other methods: P = psf_reach + regulariser_reach (camera px), where
 //     psf_reach = PaddedModel::SuggestPadding(model, psf_tail): the Chebyshev radius holding all but psf_tail
 //               (1e-4) of the model PSFs' energy Σh², in camera px, rounded up (the largest over the frames;
-//               always the problem's model PSFs, also when local PSFs are given);
+//               the problem's model PSFs, or with local PSFs those at the field's centre);
 //     regulariser_reach = 2 for tv and map (TV couples neighbours; its staircase settles within a few pixels),
 //               3 for tikhonov and linear before their regularisation is fixed, 1 for shift-add and drizzle
 //               (their drops reach one pixel, plus the offsets: ceil(max |offset| / r) more);
