@@ -55,9 +55,8 @@ TilingOptions FieldTiling(const DatasetProblem& problem, TilingOptions tiling) {
   const Shape lr = problem.field ? problem.field->lr : problem.problem.model->lr_shape();
   if (tiling.tile == 0) tiling.tile = SuggestFieldTile(problem.psf_field->grid, r, lr);
   tiling.local_psfs = FieldTilePsfs(problem.psf_field->grid, problem.psf_field->psfs, r);
-  if (tiling.regularisation_from_whole_field &&
-      (tiling.regularisation_window == 0 || tiling.regularisation_window > kFieldRegularisationWindow))
-    tiling.regularisation_window = kFieldRegularisationWindow;
+  if (tiling.regularisation_from_whole_field)
+    tiling.regularisation_window = FieldRegularisationWindow(tiling.regularisation_window);
   // The checkpoint fingerprint covers the whole field's model; the nodes' PSFs enter through this checksum.
   double checksum = 0.0;
   for (std::size_t k = 0; k < problem.psf_field->psfs.size(); ++k)

@@ -48,6 +48,16 @@ def test_field_models_beat_the_guide_stars_psf(field_dataset):
     assert abs(scores["tiles"] - scores["operator"]) < 0.5, scores
 
 
+def test_the_memory_plan_names_the_window_a_field_model_uses():
+    # Under a memory limit a field model's λ is chosen on the memory plan's window, at most 256 camera px
+    # (psf_field_model.hpp, kFieldRegularisationWindow); the plan reports the window used.
+    ds = aosr.simulate(aosr.Scene(field_scene(frame_px=96)))
+    rec = aosr.reconstruct(ds, "tikhonov", memory_limit="2M")
+    w = rec.memory_plan["regularisation_window"]
+    assert 0 < w <= 256
+    assert f"central {w} x {w} camera px" in rec.summary["message"], rec.summary["message"]
+
+
 def test_same_bits_as_the_cli(field_dataset, cli, tmp_path):
     scene = tmp_path / "scene.json"
     scene.write_text(json.dumps(field_scene()))

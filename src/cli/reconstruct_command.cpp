@@ -344,7 +344,7 @@ void RunReconstruct(const ReconstructArgs& a) {
   const std::string streamed_aux_path = ReconstructionAuxPath(a.out, o.method);
   if (streamed) {
     // A field model sets its own tiles (ReconstructDataset); otherwise the tiles are chosen to fit.
-    if (dp.psf_field) tiling.regularisation_window = ChooseRegularisationWindow(*dp.field, o.method, limit.bytes);
+    if (dp.psf_field) tiling.regularisation_window = FieldRegularisationWindow(ChooseRegularisationWindow(*dp.field, o.method, limit.bytes));
     else FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
     if (!a.json)
       std::fprintf(stderr,

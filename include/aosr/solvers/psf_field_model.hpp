@@ -46,6 +46,11 @@ std::function<ImageStack(const TileWindow&)> FieldTilePsfs(PsfFieldGrid grid, st
 // rings' PSNR within 0.12 dB of its), 128 chose 13.9e-6. 256 is the smallest window inside that scatter,
 // with a margin.
 constexpr int kFieldRegularisationWindow = 256;
+// The window a field model's regularisation is chosen on, given another rule's (0: the whole field): the
+// smaller of the two.
+inline int FieldRegularisationWindow(int window) {
+  return window == 0 || window > kFieldRegularisationWindow ? kFieldRegularisationWindow : window;
+}
 
 // The default tile (camera px) for a field model: half the grid's node spacing (so that a tile's PSF is never
 // more than a quarter spacing from where it applies), at least 16 camera px, and the whole axis when the grid
