@@ -167,7 +167,9 @@ struct TilingOptions {
   std::string checkpoint_key;
   // The representative problem of the regularisation when regularisation_from_whole_field: 0 the whole field;
   // W > 0 the central W x W camera px of the field (the whole axis where the field is smaller), solved as
-  // one periodic window. For a field whose whole-grid solve does not fit in memory (ChooseTiling picks it).
+  // one periodic window. For a field whose whole-grid solve does not fit in memory (ChooseTiling picks it), and
+  // for a field model (psf_field_model.hpp: at most kFieldRegularisationWindow). With local_psfs the window, the
+  // whole field included, takes the hook's PSFs at its centre, not the whole model's.
   int regularisation_window = 0;
   // Where finished output rows go (see "A whole detector" above): called from the calling thread, rows in
   // increasing order within each call, every HR row exactly once. `aux_rows` is empty when the method has no
