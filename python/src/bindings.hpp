@@ -8,6 +8,7 @@
 #include "aosr/core/memory.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/scene/dataset.hpp"
+#include "aosr/solvers/dataset_problem.hpp"
 #include "aosr/solvers/reconstruct.hpp"
 #include "aosr/solvers/registration.hpp"
 #include "aosr/solvers/stars_psf.hpp"
@@ -39,6 +40,10 @@ py::dict ReconstructOptionsHelp();
 const OptionTable<ReconstructOptions>& ReconstructTable();
 ReconstructOptions CliDefaults();
 py::dict SummaryDict(const SolverSummary& summary);
+// What aosr.reconstruct and the tile jobs of aosr.distributed both start from: the method's options (the CLI's
+// defaults, then the keywords) and the dataset's weights and offsets rules (solvers.cpp).
+void DatasetRunOptions(const std::string& method, const py::dict& kwargs, const std::string& weights,
+                       const std::string& offsets, ReconstructOptions* o, DatasetProblemOptions* dpo);
 
 // aosr.Reconstruction (solvers.cpp), what aosr.reconstruct and the blend of aosr.distributed.reconstruct_tiles
 // (tiles.cpp) return: the library's Reconstruction (images viewed, not copied) and where the

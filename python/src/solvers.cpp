@@ -292,6 +292,16 @@ ReconstructOptions CliDefaults() {
   return o;
 }
 
+void DatasetRunOptions(const std::string& method, const py::dict& kwargs, const std::string& weights,
+                       const std::string& offsets, ReconstructOptions* o, DatasetProblemOptions* dpo) {
+  *o = CliDefaults();
+  o->method = ParseReconstructionMethod(method);
+  ReconstructTable().Apply(*o, kwargs);
+  dpo->weights = ParseDatasetWeights(weights);
+  dpo->offsets = ParseDatasetOffsets(offsets);
+  dpo->method = o->method;
+}
+
 py::dict SummaryDict(const SolverSummary& s) {
   py::dict d;
   d["method"] = s.method;
@@ -592,12 +602,9 @@ void BindSolvers(py::module_& m) {
           tiling.checkpoint_dir = resume;  // must exist; the fingerprint covers the data, model and main options
           tiling.checkpoint_key = py::str(kwargs).cast<std::string>();
         }
-        ReconstructOptions o = CliDefaults();
-        o.method = ParseReconstructionMethod(method);
-        ReconstructTable().Apply(o, kwargs);
+        ReconstructOptions o;
         DatasetProblemOptions dpo;
-        dpo.weights = ParseDatasetWeights(weights);
-        dpo.offsets = ParseDatasetOffsets(offsets);
+        DatasetRunOptions(method, kwargs, weights, offsets, &o, &dpo);
         dpo.registration.search_range_camera_px = registration_range;
         dpo.registration.anchor = ParseRegistrationAnchor(registration_anchor);
         std::string why;
@@ -630,7 +637,6 @@ void BindSolvers(py::module_& m) {
         o.progress = poll.Callback();
         auto out = std::make_shared<PyReconstruction>();
         out->method = ToString(o.method);
-        dpo.method = o.method;
         std::string warning;
         WithoutGil([&] {
           if (o.linear.kind == TargetPsfKind::kImage && o.linear.image.size() == 0) {  // target_psf='diffraction'

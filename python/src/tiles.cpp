@@ -131,13 +131,9 @@ void BindTiles(py::module_& m) {
         if (!await_tiles.is_none() && (phase != "blend" || !PyCallable_Check(await_tiles.ptr())))
           throw InvalidArgument(fn, "await_tiles", py::str(py::repr(await_tiles)).cast<std::string>(),
                                 "None, or a callable(first, last) with phase 'blend'");
-        ReconstructOptions o = CliDefaults();
-        o.method = ParseReconstructionMethod(method);
-        ReconstructTable().Apply(o, options);
+        ReconstructOptions o;
         DatasetProblemOptions dpo;
-        dpo.weights = ParseDatasetWeights(weights);
-        dpo.offsets = ParseDatasetOffsets(offsets);
-        dpo.method = o.method;
+        DatasetRunOptions(method, options, weights, offsets, &o, &dpo);
         dpo.whole_grid_model = false;
         const MemoryLimit limit = MemoryLimitArgument(memory_limit, fn);
         TilingOptions tiling;
