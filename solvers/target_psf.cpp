@@ -215,6 +215,18 @@ SearchData CollectSearchData(const MultiFrameModel& model, const Target& target)
   return s;
 }
 
+// The search data of the DC bin only, with e_max given: what the flux factor 1/dc(κ) needs when κ is given too.
+SearchData DcSearchData(const MultiFrameModel& model, double e_max) {
+  SearchData s;
+  s.e_max = e_max;
+  const Modes m = Analyse(model.AliasedSystem(0, 0));
+  for (Index j = 0; j < m.e.size(); ++j) {
+    s.dc_e.push_back(m.e[j]);
+    s.dc_g2.push_back(std::norm(m.g(0, j)));
+  }
+  return s;
+}
+
 // U(κ) = (Σ|T|² − Σ_j a_j (2s/(e_j + κ) − s² e_j/(e_j + κ)²)) / Σ|T|², s = 1/dc(κ): the leakage of (1) with
 // the flux normalisation (ℓ_k = |T_k|² ‖s·row k of RA − e_k‖², summed over the modes; at s = 1 the captured part
 // is a_j (e_j + 2κ)/(e_j + κ)²). Why s belongs in the search: it is 1 + κ/e at DC, small at a tight bound but
@@ -282,6 +294,10 @@ bool TargetPsfOptions::IsValid(std::string* why) const {
     return fail("leakage = " + std::to_string(leakage) + "; allowed: (0, 1)");
   if (!(std::isfinite(kappa) && kappa >= 0))
     return fail("kappa = " + std::to_string(kappa) + "; allowed: 0 (by the leakage bound) or > 0");
+  if (!(std::isfinite(e_max) && e_max >= 0))
+    return fail("e_max = " + std::to_string(e_max) + "; allowed: 0 (this problem's own) or > 0 and finite");
+  if (e_max > 0 && !(kappa > 0))
+    return fail("e_max = " + std::to_string(e_max) + " without kappa; allowed: e_max only with a given kappa > 0");
   if (!(std::isfinite(noise_sigma) && noise_sigma > 0))
     return fail("noise_sigma = " + std::to_string(noise_sigma) + "; allowed: > 0");
   if (noise_probes < 2) return fail("noise_probes = " + std::to_string(noise_probes) + "; allowed: >= 2");
@@ -302,8 +318,9 @@ Image GaussianTargetKernel(double fwhm_px, Index size) {
   return OriginToCentred(FftC2R(GaussianTransfer(s, fwhm_px), size), s);
 }
 
-TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const TargetPsfOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
+namespace {
+
+void CheckInputs(const ReconstructionProblem& problem, const TargetPsfOptions& options) {
   problem.Validate(kTargetPsfFn);
   // The target-PSF output is a per-frequency design: it needs one PSF per frame over its field. A PSF that
   // varies over the field is served by tiles (solvers/psf_field_model.hpp), each with its local PSFs.
@@ -313,6 +330,62 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
                           "its local PSFs and the same target");
   std::string why;
   if (!options.IsValid(&why)) throw InvalidArgument(std::string(kTargetPsfFn) + ": options." + why);
+}
+
+// The target and κ: by the leakage bound's search over every bin's modes, or given. κ and e_max given (a tile
+// of a field, tiling.hpp): no search, so the bins are analysed once, in ReconstructTargetPsf's pass, which then
+// sums U and U_min; only the DC bin's modes (for the flux factor) are needed before it.
+struct KappaChoice {
+  Target target;
+  SearchData sd;
+  bool given = false;
+  double kappa = 0, goal = 0, leakage_unreachable = 0, leakage = 0;
+  bool leakage_met = false;
+};
+
+KappaChoice ChooseKappa(const MultiFrameModel& model, const TargetPsfOptions& options) {
+  KappaChoice c;
+  c.target = MakeTarget(model, options);
+  c.given = options.kappa > 0 && options.e_max > 0;
+  c.sd = c.given ? DcSearchData(model, options.e_max) : CollectSearchData(model, c.target);
+  const SearchData& sd = c.sd;
+  if (!(sd.e_max > 0)) throw InvalidArgument(std::string(kTargetPsfFn) + ": the model's transfer functions are all zero");
+  if (c.given) {
+    c.kappa = options.kappa;
+    return c;
+  }
+  c.leakage_unreachable = Leakage(sd, 0.0);
+  c.goal = c.leakage_unreachable + options.leakage;
+  double lo = std::log(1e-14 * sd.e_max), hi = std::log(1e4 * sd.e_max);
+  if (options.kappa > 0) {
+    lo = hi = std::log(options.kappa);  // given: no search
+  } else if (Leakage(sd, std::exp(hi), true) <= c.goal) {
+    lo = hi;
+  } else if (Leakage(sd, std::exp(lo), true) > c.goal) {
+    hi = lo;
+  } else {
+    while (hi - lo > 1e-9) {
+      const double mid = 0.5 * (lo + hi);
+      (Leakage(sd, std::exp(mid), true) <= c.goal ? lo : hi) = mid;
+    }
+  }
+  c.kappa = options.kappa > 0 ? options.kappa : std::exp(lo);
+  c.leakage = Leakage(sd, c.kappa);
+  c.leakage_met = c.leakage <= c.goal * (1 + 1e-9);
+  return c;
+}
+
+}  // namespace
+
+TargetPsfChoice ChooseTargetPsf(const ReconstructionProblem& problem, const TargetPsfOptions& options) {
+  CheckInputs(problem, options);
+  const KappaChoice c = ChooseKappa(*problem.model, options);
+  return {c.kappa, c.sd.e_max, c.target.fwhm};
+}
+
+TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const TargetPsfOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  CheckInputs(problem, options);
   const MultiFrameModel& model = *problem.model;
   const Shape hr = model.hr_shape(), lr = model.lr_shape();
   const int r = model.r(), rr = r * r, n = model.frames();
@@ -325,30 +398,19 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   s.noise_sigma = options.noise_sigma;
 
   // --- the target and κ ---------------------------------------------------------------------------------
-  const Target target = MakeTarget(model, options);
+  KappaChoice choice = ChooseKappa(model, options);
+  const Target& target = choice.target;
+  SearchData& sd = choice.sd;
+  const bool given = choice.given;
   s.target = target.description;
   s.target_fwhm_hr_px = target.fwhm;
-  const SearchData sd = CollectSearchData(model, target);
-  if (!(sd.e_max > 0)) throw InvalidArgument(std::string(kTargetPsfFn) + ": the model's transfer functions are all zero");
-  s.leakage_unreachable = Leakage(sd, 0.0);
-  const double goal = s.leakage_unreachable + options.leakage;
-  double lo = std::log(1e-14 * sd.e_max), hi = std::log(1e4 * sd.e_max);
-  if (options.kappa > 0) {
-    lo = hi = std::log(options.kappa);  // given: no search
-  } else if (Leakage(sd, std::exp(hi), true) <= goal) {
-    lo = hi;
-  } else if (Leakage(sd, std::exp(lo), true) > goal) {
-    hi = lo;
-  } else {
-    while (hi - lo > 1e-9) {
-      const double mid = 0.5 * (lo + hi);
-      (Leakage(sd, std::exp(mid), true) <= goal ? lo : hi) = mid;
-    }
-  }
-  const double kappa = options.kappa > 0 ? options.kappa : std::exp(lo);
-  s.kappa = kappa;
-  s.leakage = Leakage(sd, kappa);
-  s.leakage_met = s.leakage <= goal * (1 + 1e-9);
+  s.e_max = sd.e_max;
+  s.kappa = choice.kappa;
+  s.leakage_unreachable = choice.leakage_unreachable;
+  s.leakage = choice.leakage;
+  s.leakage_met = choice.leakage_met;
+  double goal = choice.goal;
+  const double kappa = s.kappa;
 
   // DC transfer e/(e + κ) of the zero-frequency row, divided out for flux conservation.
   const double dc = sd.Dc(kappa);
@@ -374,6 +436,11 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   for (int k = 0; k < r; ++k)
     for (int p = 0; p < r; ++p) tw(k, p) = std::polar(1.0, 2.0 * M_PI * double(k * p) / r);
   const bool want_cell = options.compute_noise && s.fourier_exact;
+  // κ given with e_max: the search's sums, per row (combined in row order: the same bytes for any thread count).
+  struct RowSums {
+    double power = 0, captured_min = 0, captured = 0;
+  };
+  std::vector<RowSums> row_sums(given ? lr.rows : 0);
   ParallelFor(lr.rows, [&](Index uy) {
     Eigen::VectorXcd t(rr), x(rr), ridge_x(rr), c;
     Eigen::MatrixXcd z(r, r), gt(rr, 1);
@@ -397,6 +464,16 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
       const Eigen::MatrixXd g2 = m.g.cwiseAbs2();  // r² x q
       // ‖row k of RA‖² = Σ_j |g_kj|² e_j/(e_j + κ)² (RA = G diag(1/(e + κ)) Gᴴ, GᴴG = diag(e)).
       const Eigen::VectorXd rkk = g2 * inv1, skk = g2 * inv2, r2k = g2 * m.e.cwiseProduct(inv2), lmk = g2 * lmin;
+      if (given) {  // CollectSearchData's a_j = Σ_k |T_k|² |g_kj|², and Leakage's sums at 0 and at κ
+        RowSums& rs = row_sums[uy];
+        const Eigen::VectorXd t2 = t.cwiseAbs2();
+        rs.power += mult * t2.sum();
+        for (Index j = 0; j < q; ++j) {
+          const double aj = t2.dot(g2.col(j)), d = m.e[j] + kappa;
+          rs.captured_min += mult * aj * lmin[j];
+          rs.captured += mult * aj * (2.0 * flux / d - flux * flux * m.e[j] / (d * d));
+        }
+      }
       if (s.fourier_exact) {
         Eigen::VectorXcd yv(n);
         for (int i = 0; i < n; ++i) yv[i] = y_half[i](uy, ux);
@@ -465,6 +542,18 @@ TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const
   });
 
   // --- leakage report ---------------------------------------------------------------------------------
+  if (given) {
+    double power = 0, captured_min = 0, captured = 0;
+    for (const RowSums& rs : row_sums) {
+      power += rs.power;
+      captured_min += rs.captured_min;
+      captured += rs.captured;
+    }
+    sd.target_power = power;
+    s.leakage_unreachable = std::clamp((power - captured_min) / power, 0.0, 1.0);
+    goal = s.leakage_unreachable + options.leakage;
+    s.leakage_met = std::clamp((power - captured) / power, 0.0, 1.0) <= goal * (1 + 1e-9);
+  }
   {
     // U from the per-frequency map (each frequency's ℓ clamped at 0; the search sums the modes unclamped).
     s.leakage = leak.sum() / sd.target_power;

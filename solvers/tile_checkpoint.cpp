@@ -136,6 +136,7 @@ void HashTileOptions(const ReconstructOptions& o, const TilingOptions& tiling, i
   f.Value(t.cg.max_iterations), f.Value(t.cg.tolerance);
   const TargetPsfOptions& l = o.linear;
   f.Value(int(l.kind)), f.Value(l.fwhm_hr_px), f.Array(l.image), f.Value(l.leakage), f.Value(l.kappa);
+  f.Value(l.e_max);
   f.Value(l.noise_sigma), f.Value(l.compute_noise), f.Value(l.noise_probes), f.Value(l.seed);
   f.Value(o.auto_regularisation), f.Value(o.fixed_automatic.has_value());
   if (o.fixed_automatic) f.Value(o.fixed_automatic->pilot_lambda), f.Value(o.fixed_automatic->mu), f.Value(o.fixed_automatic->contrast);
@@ -227,7 +228,7 @@ void WriteTile(const std::string& path, std::uint64_t fingerprint, int index, co
       w.String(s.method), w.Value(std::int32_t(s.termination)), w.String(s.message), w.String(s.target);
       for (double v : {s.target_fwhm_hr_px, s.effective_fwhm_hr_px, s.effective_psf_window_fraction, s.kappa, s.leakage,
                        s.leakage_unreachable, s.leakage_max_in_band, s.band_cycles_per_hr_px, s.dc_transfer,
-                       s.noise_sigma, s.noise_rms, s.noise_rms_error})
+                       s.noise_sigma, s.noise_rms, s.noise_rms_error, s.e_max})
         w.Value(v);
       w.Value(char(s.leakage_met)), w.Value(std::int64_t(s.unreachable_frequencies));
       w.Value(std::int32_t(s.noise_probes)), w.Value(char(s.fourier_exact));
@@ -274,7 +275,7 @@ bool ReadTile(const std::string& path, std::uint64_t fingerprint, int index, Rec
     s.target = rd.String();
     for (double* v : {&s.target_fwhm_hr_px, &s.effective_fwhm_hr_px, &s.effective_psf_window_fraction, &s.kappa,
                       &s.leakage, &s.leakage_unreachable, &s.leakage_max_in_band, &s.band_cycles_per_hr_px,
-                      &s.dc_transfer, &s.noise_sigma, &s.noise_rms, &s.noise_rms_error})
+                      &s.dc_transfer, &s.noise_sigma, &s.noise_rms, &s.noise_rms_error, &s.e_max})
       *v = rd.Value<double>();
     s.leakage_met = rd.Value<char>() != 0;
     s.unreachable_frequencies = rd.Value<std::int64_t>();

@@ -22,6 +22,7 @@
 #include "aosr/core/parallel.hpp"
 #include "aosr/core/progress.hpp"
 #include "aosr/solvers/padded_model.hpp"
+#include "aosr/solvers/target_psf.hpp"
 #include "tile_blend.hpp"
 #include "tile_checkpoint.hpp"
 #include "tile_overlap.hpp"
@@ -267,14 +268,13 @@ bool FixRegularisation(const ReconstructionProblem& rep, ReconstructOptions* o) 
       return true;
     }
     case ReconstructionMethod::kLinear: {
-      ReconstructOptions ro = *o;
-      ro.linear.compute_noise = false;
-      ro.progress = nullptr;
-      const Reconstruction r = Reconstruct(rep, ro);
-      o->linear.kappa = r.linear->kappa;
+      // κ's search alone (no solve); e_max with it lets a tile analyse its bins once (target_psf.hpp).
+      const TargetPsfChoice c = ChooseTargetPsf(rep, o->linear);
+      o->linear.kappa = c.kappa;
+      o->linear.e_max = c.e_max;
       if (o->linear.kind == TargetPsfKind::kAuto) {
         o->linear.kind = TargetPsfKind::kGaussian;
-        o->linear.fwhm_hr_px = r.linear->target_fwhm_hr_px;
+        o->linear.fwhm_hr_px = c.target_fwhm_hr_px;
       }
       return true;
     }

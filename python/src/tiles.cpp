@@ -26,7 +26,7 @@ py::dict RegularisationDict(const ReconstructOptions& o) {
   py::dict d("tikhonov"_a = py::dict("lambda_rule"_a = int(t.lambda_rule), "lambda"_a = t.lambda,
                                      "prior"_a = int(t.prior), "spectrum_slope"_a = t.spectrum_slope,
                                      "spectrum_corner"_a = t.spectrum_corner),
-             "linear"_a = py::dict("kappa"_a = o.linear.kappa, "kind"_a = int(o.linear.kind),
+             "linear"_a = py::dict("kappa"_a = o.linear.kappa, "e_max"_a = o.linear.e_max, "kind"_a = int(o.linear.kind),
                                    "fwhm_hr_px"_a = o.linear.fwhm_hr_px));
   if (o.fixed_automatic)
     d["automatic"] = py::dict("pilot_lambda"_a = o.fixed_automatic->pilot_lambda, "mu"_a = o.fixed_automatic->mu,
@@ -42,6 +42,7 @@ void ApplyRegularisationDict(const py::dict& d, ReconstructOptions* o) {
   o->tikhonov.spectrum_slope = t["spectrum_slope"].cast<double>();
   o->tikhonov.spectrum_corner = t["spectrum_corner"].cast<double>();
   o->linear.kappa = l["kappa"].cast<double>();
+  o->linear.e_max = l["e_max"].cast<double>();
   o->linear.kind = static_cast<TargetPsfKind>(l["kind"].cast<int>());
   o->linear.fwhm_hr_px = l["fwhm_hr_px"].cast<double>();
   if (d.contains("automatic")) {

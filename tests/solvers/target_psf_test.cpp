@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <vector>
@@ -238,6 +239,57 @@ TEST(TargetPsfTest, SameBitsWithOneAndTwoThreads) {
   EXPECT_EQ(0, std::memcmp(a.noise_std.data(), b.noise_std.data(), sizeof(double) * a.noise_std.size()));
 }
 
+// κ and e_max given (what tiling gives each tile): the bins are analysed once, and the run is the searched one's:
+// the estimate, its noise and the maps to the bit, U_min and the bound's verdict to rounding. Another e_max moves
+// only the reach floor (U_min, the unreachable count), never the estimate.
+TEST(TargetPsfTest, GivenKappaAndEmaxReproduceTheSearchedRun) {
+  const Shape hr{32, 32};
+  const auto m = Model(hr);
+  Image x(32, 32);
+  for (Index i = 0; i < x.size(); ++i) x.data()[i] = double((i * 7919) % 101);
+  for (const bool weighted : {false, true}) {
+    SCOPED_TRACE(weighted ? "weighted (CG path)" : "uniform (Fourier path)");
+    ReconstructionProblem p = Problem(m, x);
+    if (weighted) {
+      for (int i = 0; i < m->frames(); ++i) p.weights.push_back(Image::Constant(16, 16, 1.0 + 0.1 * i));
+      p.weights[1](2, 2) = 0;
+    }
+    TargetPsfOptions o = Gaussian(3.0);
+    o.noise_probes = 4;
+    const TargetPsfResult a = ReconstructTargetPsf(p, o);
+    ASSERT_GT(a.summary.e_max, 0.0);
+    // The choice alone (what tiling fixes for its tiles) is the run's.
+    const TargetPsfChoice choice = ChooseTargetPsf(p, o);
+    EXPECT_EQ(choice.kappa, a.summary.kappa);
+    EXPECT_EQ(choice.e_max, a.summary.e_max);
+    EXPECT_EQ(choice.target_fwhm_hr_px, a.summary.target_fwhm_hr_px);
+    TargetPsfOptions g = o;
+    g.kappa = a.summary.kappa;
+    g.e_max = a.summary.e_max;
+    const TargetPsfResult b = ReconstructTargetPsf(p, g);
+    auto same = [](const Image& u, const Image& v) {
+      return u.size() == v.size() && std::memcmp(u.data(), v.data(), sizeof(double) * u.size()) == 0;
+    };
+    EXPECT_TRUE(same(a.image, b.image));
+    EXPECT_TRUE(same(a.noise_std, b.noise_std));
+    EXPECT_TRUE(same(a.leakage_spectrum, b.leakage_spectrum));
+    EXPECT_TRUE(same(a.effective_psf, b.effective_psf));
+    EXPECT_EQ(a.summary.kappa, b.summary.kappa);
+    EXPECT_EQ(a.summary.e_max, b.summary.e_max);
+    EXPECT_EQ(a.summary.dc_transfer, b.summary.dc_transfer);
+    EXPECT_EQ(a.summary.leakage, b.summary.leakage);
+    EXPECT_EQ(a.summary.unreachable_frequencies, b.summary.unreachable_frequencies);
+    EXPECT_NEAR(a.summary.leakage_unreachable, b.summary.leakage_unreachable, 1e-13);
+    EXPECT_TRUE(b.summary.leakage_met);
+    // A floor 100x higher: more frequencies unreachable, the same estimate.
+    g.e_max = 100 * a.summary.e_max;
+    const TargetPsfResult c = ReconstructTargetPsf(p, g);
+    EXPECT_TRUE(same(a.image, c.image));
+    EXPECT_GT(c.summary.leakage_unreachable, a.summary.leakage_unreachable);
+    EXPECT_GE(c.summary.unreachable_frequencies, a.summary.unreachable_frequencies);
+  }
+}
+
 TEST(TargetPsfTest, ReconstructRunsItAsMethodLinear) {
   const Shape hr{32, 32};
   const auto m = Model(hr);
@@ -270,6 +322,14 @@ TEST(TargetPsfTest, BadOptionsAreNamed) {
   o.image = Image::Constant(40, 40, 1.0);
   EXPECT_THAT([&] { ReconstructTargetPsf(p, o); },
               ::testing::ThrowsMessage<InvalidArgument>(::testing::HasSubstr("larger than the HR grid")));
+  o = Gaussian(3.0);
+  o.e_max = 1.0;  // without κ
+  EXPECT_THAT([&] { ReconstructTargetPsf(p, o); },
+              ::testing::ThrowsMessage<InvalidArgument>(::testing::HasSubstr("e_max = 1.000000 without kappa")));
+  o.kappa = 1e-3;
+  o.e_max = std::nan("");
+  EXPECT_THAT([&] { ReconstructTargetPsf(p, o); },
+              ::testing::ThrowsMessage<InvalidArgument>(::testing::HasSubstr("e_max = nan")));
   o = Gaussian(3.0);
   o.noise_probes = 1;
   EXPECT_THAT([&] { ReconstructTargetPsf(p, o); },

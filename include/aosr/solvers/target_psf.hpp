@@ -96,6 +96,12 @@ struct TargetPsfOptions {
   // chosen (leakage_met says whether the bound holds). Tiling (tiling.hpp) gives every tile the κ chosen once.
   // 0 (the default): by the leakage bound.
   double kappa = 0.0;
+  // With κ given: the largest mode energy e_max over the bins, which scales the reach floor (kReachFloor · e_max;
+  // modes below it are what U_min counts as lost). Tiling gives every tile the representative problem's, so a
+  // tile analyses each of its bins once, not twice (without it, a pass over every bin finds this problem's own
+  // e_max before the solve). It changes only U_min and the unreachable count, never the estimate. 0: this
+  // problem's own. Finite, >= 0, and > 0 only with kappa > 0.
+  double e_max = 0.0;
   // σ of a pixel of weight 1 in frame units (noise variance σ²/w): 1 when the weights are inverse variances
   // (datasets' weights are). > 0.
   double noise_sigma = 1.0;
@@ -124,6 +130,7 @@ struct TargetPsfSummary : SolverSummary {
   double effective_fwhm_hr_px = 0;  // FWHM of the effective PSF
   double effective_psf_window_fraction = 1;  // sum of effective_psf: the part of the PSF inside its window
   double kappa = 0;                 // κ of (1), unit-weight Fourier units
+  double e_max = 0;                 // the reach floor's scale: the largest mode energy over the bins (or the given)
   double leakage = 0;               // U at κ
   double leakage_unreachable = 0;   // U_min
   bool leakage_met = false;         // U ≤ U_min + ε (false only if κ hit its search floor)
@@ -151,6 +158,15 @@ struct TargetPsfResult {
 };
 
 TargetPsfResult ReconstructTargetPsf(const ReconstructionProblem& problem, const TargetPsfOptions& options);
+
+// What ReconstructTargetPsf would choose, without the solve: κ (the leakage bound's, or the given one), e_max and
+// the target's FWHM. Tiling fixes these once on the representative problem for every tile (tiling.hpp).
+struct TargetPsfChoice {
+  double kappa = 0;
+  double e_max = 0;
+  double target_fwhm_hr_px = 0;
+};
+TargetPsfChoice ChooseTargetPsf(const ReconstructionProblem& problem, const TargetPsfOptions& options);
 
 // The unit-sum circular Gaussian of the given FWHM (HR pixels) as a centred size x size kernel, sampled as
 // the continuous transfer exp(−2π²σ²|f|²) on the size x size DFT grid (so its DFT is exactly that
