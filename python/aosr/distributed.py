@@ -275,7 +275,8 @@ def _tile_task(task):
     _prepare_worker(task["threads"])
     record = aosr._aosr._tiles(task["dataset"], task["method"], phase="solve", plan=task["plan"],
                                tiles=[task["tile"]], checkpoint_dir=task["checkpoint_dir"], weights=task["weights"],
-                               offsets=task["offsets"], options=task["options"], keep=True)
+                               offsets=task["offsets"], options=task["options"], psf_field=task["psf_field"],
+                               keep=True)
     record["tile"] = task["tile"]
     record["worker_pid"] = os.getpid()
     return record
@@ -283,7 +284,7 @@ def _tile_task(task):
 
 def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, tile=0, tile_overlap=-1,
                       memory_limit=None, checkpoint_dir=None, weights="auto", offsets="auto", threads=1,
-                      dtype="float32", progress=False, n_workers=2, **options):
+                      dtype="float32", progress=False, n_workers=2, psf_field="auto", **options):
     """Reconstructs one dataset by tiles, one Dask task per tile: a detector too large for one process's memory,
     or one reconstruction spread over a cluster (solvers/tiling.hpp, "A whole detector").
 
@@ -309,6 +310,10 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
     checkpoint_dir  an existing folder on shared storage for the tiles (kept: a rerun resumes from it); None: a
                     temporary folder next to ``output`` (or in the system's temporary folder), removed at the end
     threads         aosr threads per task
+    psf_field       as aosr.reconstruct: 'auto' (a dataset with a field-varying PSF is reconstructed by tiles with
+                    its local PSFs, the tiles then half the PSF grid's spacing unless ``tile`` is given) | 'none'
+                    (the dataset's own PSFs everywhere) | 'tiles'. The space-variant 'operator' is one solve over
+                    the whole field, not tiles: aosr.reconstruct
     client, n_workers, progress   see the module doc
 
     Returns the aosr.Reconstruction of the blend (its summary says how many tiles and that they were resumed
@@ -332,7 +337,7 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
             if os.path.realpath(path) in inputs:
                 raise aosr.InvalidArgument(f"aosr.distributed.reconstruct_tiles: invalid output = {output}; allowed: "
                                            f"a path that is not one of the dataset's input files ({path})")
-    common = {"weights": weights, "offsets": offsets, "options": options}
+    common = {"weights": weights, "offsets": offsets, "options": options, "psf_field": psf_field}
     # The client keeps the dataset's FieldData from the plan to the blend (and for tasks run here with
     # client="serial"), and frees it at the end.
     plan = aosr._aosr._tiles(dataset, method, phase="plan", tile=tile, tile_overlap=tile_overlap,
@@ -345,8 +350,9 @@ def reconstruct_tiles(dataset, output=None, method="tikhonov", *, client=None, t
     try:
         tasks = [dict(common, dataset=dataset, method=method, plan=plan, tile=k, checkpoint_dir=checkpoint_dir,
                       threads=threads) for k in range(plan["tiles"])]
-        key = hashlib.sha256(json.dumps([dataset, method, plan, weights, offsets, repr(sorted(options.items())),
-                                         checkpoint_dir], sort_keys=True, default=str).encode()).hexdigest()[:16]
+        key = hashlib.sha256(json.dumps([dataset, method, plan, weights, offsets, psf_field,
+                                         repr(sorted(options.items())), checkpoint_dir],
+                                        sort_keys=True, default=str).encode()).hexdigest()[:16]
         blend = dict(common, plan=plan, checkpoint_dir=checkpoint_dir, keep=True,
                      output=os.fspath(output) if output else "", dtype=dtype)
         if client == "serial":

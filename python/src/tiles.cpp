@@ -9,6 +9,7 @@
 #include "aosr/core/error.hpp"
 #include "aosr/io/fits.hpp"
 #include "aosr/solvers/dataset_problem.hpp"
+#include "aosr/solvers/psf_field_model.hpp"
 #include "aosr/solvers/reconstruction_header.hpp"
 #include "aosr/solvers/target_psf.hpp"
 #include "aosr/solvers/tiling.hpp"
@@ -122,7 +123,7 @@ void BindTiles(py::module_& m) {
          std::vector<int> tiles, const std::string& checkpoint_dir, int tile, int tile_overlap,
          py::object memory_limit, const std::string& weights, const std::string& offsets,
          py::dict options, bool keep, const std::string& output, const std::string& dtype,
-         py::object await_tiles) -> py::object {
+         py::object await_tiles, const std::string& psf_field) -> py::object {
         const char* fn = "aosr.distributed.reconstruct_tiles";
         if (dtype != "float32" && dtype != "float64") throw InvalidArgument(fn, "dtype", dtype, "float32 | float64");
         if (!output.empty() && phase != "blend")
@@ -136,6 +137,12 @@ void BindTiles(py::module_& m) {
         DatasetProblemOptions dpo;
         DatasetRunOptions(method, options, weights, offsets, &o, &dpo);
         dpo.whole_grid_model = false;
+        // A field-varying PSF by tiles with local PSFs (psf_field_model.hpp), as aosr.reconstruct; the operator is
+        // one solve over the whole field, not tiles.
+        dpo.psf_field = ParseDatasetPsfField(psf_field);
+        if (dpo.psf_field == DatasetPsfField::kOperator)
+          throw InvalidArgument(fn, "psf_field", psf_field,
+                                "auto | none | tiles (the operator is one solve over the whole field: aosr.reconstruct)");
         const MemoryLimit limit = MemoryLimitArgument(memory_limit, fn);
         TilingOptions tiling;
         // One tile per task, the task's threads inside it; the client's blend reads and checks the finished tiles
@@ -168,7 +175,9 @@ void BindTiles(py::module_& m) {
         }
         // keep (the tasks): the dataset and its FieldData stay in this process for the next tile.
         const bool by_path = py::isinstance<py::str>(dataset) || py::hasattr(dataset, "__fspath__");
-        const std::string key = keep && by_path ? TileDataKey(PathString(dataset), method + " " + weights + " " + offsets) : "";
+        const std::string key =
+            keep && by_path ? TileDataKey(PathString(dataset), method + " " + weights + " " + offsets + " " + psf_field)
+                            : "";
         TileDataCache& cache = WorkerTileData();
         std::unique_lock<std::mutex> lock(cache.mutex, std::defer_lock);
         if (!key.empty()) lock.lock();
@@ -225,14 +234,18 @@ void BindTiles(py::module_& m) {
           }
           if (!key.empty() && phase == "solve") tiling.model_store = cache.models;
           const DatasetProblem& dp = *problem;
-          if (dp.psf_field)
-            throw InvalidArgument(fn, "dataset", "one with a psf_field",
-                                  "a dataset without a field-varying PSF (for one with, aosr.reconstruct by tiles)");
           if (phase == "plan") {
-            FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
+            // As aosr.reconstruct under a memory limit: a field model sets its own tiles (ReconstructDataset: half
+            // the PSF grid's spacing, or `tile`) and chooses its regularisation on the central window.
+            if (dp.psf_field)
+              tiling.regularisation_window =
+                  FieldRegularisationWindow(ChooseRegularisationWindow(*dp.field, o.method, limit.bytes));
+            else
+              FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
             tiling.plan_only = true;
           }
-          out->rec = ReconstructTiled(*dp.field, o, tiling, &ts);
+          out->rec = ReconstructDataset(dp, o, tiling, &ts);
+          if (dp.psf_field) out->psf_field = ToString(dp.psf_field->approach);
           out->method = ToString(o.method);
           out->weights_source = dp.weights_source;
           out->offsets_source = dp.offsets_source;
@@ -278,6 +291,7 @@ void BindTiles(py::module_& m) {
       py::arg("tile_overlap") = -1, py::arg("memory_limit") = py::none(), py::arg("weights") = "auto",
       py::arg("offsets") = "auto", py::arg("options") = py::dict(), py::arg("keep") = false,
       py::arg("output") = "", py::arg("dtype") = "float32", py::arg("await_tiles") = py::none(),
+      py::arg("psf_field") = "auto",
       "Internal: the phases of aosr.distributed.reconstruct_tiles (plan, solve tiles, blend; await_tiles(first, "
       "last) is called before the blend takes those tiles).");
   m.def(

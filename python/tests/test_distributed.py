@@ -245,6 +245,34 @@ def test_tiles_survive_a_killed_worker(batch, tiles_serial, fresh_cluster, tmp_p
     assert not [p for p in folder.iterdir() if not p.name.endswith(".bin")]  # no temporary left
 
 
+@pytest.fixture(scope="module")
+def field_path(tmp_path_factory):
+    """A dataset whose PSF varies over the field (a 2 x 2 grid of field points: tiles of 32 camera px)."""
+    from test_psf_field import field_scene
+    out = tmp_path_factory.mktemp("field") / "field"
+    aosr.simulate(aosr.Scene(field_scene(frame_px=64)), output=out)
+    return str(out)
+
+
+@pytest.mark.parametrize("method", ["tikhonov", "linear"])
+def test_tiles_of_a_field_varying_psf_on_two_workers_equal_the_serial_run(field_path, cluster, tmp_path, method):
+    # Each task interpolates its tile's local PSFs from the dataset's PSF grid, as aosr.reconstruct does.
+    serial = aosr.reconstruct(field_path, method, psf_field="tiles")
+    client, _ = cluster
+    rec = ad.reconstruct_tiles(field_path, tmp_path / "out.fits", method, client=client, dtype="float64")
+    image, header = aosr.read_fits(tmp_path / "out.fits")
+    assert serial.psf_field == "tiles" and rec.psf_field == "tiles"
+    assert rec.regularisation == serial.regularisation
+    assert "4 tiles resumed" in rec.summary["message"]
+    assert bits_equal(image, serial.image)
+    assert header["PSFFIELD"].startswith("tiles 2x2")
+    # The guide star's PSF everywhere is another image; the space-variant operator is not tiles.
+    none = ad.reconstruct_tiles(field_path, None, method, client="serial", psf_field="none", tile=32)
+    assert none.psf_field == "none" and not bits_equal(none.image, serial.image)
+    with pytest.raises(aosr.InvalidArgument, match="psf_field"):
+        ad.reconstruct_tiles(field_path, None, method, client="serial", psf_field="operator")
+
+
 def test_a_failed_tile_task_raises_and_writes_nothing(batch, cluster, tmp_path):
     # The blend runs beside the tasks: a task's error (here a file in the folder that is not a tile) reaches the
     # caller, the other tasks are cancelled and no output appears.
