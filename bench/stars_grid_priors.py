@@ -5,7 +5,7 @@ simulation's own PSF grid. One 3 x 3 fit per value (2-6 minutes each on the proj
 5 x 5 table of the truth's nodes (RMS of the model interpolated there minus the true PSF over the central 8 x 8
 camera px, % of the true peak), its worst and its median. bench/wide_field.py's node_errors does the scoring.
 
-    PYTHONPATH=build/python /usr/bin/python3 bench/stars_grid_priors.py [--variations 0.3,1.0,0.15,0.07]
+    PYTHONPATH=build/python /usr/bin/python3 bench/stars_grid_priors.py [--variations 0.3,1.0,0.15,0.07] [--stars N]
 
 bench/results/wide_field.md ("Priors and quadratic weights", stop 51) quotes it.
 """
@@ -28,8 +28,14 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--variations", default="0.3,1.0,0.15,0.07", help="grid_variation values, comma-separated")
     ap.add_argument("--grid", type=int, default=3, help="stars grid nodes per axis")
+    ap.add_argument("--stars", type=int, default=0,
+                    help="the scene's star count instead of its own 1500 (a more crowded field), the rest unchanged")
     args = ap.parse_args()
     scene = aosr.read_json(os.path.join(ROOT, "data", "scenes", "wide-field-k.json"))
+    if args.stars:
+        for o in scene["objects"]:
+            if o["type"] == "stars":
+                o["count"] = args.stars
     ds = aosr.simulate(aosr.Scene(scene))
     rows = []
     for v in (float(x) for x in args.variations.split(",")):
