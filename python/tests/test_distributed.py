@@ -301,6 +301,7 @@ def test_reconstruct_tiles_never_overwrites_an_input(batch):
     ({"checkpoint_dir": "/nonexistent/aosr"}, "checkpoint_dir"),
     ({"tile": -3}, "tile"),
     ({"memory_limit": "300K"}, "memory"),
+    ({"psf_field": "bogus"}, "psf_field"),
 ])
 def test_reconstruct_tiles_bad_arguments(batch, kwargs, needle):
     with pytest.raises((aosr.InvalidArgument, aosr.ResourceError), match=needle):

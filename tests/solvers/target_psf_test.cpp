@@ -330,6 +330,15 @@ TEST(TargetPsfTest, BadOptionsAreNamed) {
   o.e_max = std::nan("");
   EXPECT_THAT([&] { ReconstructTargetPsf(p, o); },
               ::testing::ThrowsMessage<InvalidArgument>(::testing::HasSubstr("e_max = nan")));
+  // The choice alone validates as the run does.
+  EXPECT_THAT([&] { ChooseTargetPsf(p, o); },
+              ::testing::ThrowsMessage<InvalidArgument>(::testing::HasSubstr("e_max = nan")));
+  o = Gaussian(0.1);
+  EXPECT_THAT([&] { ChooseTargetPsf(p, o); },
+              ::testing::ThrowsMessage<InvalidArgument>(::testing::HasSubstr("fwhm_hr_px")));
+  ReconstructionProblem empty = p;
+  empty.frames.clear();
+  EXPECT_THAT([&] { ChooseTargetPsf(empty, Gaussian(3.0)); }, ::testing::Throws<InvalidArgument>());
   o = Gaussian(3.0);
   o.noise_probes = 1;
   EXPECT_THAT([&] { ReconstructTargetPsf(p, o); },
