@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -276,31 +277,40 @@ double CameraToHr(double c, int r) { return (c + 0.5) * r - 0.5; }
 double HrToCamera(double h, int r) { return (h + 0.5) / r - 0.5; }
 
 // AᵀWA + Λ (Λ diagonal) as the LinearOperator conjugate gradients takes.
-// With a field grid of G nodes, also the coupling c ⊙ (h_g − h̄) (h̄ the nodes' mean, c one K² weight map for
-// every node): the gradient of Σ_g ||√c ⊙ (h_g − h̄)||², which ties each node to the field's mean PSF where the
-// stars do not tell them apart (the wings), and leaves the core, where the data constrain each node, free.
+// With a field grid of G nodes, also the nodes' prior c ⊙ Σ_h Q_gh h_h (c one K² weight map for every node, Q a
+// symmetric G x G matrix over the nodes, the same at every pixel: NodePrior): the gradient of a Gaussian prior on
+// how the nodes differ, which ties them together where the stars do not tell them apart (the wings) and leaves
+// the core, where the data constrain each node, free. Without a polynomial (grid_degree 0) Q = I − 11ᵀ/G: each
+// node's difference from the nodes' mean h̄, computed as c ⊙ (h_g − h̄).
 class StarFieldNormal final : public LinearOperator {
  public:
-  StarFieldNormal(StarFieldModel* model, const ImageStack* w, Vector ridge, int nodes = 1, Vector coupling = {})
+  StarFieldNormal(StarFieldModel* model, const ImageStack* w, Vector ridge, int nodes = 1, Vector coupling = {},
+                  Eigen::MatrixXd node_prior = {})
       : LinearOperator(ridge.size(), ridge.size(), "StarFieldNormal"),
         model_(model),
         w_(w),
         ridge_(std::move(ridge)),
         nodes_(nodes),
-        coupling_(std::move(coupling)) {}
+        coupling_(std::move(coupling)),
+        node_prior_(std::move(node_prior)) {}
 
  private:
   void ApplyImpl(ConstRef x, Ref y) const override {
     model_->Normal(x, *w_, y);
     y += ridge_.cwiseProduct(x);
-    if (nodes_ > 1) {
-      const Index k2 = coupling_.size();
-      Vector mean = Vector::Zero(k2);
-      for (int g = 0; g < nodes_; ++g) mean += x.segment(Index(g) * k2, k2);
-      mean /= double(nodes_);
-      for (int g = 0; g < nodes_; ++g)
-        y.segment(Index(g) * k2, k2) += coupling_.cwiseProduct(x.segment(Index(g) * k2, k2) - mean);
+    if (nodes_ <= 1) return;
+    const Index k2 = coupling_.size();
+    if (node_prior_.size() > 0) {
+      const Eigen::Map<const Eigen::MatrixXd> xs(x.data(), k2, nodes_);
+      Eigen::Map<Eigen::MatrixXd> ys(y.data(), k2, nodes_);
+      ys += coupling_.asDiagonal() * (xs * node_prior_);
+      return;
     }
+    Vector mean = Vector::Zero(k2);
+    for (int g = 0; g < nodes_; ++g) mean += x.segment(Index(g) * k2, k2);
+    mean /= double(nodes_);
+    for (int g = 0; g < nodes_; ++g)
+      y.segment(Index(g) * k2, k2) += coupling_.cwiseProduct(x.segment(Index(g) * k2, k2) - mean);
   }
   void ApplyAdjointImpl(ConstRef y, Ref x) const override { ApplyImpl(y, x); }  // symmetric
   StarFieldModel* model_;
@@ -308,7 +318,34 @@ class StarFieldNormal final : public LinearOperator {
   Vector ridge_;
   int nodes_;
   Vector coupling_;
+  Eigen::MatrixXd node_prior_;
 };
+
+// The nodes' prior matrix Q (StarFieldNormal) for grid_degree d >= 1, in units of 1/τ_variation²: with P_d the
+// orthogonal projection of a node vector onto the polynomials of degree <= d in the nodes' positions (monomials
+// u^a v^b, a + b <= d, a below the grid's nodes in x and b in y; u, v in [-1, 1] over the frame) and P_0 onto the
+// constants, Q = (P_d − P_0) + (I − P_d) · (variation / roughness)²: the smooth part of the field's variation
+// departs from the mean with scale grid_variation, the nodes depart from that surface with grid_roughness.
+Eigen::MatrixXd NodePriorMatrix(const PsfFieldGrid& grid, int degree, double variation, double roughness) {
+  const int g = grid.nodes();
+  std::vector<std::array<int, 2>> powers;
+  for (int total = 0; total <= degree; ++total)
+    for (int b = 0; b <= total; ++b)
+      if (total - b < grid.nx() && b < grid.ny()) powers.push_back({total - b, b});
+  Eigen::MatrixXd v(g, Index(powers.size()));
+  for (int n = 0; n < g; ++n) {
+    const int iy = n / grid.nx(), ix = n % grid.nx();
+    const double u = grid.nx() > 1 ? 2.0 * ix / (grid.nx() - 1) - 1.0 : 0.0;
+    const double w = grid.ny() > 1 ? 2.0 * iy / (grid.ny() - 1) - 1.0 : 0.0;
+    for (std::size_t p = 0; p < powers.size(); ++p) v(n, Index(p)) = std::pow(u, powers[p][0]) * std::pow(w, powers[p][1]);
+  }
+  const Eigen::MatrixXd vt = v.transpose();
+  const Eigen::MatrixXd pd = v * (vt * v).ldlt().solve(vt);
+  const Eigen::MatrixXd p0 = Eigen::MatrixXd::Constant(g, g, 1.0 / g);
+  const Eigen::MatrixXd id = Eigen::MatrixXd::Identity(g, g);
+  const double ratio = variation / roughness;
+  return (pd - p0) + (id - pd) * (ratio * ratio);
+}
 
 // The preconditioner of the h solve: for many stars at random sub-pixel phases AᵀWA acts on h nearly as a
 // convolution with the pixel box's autocorrelation, d · |B(f)|² / r⁴ in Fourier (d its diagonal: mean |B|² =
@@ -379,6 +416,10 @@ bool StarsPsfOptions::IsValid(std::string* why) const {
   if (max_stars < 1) return fail("max_stars = " + std::to_string(max_stars) + ", allowed >= 1");
   if (!(grid_variation > 0) || !std::isfinite(grid_variation))
     return fail("grid_variation = " + ToString(grid_variation) + ", allowed > 0");
+  if (grid_degree < 0 || grid_degree > 4)
+    return fail("grid_degree = " + std::to_string(grid_degree) + ", allowed [0, 4] (0: each node tied to the nodes' mean)");
+  if (!(grid_roughness > 0) || !std::isfinite(grid_roughness))
+    return fail("grid_roughness = " + ToString(grid_roughness) + ", allowed > 0");
   if (grid_ny < 1 || grid_ny > 16 || grid_nx < 1 || grid_nx > 16)
     return fail("grid " + std::to_string(grid_ny) + " x " + std::to_string(grid_nx) + ", allowed [1, 16] nodes per axis");
   if (background_mesh_px != 0 && (background_mesh_px < 4 || background_mesh_px > 4096))
@@ -639,6 +680,7 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     }
   std::unique_ptr<StarFieldModel> field;  // the stars of the current round
   Vector coupling;  // with the grid: 1/τ² per pixel of a node's difference from the mean (header, grid_variation)
+  Eigen::MatrixXd node_prior;  // grid_degree >= 1: the nodes' prior matrix (NodePriorMatrix); empty: the mean's
   // `final_solve`: false for the grid's intermediate solves, which stop at a relative residual of 1e-3: their stars
   // move again after them (measured on a 256² crop of the wide scene, 3 x 3: 40.7 s instead of 54.8, the nodes as
   // accurate: worst 3.5 % RMS of the peak, against 3.6).
@@ -661,9 +703,11 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
       ridge_vector.segment(Index(g) * k * k, k * k) = ridge[std::size_t(g)] * AsVector(ridge_shape);
     }
     // The nodes' coupling (StarFieldNormal, header: a Gaussian prior on each node's difference from the mean).
-    const StarFieldNormal normal(field.get(), &w, ridge_vector, nodes, coupling);
+    const StarFieldNormal normal(field.get(), &w, ridge_vector, nodes, coupling, node_prior);
     if (nodes > 1)
-      for (std::size_t g = 0; g < ridge.size(); ++g) ridge[g] += coupling((k / 2) * k + k / 2) * (1.0 - 1.0 / nodes);
+      for (std::size_t g = 0; g < ridge.size(); ++g)
+        ridge[g] += coupling((k / 2) * k + k / 2) *
+                    (node_prior.size() > 0 ? node_prior(Index(g), Index(g)) : 1.0 - 1.0 / nodes);
     if (u.size() != gk2 + n) {
       u = Vector::Zero(gk2 + n);
       for (Index i = 0; i < n; ++i) u(gk2 + i) = bg[i];
@@ -756,6 +800,8 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     // units (inverse variances), so bright stars override it and faint ones lean on it.
     const double tau0 = options.grid_variation * single.maxCoeff();
     coupling = AsVector(ridge_shape).array().square() / (tau0 * tau0);
+    if (options.grid_degree > 0)
+      node_prior = NodePriorMatrix(field_grid, options.grid_degree, options.grid_variation, options.grid_roughness);
     grid = field_grid;
     nodes = field_nodes;
     gk2 = Index(nodes) * k * k;

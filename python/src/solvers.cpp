@@ -337,6 +337,8 @@ StarsPsfOptions StarsOptionsFrom(py::handle kwargs, const char* fn) {
     else if (key == "max_chi2_near_stars") o.max_chi2_near_stars = v.cast<double>();
     else if (key == "reject_extended") o.reject_extended = v.cast<bool>();
     else if (key == "grid_variation") o.grid_variation = v.cast<double>();
+    else if (key == "grid_degree") o.grid_degree = v.cast<int>();
+    else if (key == "grid_roughness") o.grid_roughness = v.cast<double>();
     else if (key == "grid") {
       // (ny, nx) nodes of the field grid, or one int for both.
       if (py::isinstance<py::int_>(v)) {
@@ -351,7 +353,7 @@ StarsPsfOptions StarsOptionsFrom(py::handle kwargs, const char* fn) {
       throw InvalidArgument(fn, "stars option", key,
                             "psf_size_hr_px | detection_sigma | min_stars | rounds | regularisation | fit_radius_px | "
                             "cg_iterations | cg_tolerance | max_stars | background_mesh_px | max_chi2_near_stars | "
-                            "reject_extended | grid | grid_variation");
+                            "reject_extended | grid | grid_variation | grid_degree | grid_roughness");
   }
   std::string why;
   if (!o.IsValid(&why)) throw InvalidArgument(fn, "stars options", why, "valid StarsPsfOptions");
@@ -748,7 +750,9 @@ options   psf_size_hr_px (0: 32 r), detection_sigma (5), min_stars (4), rounds (
           fit_radius_px (3), cg_iterations (300), cg_tolerance (1e-5), max_stars (5000), background_mesh_px (0),
           max_chi2_near_stars (5), reject_extended (False), grid ((1, 1): one PSF; (ny, nx): a PSF fitted at
           each node of a grid over the field, bilinear between them, each star seen through the PSF at its
-          position; every node needs its own stars)
+          position; every node needs its own stars), grid_variation (0.3 of the peak: how far the nodes depart
+          from their mean), grid_degree (0; d in [1, 4]: the nodes follow a polynomial surface of degree d in
+          position, PSFEx's model, and depart from it by grid_roughness, 0.05 of the peak)
 
 Returns {'psf': (K, K), 'psfs': (N, K', K') per frame, 'offsets_hr_px', 'stars': (S, 3) y, x [HR px], flux [e-],
 'background_e', 'stars_used', 'detected', 'saturated', 'dropped', 'rejected', 'min_required', 'chi2_per_dof',

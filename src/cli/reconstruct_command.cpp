@@ -58,6 +58,8 @@ struct ReconstructArgs {
   double stars_max_chi2 = 5.0;     // --stars-max-chi2
   bool stars_reject_extended = false;  // --stars-reject-extended
   std::string stars_grid = "1x1";      // --stars-grid NYxNX: a stars PSF varying over the field
+  int stars_grid_degree = 0;           // --stars-grid-degree: the nodes follow a polynomial in position
+  double stars_grid_roughness = 0.05;  // --stars-grid-roughness: how far from it
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
   std::string lambda_rule = "gcv";
@@ -201,7 +203,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                             ToString(a.stars_psf_size) + "|" + ToString(a.stars_threshold) + "|" +
                             ToString(a.stars_min) + "|" + ToString(a.stars_rounds) + "|" +
                             ToString(a.stars_background_mesh) + "|" + ToString(a.stars_max_chi2) + "|" +
-                            ToString(int(a.stars_reject_extended)) + "|" + a.stars_grid;
+                            ToString(int(a.stars_reject_extended)) + "|" + a.stars_grid + "|" +
+                            ToString(a.stars_grid_degree) + "|" + ToString(a.stars_grid_roughness);
   }
   CheckWritableFile(a.out);
   if (!a.stars_psf_out.empty()) {
@@ -216,6 +219,8 @@ void RunReconstruct(const ReconstructArgs& a) {
   dpo.stars.background_mesh_px = a.stars_background_mesh;
   dpo.stars.max_chi2_near_stars = a.stars_max_chi2;
   dpo.stars.reject_extended = a.stars_reject_extended;
+  dpo.stars.grid_degree = a.stars_grid_degree;
+  dpo.stars.grid_roughness = a.stars_grid_roughness;
   {
     int ny = 0, nx = 0;
     char tail = 0;
@@ -225,6 +230,9 @@ void RunReconstruct(const ReconstructArgs& a) {
     dpo.stars.grid_nx = nx;
     if (a.model_psfs != "stars" && (ny != 1 || nx != 1))
       throw InvalidArgument("aosr reconstruct", "--stars-grid", a.stars_grid, "only with --model-psfs stars");
+    if (a.stars_grid_degree != 0 && ny * nx <= 1)
+      throw InvalidArgument("aosr reconstruct", "--stars-grid-degree", ToString(a.stars_grid_degree),
+                            "only with --stars-grid over more than one node");
   }
   {
     std::string why;
@@ -714,6 +722,17 @@ void RegisterReconstruct(CLI::App& app) {
                   "them, each star through the PSF at its position; the result is the field model, --psf-field); each "
                   "node needs its own stars. 1x1: one PSF for the field")
       ->capture_default_str();
+  cmd->add_option("--stars-grid-degree", a->stars_grid_degree,
+                  "--stars-grid: the nodes follow a polynomial surface of this degree in position (PSFEx's model of the "
+                  "variation, as a prior on the grid) and depart from it by --stars-grid-roughness; 0: each node is "
+                  "tied to the nodes' mean instead")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 4));
+  cmd->add_option("--stars-grid-roughness", a->stars_grid_roughness,
+                  "--stars-grid-degree: how far a node may depart from the polynomial surface, a fraction of the PSF's "
+                  "peak")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--lambda", a->lambda, "Tikhonov lambda (default: GCV)")->check(NonNegativeFinite());
   cmd->add_option("--lambda-rule", a->lambda_rule,
                   "Tikhonov (and the TV/MAP pilot) lambda without --lambda: gcv | discrepancy (Morozov, residual = "

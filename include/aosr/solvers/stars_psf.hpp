@@ -148,6 +148,12 @@ struct StarsPsfOptions {
   // stars are faint (or its wings, where they give little) the node leans on the mean. 0.3: an AO PSF's peak
   // changes by tens of per cent over a wide field (Strehl 0.6 of on-axis at θ0, issue 31).
   double grid_variation = 0.3;
+  // With a grid: the degree of a polynomial surface in position that the nodes follow (PSFEx's model of the
+  // variation, as a prior on the grid): 0 (default) ties every node to the nodes' mean with grid_variation; d in
+  // [1, 4] lets the nodes' polynomial part of degree <= d depart from the mean with grid_variation, and each node
+  // depart from that surface with grid_roughness (a fraction of the peak as grid_variation, > 0).
+  int grid_degree = 0;
+  double grid_roughness = 0.05;
   bool IsValid(std::string* why) const;
 };
 
