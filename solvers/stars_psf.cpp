@@ -440,6 +440,10 @@ std::string StarsPsfResult::BriefReport() const {
     double least = node_stars.empty() ? 0.0 : *std::min_element(node_stars.begin(), node_stars.end());
     std::snprintf(buf, sizeof buf, "; varying over a %d x %d grid (fewest stars at a node %.1f)", grid.ny(), grid.nx(), least);
     out += buf;
+    if (grid_degree > 0) {
+      std::snprintf(buf, sizeof buf, ", the nodes on a degree-%d surface (roughness %g)", grid_degree, grid_roughness);
+      out += buf;
+    }
   }
   return out;
 }
@@ -974,6 +978,10 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
   // The field's nodes; the PSF of the field's centre stands for the field where one PSF is wanted (it is what
   // the regularisation is chosen with, as for a dataset's psf_field).
   res.grid = grid;
+  if (nodes > 1) {
+    res.grid_degree = options.grid_degree;
+    res.grid_roughness = options.grid_roughness;
+  }
   for (int g = 0; g < nodes && nodes > 1; ++g) res.node_psfs.push_back(ToImage(h.segment(Index(g) * k * k, k * k), kk));
   res.psf = nodes > 1 ? grid.Interpolate(res.node_psfs, 0.5 * double(hr.rows - 1), 0.5 * double(hr.cols - 1))
                       : ToImage(h, kk);

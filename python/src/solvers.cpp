@@ -399,6 +399,8 @@ py::dict StarsPsfDict(const StarsPsfResult& s) {
     for (const ImageStack& f : s.field_psfs) field.append(StackToArray(f));
     d["field_psfs"] = field;
     d["node_stars"] = s.node_stars;
+    d["grid_degree"] = s.grid_degree;
+    d["grid_roughness"] = s.grid_roughness;
   } else {
     d["grid"] = py::make_tuple(1, 1);
   }
@@ -751,13 +753,15 @@ options   psf_size_hr_px (0: 32 r), detection_sigma (5), min_stars (4), rounds (
           max_chi2_near_stars (5), reject_extended (False), grid ((1, 1): one PSF; (ny, nx): a PSF fitted at
           each node of a grid over the field, bilinear between them, each star seen through the PSF at its
           position; every node needs its own stars), grid_variation (0.3 of the peak: how far the nodes depart
-          from their mean), grid_degree (0; d in [1, 4]: the nodes follow a polynomial surface of degree d in
-          position, PSFEx's model, and depart from it by grid_roughness, 0.05 of the peak)
+          from their mean), grid_degree (2: the nodes follow a polynomial surface of degree d in [1, 4] in
+          position, PSFEx's model, and depart from it by grid_roughness, 0.005 of the peak; 0: each node is tied
+          to the nodes' mean instead)
 
 Returns {'psf': (K, K), 'psfs': (N, K', K') per frame, 'offsets_hr_px', 'stars': (S, 3) y, x [HR px], flux [e-],
 'background_e', 'stars_used', 'detected', 'saturated', 'dropped', 'rejected', 'min_required', 'chi2_per_dof',
 'chi2_near_stars', 'dof', 'rounds', 'seconds', 'report', 'grid'}; with a grid also 'grid_nodes_hr_px' (y, x per
-node), 'node_psfs' (G, K, K), 'field_psfs' (G arrays (N, K', K')) and 'node_stars' (the stars' weights per node),
+node), 'node_psfs' (G, K, K), 'field_psfs' (G arrays (N, K', K')), 'node_stars' (the stars' weights per node),
+'grid_degree' and 'grid_roughness' (the nodes' prior),
 and 'psf'/'psfs' are the field centre's. InvalidArgument (ValueError) when the frames cannot support an estimate (no
 detection, too few or only saturated stars, offsets that change the PSF's shape), naming what is missing.)doc");
 

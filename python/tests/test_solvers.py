@@ -379,6 +379,28 @@ def test_stars_psf_over_a_field_grid(cli, tmp_path):
         assert bits_equal(f[0].data, est["psfs"])
     np.testing.assert_allclose(aosr.read_fits(tmp_path / "t.fits")[0], rec.image, rtol=1e-6, atol=1e-6 * abs(rec.image).max())
 
+    # The nodes' prior (grid_degree, --stars-grid-degree): a quadratic surface by default, the mean with 0; the CLI
+    # and Python give the same nodes, and the FITS FIELD extension records it.
+    assert est["grid_degree"] == 2 and est["grid_roughness"] == 0.005
+    # (2 x 3 nodes: the quadratic's 5 terms leave one for the roughness; 2 x 2 would span all four nodes.)
+    flat = aosr.stars_psf(ds, grid=(2, 3), psf_size_hr_px=16, min_stars=2, grid_degree=0)
+    curved = aosr.stars_psf(ds, grid=(2, 3), psf_size_hr_px=16, min_stars=2)
+    assert "degree-2 surface" in curved["report"] and "surface" not in flat["report"]
+    assert not np.array_equal(flat["node_psfs"], curved["node_psfs"])
+    out = json.loads(cli("reconstruct", ds, "-m", "tikhonov", "--model-psfs", "stars", "--stars-grid", "2x3",
+                         "--stars-psf-size", "16", "--stars-min", "2", "--stars-grid-degree", "0", "--stars-psf-out", tmp_path / "f.fits",
+                         "--json", "-o", tmp_path / "f3.fits").stdout)
+    assert out["stars_psf"]["grid"]["degree"] == 0
+    assert out["stars_psf"]["grid"]["node_stars"] == pytest.approx(flat["node_stars"], rel=1e-12)
+    with fits.open(tmp_path / "f.fits") as f:
+        assert f["FIELD"].header["FLDDEG"] == 0
+        assert bits_equal(f["FIELD"].data[4 * 5:4 * 6], flat["field_psfs"][5])
+    with pytest.raises(aosr.InvalidArgument, match="grid_degree = 5"):
+        aosr.stars_psf(ds, grid=(3, 3), psf_size_hr_px=16, grid_degree=5)
+    p = cli("reconstruct", ds, "-m", "tikhonov", "--model-psfs", "stars", "--stars-grid", "3x3", "--stars-grid-degree",
+            "5", "-o", tmp_path / "u.fits", check=False)
+    assert p.returncode != 0 and "stars-grid-degree" in p.stdout + p.stderr
+
     with pytest.raises(aosr.InvalidArgument, match="node .* coarser grid"):
         aosr.stars_psf(ds, grid=(4, 4), psf_size_hr_px=16, min_stars=10)
     p = cli("reconstruct", ds, "-m", "tikhonov", "--model-psfs", "stars", "--stars-grid", "4x4", "--stars-psf-size", "16",

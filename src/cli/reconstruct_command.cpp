@@ -58,8 +58,8 @@ struct ReconstructArgs {
   double stars_max_chi2 = 5.0;     // --stars-max-chi2
   bool stars_reject_extended = false;  // --stars-reject-extended
   std::string stars_grid = "1x1";      // --stars-grid NYxNX: a stars PSF varying over the field
-  int stars_grid_degree = 0;           // --stars-grid-degree: the nodes follow a polynomial in position
-  double stars_grid_roughness = 0.05;  // --stars-grid-roughness: how far from it
+  int stars_grid_degree = StarsPsfOptions{}.grid_degree;          // --stars-grid-degree: nodes on a polynomial
+  double stars_grid_roughness = StarsPsfOptions{}.grid_roughness;  // --stars-grid-roughness: how far from it
   // Tikhonov
   double lambda = -1;  // < 0: by the rule
   std::string lambda_rule = "gcv";
@@ -230,9 +230,6 @@ void RunReconstruct(const ReconstructArgs& a) {
     dpo.stars.grid_nx = nx;
     if (a.model_psfs != "stars" && (ny != 1 || nx != 1))
       throw InvalidArgument("aosr reconstruct", "--stars-grid", a.stars_grid, "only with --model-psfs stars");
-    if (a.stars_grid_degree != 0 && ny * nx <= 1)
-      throw InvalidArgument("aosr reconstruct", "--stars-grid-degree", ToString(a.stars_grid_degree),
-                            "only with --stars-grid over more than one node");
   }
   {
     std::string why;
@@ -323,6 +320,8 @@ void RunReconstruct(const ReconstructArgs& a) {
       field.header.Set("FLDNY", static_cast<long long>(st.grid.ny()), "field grid: nodes along y (rows)");
       field.header.Set("FLDNX", static_cast<long long>(st.grid.nx()), "field grid: nodes along x (columns)");
       field.header.Set("FLDINTRP", "bilinear", "PSF between nodes (core/psf_field.hpp)");
+      field.header.Set("FLDDEG", static_cast<long long>(st.grid_degree), "nodes' prior: polynomial degree in position");
+      field.header.Set("FLDROUGH", st.grid_roughness, "nodes' prior: departure from it (fraction of the peak)");
       for (int g = 0; g < st.grid.nodes(); ++g) {
         char digits[8];
         std::snprintf(digits, sizeof digits, "%04d", g % 10000);
@@ -503,7 +502,8 @@ void RunReconstruct(const ReconstructArgs& a) {
                       {"background_e", st.background_e},
                       {"seconds", st.seconds}};
     if (st.grid.nodes() > 1)
-      j["stars_psf"]["grid"] = {{"ny", st.grid.ny()}, {"nx", st.grid.nx()}, {"node_stars", st.node_stars}};
+      j["stars_psf"]["grid"] = {{"ny", st.grid.ny()}, {"nx", st.grid.nx()}, {"node_stars", st.node_stars},
+                                     {"degree", st.grid_degree}, {"roughness", st.grid_roughness}};
     if (!a.stars_psf_out.empty()) j["stars_psf"]["path"] = a.stars_psf_out;
   }
   if (!dp.background_sigma_e.empty()) j["background_sigma_e"] = dp.background_sigma_e;
@@ -725,7 +725,7 @@ void RegisterReconstruct(CLI::App& app) {
   cmd->add_option("--stars-grid-degree", a->stars_grid_degree,
                   "--stars-grid: the nodes follow a polynomial surface of this degree in position (PSFEx's model of the "
                   "variation, as a prior on the grid) and depart from it by --stars-grid-roughness; 0: each node is "
-                  "tied to the nodes' mean instead")
+                  "tied to the nodes' mean instead. Without a grid (1x1) it has no effect")
       ->capture_default_str()
       ->check(CLI::Range(0, 4));
   cmd->add_option("--stars-grid-roughness", a->stars_grid_roughness,

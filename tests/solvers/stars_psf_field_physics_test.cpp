@@ -147,7 +147,7 @@ TEST(StarsPsfField, NodesOfAVaryingPsfAreRecoveredWhereOnePsfFails) {
 // in position, σ(u, v) = 1.5 + 0.35 (u + 1)² / 4 + 0.25 (v + 1)² / 4 HR px (u, v in [-1, 1] over the frame), each
 // star rendered with the σ at its own position. 96² camera px, r = 2, the 2 x 2 raster of MakeFieldFrames,
 // `count` stars 2e4..2e5 e⁻ on a 100 e⁻ sky. Measured (this seed): worst node 2.37 % of its peak with the nodes
-// tied to their mean, 1.42 % with grid_degree 2; the median nodes 0.9 % and 0.6 %.
+// tied to their mean, 0.87 % with grid_degree 2 (grid_roughness 0.05: 1.42 %, 0.01: 0.89 %).
 struct SmoothField {
   ImageStack y, valid;
   std::vector<FrameOffset> offsets;
@@ -214,13 +214,14 @@ TEST(StarsPsfField, APolynomialPriorOnTheNodesBeatsTheMeanOnASmoothField) {
     }
     return worst;
   };
+  o.grid_degree = 0;
   const StarsPsfResult mean_tied = EstimateStarsPsf(f.y, f.valid, {}, f.offsets, 2, o);
-  o.grid_degree = 2;
+  o.grid_degree = 2;  // the default, with grid_roughness 0.005
   const StarsPsfResult smooth = EstimateStarsPsf(f.y, f.valid, {}, f.offsets, 2, o);
   const double e0 = worst_node(mean_tied), e2 = worst_node(smooth);
   std::printf("%s\n%s\nworst node: mean-tied %.2f %%, degree 2 %.2f %%\n", mean_tied.BriefReport().c_str(),
               smooth.BriefReport().c_str(), 100 * e0, 100 * e2);
-  EXPECT_LT(e2, 0.75 * e0);
+  EXPECT_LT(e2, 0.5 * e0);
   EXPECT_LT(e2, 0.02);
   // Both still fit the frames (the prior does not fight the data).
   EXPECT_LT(smooth.chi2_near_stars, 1.3) << smooth.BriefReport();

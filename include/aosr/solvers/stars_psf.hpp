@@ -80,10 +80,14 @@
 // polynomial in position and of photutils' GriddedPSFModel, in the interpolation the simulator and the
 // reconstructors use (solvers/psf_field_model.hpp), so the result is a field model as it stands. Each node is
 // normalised and centred on its own (a field-dependent shift is data's astrometry, carried by the stars). A node
-// sees only its share of the stars, so its noise is larger than the single PSF's: a Gaussian prior ties each node
-// to the field's mean, Σ_g ||(h_g − h̄)/τ||² with τ = grid_variation · peak / (1 + (ρ/2r)²) in the weights' units
-// (measured on crowded-stars cut to 64², 100 stars, 2 x 2 grid: each node 7-12 % RMS of the peak from the
-// truth with independent nodes, 1.5-2.2 % with this prior, the single PSF 1.0 %). Each
+// sees only its share of the stars, so its noise is larger than the single PSF's: a Gaussian prior on the nodes,
+// with τ = grid_variation · peak / (1 + (ρ/2r)²) in the weights' units. With grid_degree 0 it ties each node to the
+// field's mean, Σ_g ||(h_g − h̄)/τ||² (measured on crowded-stars cut to 64², 100 stars, 2 x 2 grid: each node 7-12 %
+// RMS of the peak from the truth with independent nodes, 1.5-2.2 % with this prior, the single PSF 1.0 %). With
+// grid_degree d (default 2) the nodes follow a polynomial surface of degree d in position, as PSFEx models the
+// variation: the surface departs from the mean with τ, each node from the surface with τ · grid_roughness /
+// grid_variation. A grid fine enough to follow the field then pools all the stars, as a polynomial does, and
+// keeps the grid's interpolation for the reconstructors (measured in bench/results/wide_field.md). Each
 // node needs max(min_stars, ⌈r²/N⌉) stars counted by their weights on it (a star on the node counts 1); fewer is
 // an InvalidArgument naming the node, its count, the stars found and the need, advising a coarser grid.
 //
@@ -149,11 +153,12 @@ struct StarsPsfOptions {
   // changes by tens of per cent over a wide field (Strehl 0.6 of on-axis at θ0, issue 31).
   double grid_variation = 0.3;
   // With a grid: the degree of a polynomial surface in position that the nodes follow (PSFEx's model of the
-  // variation, as a prior on the grid): 0 (default) ties every node to the nodes' mean with grid_variation; d in
-  // [1, 4] lets the nodes' polynomial part of degree <= d depart from the mean with grid_variation, and each node
-  // depart from that surface with grid_roughness (a fraction of the peak as grid_variation, > 0).
-  int grid_degree = 0;
-  double grid_roughness = 0.05;
+  // variation, as a prior on the grid; monomials u^a v^b, a + b <= d, each power below the grid's nodes on its
+  // axis): d in [1, 4] lets the surface depart from the nodes' mean with grid_variation and each node depart from
+  // the surface with grid_roughness (a fraction of the peak as grid_variation, > 0); 0 ties every node to the
+  // nodes' mean with grid_variation. On a 2 x 2 grid degree >= 1 spans every node, so it is the same as 0.
+  int grid_degree = 2;
+  double grid_roughness = 0.005;
   bool IsValid(std::string* why) const;
 };
 
@@ -177,6 +182,8 @@ struct StarsPsfResult {
   ImageStack node_psfs;
   std::vector<ImageStack> field_psfs;
   std::vector<double> node_stars;
+  int grid_degree = 0;                // the nodes' prior as fitted (options.grid_degree, roughness); 0 without a grid
+  double grid_roughness = 0.0;
   // The fit's quality: Σ w·res² / dof over every pixel of non-zero weight, dof = n − K² − 3·stars − N (0 when
   // dof <= 0), and Σ w·res² / n over the pixels within fit_radius_px of a fitted star (no dof correction): ~1 when
   // the weights are the noise's inverse variances and the model fits; above where the PSF or the stars do not.
