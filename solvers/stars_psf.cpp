@@ -278,10 +278,10 @@ double HrToCamera(double h, int r) { return (h + 0.5) / r - 0.5; }
 
 // AᵀWA + Λ (Λ diagonal) as the LinearOperator conjugate gradients takes.
 // With a field grid of G nodes, also the nodes' prior c ⊙ Σ_h Q_gh h_h (c one K² weight map for every node, Q a
-// symmetric G x G matrix over the nodes, the same at every pixel: NodePriorMatrix): the gradient of a Gaussian prior on
-// how the nodes differ, which ties them together where the stars do not tell them apart (the wings) and leaves
-// the core, where the data constrain each node, free. Without a polynomial (grid_degree 0) Q = I − 11ᵀ/G: each
-// node's difference from the nodes' mean h̄, computed as c ⊙ (h_g − h̄).
+// symmetric G x G matrix over the nodes, the same at every pixel: NodePriorMatrix): the gradient of a Gaussian
+// prior on how the nodes differ, which ties them together where the stars do not tell them apart (the wings) and
+// leaves the core, where the data constrain each node, free. Without a polynomial (grid_degree 0) Q = I − 11ᵀ/G:
+// each node's difference from the nodes' mean h̄, computed as c ⊙ (h_g − h̄).
 class StarFieldNormal final : public LinearOperator {
  public:
   StarFieldNormal(StarFieldModel* model, const ImageStack* w, Vector ridge, int nodes = 1, Vector coupling = {},
