@@ -27,6 +27,18 @@ Image EllipticalGaussian(Index k, double cy, double cx, double sy, double sx) {
   return g / g.sum();
 }
 
+// The HR image binned r x r to camera px on a 100 e⁻ sky, with photon and 3 e⁻ read noise.
+Image BinWithNoise(const Image& img, int r, std::mt19937_64& rng, std::normal_distribution<double>& n01) {
+  const Index m = img.rows() / r;
+  Image y(m, m);
+  for (Index a = 0; a < m; ++a)
+    for (Index b = 0; b < m; ++b) {
+      const double signal = img.block(a * r, b * r, r, r).sum() + 100;
+      y(a, b) = signal + std::sqrt(9 + signal) * n01(rng);
+    }
+  return y;
+}
+
 struct FieldFrames {
   ImageStack y, valid;
   std::vector<FrameOffset> offsets;
@@ -74,13 +86,7 @@ FieldFrames MakeFieldFrames(int count) {
         img += (s[2] * w.weight / norm) * g;
       }
     }
-    Image y(m, m);
-    for (Index a = 0; a < m; ++a)
-      for (Index b = 0; b < m; ++b) {
-        const double signal = img.block(a * r, b * r, r, r).sum() + 100;
-        y(a, b) = signal + std::sqrt(9 + signal) * n01(rng);
-      }
-    f.y.push_back(y);
+    f.y.push_back(BinWithNoise(img, r, rng, n01));
     f.valid.push_back(Image::Ones(m, m));
     f.offsets.push_back({oy, ox});
   }
@@ -179,13 +185,7 @@ SmoothField MakeSmoothField(int count) {
         for (Index x = std::max<Index>(0, Index(sx) - 16); x < std::min<Index>(hr, Index(sx) + 17); ++x)
           img(y, x) += s[2] / (2 * M_PI * sg * sg) * std::exp(-0.5 * ((y - sy) * (y - sy) + (x - sx) * (x - sx)) / (sg * sg));
     }
-    Image y(m, m);
-    for (Index a = 0; a < m; ++a)
-      for (Index b = 0; b < m; ++b) {
-        const double signal = img.block(a * r, b * r, r, r).sum() + 100;
-        y(a, b) = signal + std::sqrt(9 + signal) * n01(rng);
-      }
-    f.y.push_back(y);
+    f.y.push_back(BinWithNoise(img, r, rng, n01));
     f.valid.push_back(Image::Ones(m, m));
     f.offsets.push_back({oy, ox});
   }
