@@ -1,5 +1,6 @@
 #include "aosr/ao/atmosphere.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -157,8 +158,13 @@ void Atmosphere::Prepare(LayerState& layer, double t_s, double row_shift_px, con
   const double centre = layer.rho0 + layer.speed_px * t_s + row_shift_px;
   InfinitePhaseScreen& screen = *layer.screen;
   const Index length = screen.options().length;
-  // Rows needed by the interpolation taps: floor(centre - h) - 1 .. floor(centre + h) + 2.
-  const double last_needed = std::floor(centre + h) + 2.0;
+  // Rows needed by the interpolation taps: floor(centre - h) - 1 .. floor(centre + h) + 2. The screen is
+  // extruded as far as the widest field direction could need (the margin M ahead of the axis), whichever
+  // direction asks: the rows held, and so the rounding of every read (Accumulate's base), are then a function
+  // of time alone, and a direction's values do not depend on which directions were read before it (one loop
+  // for many directions gives each the bytes of its own loop: closed_loop.hpp). On axis only, M = 0.
+  const double ahead = std::floor(layer.rho0 + layer.speed_px * t_s + h + layer.margin_px) + 2.0;
+  const double last_needed = std::max(ahead, std::floor(centre + h) + 2.0);
   const double have_last = static_cast<double>(screen.rows_extruded() + length - 1);
   if (last_needed > have_last) screen.Extrude(static_cast<Index>(last_needed - have_last));
   const double first_needed = std::floor(centre - h) - 1.0;

@@ -78,6 +78,9 @@ const ClosedLoopOptions& CheckedLoopOptions(const Image& amplitude, double diame
   if (!options.science_direction.IsZero() && atmosphere != nullptr) {
     atmosphere->CheckFieldDirection(options.science_direction, "ClosedLoop (options.science_direction)");
   }
+  if (atmosphere != nullptr)
+    for (const FieldDirection& d : options.extra_science_directions)
+      if (!d.IsZero()) atmosphere->CheckFieldDirection(d, "ClosedLoop (options.extra_science_directions)");
   CheckStaticOpd(options.common_static_opd_m, amplitude, "common_static_opd_m");
   CheckStaticOpd(options.science_static_opd_m, amplitude, "science_static_opd_m");
   return options;
@@ -97,6 +100,12 @@ bool ClosedLoopOptions::IsValid(std::string* why) const {
   if (!(std::isfinite(science_direction.x_rad) && std::isfinite(science_direction.y_rad))) {
     return Fail(why, "science_direction = (" + ToString(science_direction.x_rad) + ", " +
                          ToString(science_direction.y_rad) + "); allowed: finite [rad]");
+  }
+  for (std::size_t k = 0; k < extra_science_directions.size(); ++k) {
+    const FieldDirection& d = extra_science_directions[k];
+    if (!(std::isfinite(d.x_rad) && std::isfinite(d.y_rad)))
+      return Fail(why, "extra_science_directions[" + std::to_string(k) + "] = (" + ToString(d.x_rad) + ", " +
+                           ToString(d.y_rad) + "); allowed: finite [rad]");
   }
   if (!(std::isfinite(dm_gain) && dm_gain >= 0.5 && dm_gain <= 2.0)) {
     return Fail(why, "dm_gain = " + ToString(dm_gain) + "; allowed: [0.5, 2] (the mirror's response per commanded metre)");
@@ -121,13 +130,19 @@ std::string ClosedLoopResult::BriefReport() const {
   return buf;
 }
 
-// Per-exposure accumulators.
-struct ClosedLoop::Recorder {
+// Per-exposure accumulators of one science direction.
+struct ClosedLoop::Track {
   std::vector<double> residual_rms_m;
   std::vector<double> strehl;
-  int steps = 0;
   int psf_frames = 0;
   double psf_strehl_sum = 0.0;
+  Image accumulator;  // sum of |DFT E|^2 over PSF frames (2n x 2n)
+};
+
+// Per-exposure accumulators: tracks[0] the science_direction, then the extra_science_directions.
+struct ClosedLoop::Recorder {
+  std::vector<Track> tracks;
+  int steps = 0;
   int clipped_frames = 0;
 };
 
@@ -163,7 +178,6 @@ ClosedLoop::ClosedLoop(const Image& amplitude, double diameter_m, Atmosphere* at
   phase_.assign(lit_pupil_.size(), 0.0);
   cos_.assign(lit_pupil_.size(), 0.0);
   sin_.assign(lit_pupil_.size(), 0.0);
-  accumulator_ = Image::Zero(m, m);
   if (options_.compute_psf) {
     // The (2n-1)^2 lag lattice k D/n, centred at (n-1, n-1), onto the science grid (analytic_ao.hpp).
     MftGeometry g;
@@ -250,20 +264,26 @@ void ClosedLoop::Step(bool record) {
     }
   }
   const auto t4 = Clock::now();
-  // 5. Science (off axis: the science direction's turbulence under the same DM, header "Off axis").
-  if (record && !options_.science_direction.IsZero()) {
-    science_residual_ = dm_opd_;
-    if (atmosphere_ != nullptr) {
-      atmosphere_->Opd(t, options_.science_direction, &science_turbulence_);
-      science_residual_ += science_turbulence_;
-    }
-    if (options_.common_static_opd_m.size() > 0) science_residual_ += options_.common_static_opd_m;
-  }
+  // 5. Science (off axis: the science direction's turbulence under the same DM, header "Off axis"), for each
+  // direction recorded.
   if (record) {
     if (!recorder_) BeginRecording();
     Recorder& r = *recorder_;
     const bool psf_frame = options_.compute_psf && r.steps % options_.psf_every_steps == 0;
-    ScienceStage(psf_frame);
+    for (std::size_t k = 0; k < r.tracks.size(); ++k) {
+      const FieldDirection& d = k == 0 ? options_.science_direction : options_.extra_science_directions[k - 1];
+      if (d.IsZero()) {
+        ScienceStage(residual_.data(), psf_frame, &r.tracks[k]);
+        continue;
+      }
+      science_residual_ = dm_opd_;
+      if (atmosphere_ != nullptr) {
+        atmosphere_->Opd(t, d, &science_turbulence_);
+        science_residual_ += science_turbulence_;
+      }
+      if (options_.common_static_opd_m.size() > 0) science_residual_ += options_.common_static_opd_m;
+      ScienceStage(science_residual_.data(), psf_frame, &r.tracks[k]);
+    }
     if (clipped) ++r.clipped_frames;
     ++r.steps;
   }
@@ -277,10 +297,9 @@ void ClosedLoop::Step(bool record) {
   ++frame_;
 }
 
-void ClosedLoop::ScienceStage(bool psf_frame) {
-  Recorder& r = *recorder_;
+void ClosedLoop::ScienceStage(const double* w, bool psf_frame, Track* track) {
+  Track& r = *track;
   // Residual RMS over the pupil, amplitude-weighted, piston removed (the science direction's).
-  const double* w = options_.science_direction.IsZero() ? residual_.data() : science_residual_.data();
   double s1 = 0.0, s2 = 0.0;
   for (std::size_t j = 0; j < lit_pupil_.size(); ++j) {
     const double v = w[lit_pupil_[j]], a = lit_amp_[j];
@@ -313,7 +332,7 @@ void ClosedLoop::ScienceStage(bool psf_frame) {
   r.strehl.push_back(strehl);
   if (psf_frame) {
     FftForwardInto(field_, &spectrum_);
-    accumulator_ += spectrum_.abs2();
+    r.accumulator += spectrum_.abs2();
     ++r.psf_frames;
     r.psf_strehl_sum += strehl;
   }
@@ -321,7 +340,32 @@ void ClosedLoop::ScienceStage(bool psf_frame) {
 
 void ClosedLoop::BeginRecording() {
   recorder_ = std::make_unique<Recorder>();
-  accumulator_.setZero();
+  const Index m = 2 * amplitude_.rows();
+  recorder_->tracks.resize(1 + options_.extra_science_directions.size());
+  for (Track& track : recorder_->tracks) track.accumulator = Image::Zero(m, m);
+}
+
+void ClosedLoop::FinishTrack(const Track& r, int steps, ClosedLoopResult* out) {
+  out->psf_frames = r.psf_frames;
+  double sum = 0.0;
+  for (double s : r.strehl) sum += s;
+  out->long_exposure_strehl = steps > 0 ? sum / steps : 0.0;
+  out->psf_strehl = r.psf_frames > 0 ? r.psf_strehl_sum / r.psf_frames : 0.0;
+  out->residual_rms_m = r.residual_rms_m;
+  out->strehl = r.strehl;
+  if (options_.compute_psf && r.psf_frames > 0) {
+    // Gamma = IDFT(<|DFT E|^2>) on the 2n grid, gathered on the (2n-1)^2 lag lattice, then the MFT.
+    const Index n = amplitude_.rows(), m = 2 * n;
+    const ComplexImage gamma = FftInverse((r.accumulator / static_cast<double>(r.psf_frames)).cast<Complex>());
+    ComplexImage lattice(2 * n - 1, 2 * n - 1);
+    for (Index ky = -(n - 1); ky <= n - 1; ++ky) {
+      for (Index kx = -(n - 1); kx <= n - 1; ++kx) {
+        lattice(ky + n - 1, kx + n - 1) = gamma((ky + m) % m, (kx + m) % m);
+      }
+    }
+    const double s = lattice_mft_->geometry().pixel_scale_lod;
+    out->psf = lattice_mft_->Apply(lattice).real() * (s * s / energy_);
+  }
 }
 
 ClosedLoopResult ClosedLoop::FinishRecording(int settling_steps, double start_time_s) {
@@ -332,26 +376,13 @@ ClosedLoopResult ClosedLoop::FinishRecording(int settling_steps, double start_ti
   out.settling_steps = settling_steps;
   out.steps = r.steps;
   out.clipped_frames = r.clipped_frames;
-  out.psf_frames = r.psf_frames;
-  double sum = 0.0;
-  for (double s : r.strehl) sum += s;
-  out.long_exposure_strehl = r.steps > 0 ? sum / r.steps : 0.0;
-  out.psf_strehl = r.psf_frames > 0 ? r.psf_strehl_sum / r.psf_frames : 0.0;
-  out.residual_rms_m = std::move(r.residual_rms_m);
-  out.strehl = std::move(r.strehl);
-  if (options_.compute_psf && r.psf_frames > 0) {
-    // Gamma = IDFT(<|DFT E|^2>) on the 2n grid, gathered on the (2n-1)^2 lag lattice, then the MFT.
-    const Index n = amplitude_.rows(), m = 2 * n;
-    const ComplexImage gamma = FftInverse((accumulator_ / static_cast<double>(r.psf_frames)).cast<Complex>());
-    ComplexImage lattice(2 * n - 1, 2 * n - 1);
-    for (Index ky = -(n - 1); ky <= n - 1; ++ky) {
-      for (Index kx = -(n - 1); kx <= n - 1; ++kx) {
-        lattice(ky + n - 1, kx + n - 1) = gamma((ky + m) % m, (kx + m) % m);
-      }
-    }
-    const double s = lattice_mft_->geometry().pixel_scale_lod;
-    out.psf = lattice_mft_->Apply(lattice).real() * (s * s / energy_);
+  const ClosedLoopResult shared = out;  // the fields every direction has in common
+  for (std::size_t k = 1; k < r.tracks.size(); ++k) {
+    ClosedLoopResult extra = shared;
+    FinishTrack(r.tracks[k], r.steps, &extra);
+    out.extra_directions.push_back(std::move(extra));
   }
+  FinishTrack(r.tracks[0], r.steps, &out);
   recorder_.reset();
   return out;
 }
@@ -429,6 +460,10 @@ std::vector<ClosedLoopResult> ClosedLoop::RunSubExposures(const std::vector<Imag
     results.push_back(Record(steps, static_cast<int>(settle + (probed_only ? 1 : 0))));
     results.back().tilt_gain[0] = gain(0, 0);
     results.back().tilt_gain[1] = gain(1, 1);
+    for (ClosedLoopResult& extra : results.back().extra_directions) {
+      extra.tilt_gain[0] = gain(0, 0);
+      extra.tilt_gain[1] = gain(1, 1);
+    }
     if (after_each && !after_each(int(results.size()))) break;
   }
   return results;

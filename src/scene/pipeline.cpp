@@ -686,14 +686,21 @@ Image ScenePipeline::RenderObject(std::vector<PointSource>* stars) const {
 
 ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
                                       std::vector<double>* strehl, SimulationCounters* counters) const {
-  return ComputePsfs(distinct, window_fraction, strehl, counters, {});
+  std::vector<std::vector<double>> st;
+  std::vector<ImageStack> out = ComputeDirectionPsfs({FieldDirection{}}, distinct, window_fraction, strehl ? &st : nullptr,
+                                                     counters, {}, nullptr);
+  if (strehl) *strehl = std::move(st.front());
+  return std::move(out.front());
 }
 
-ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
-                                      std::vector<double>* strehl, SimulationCounters* counters,
-                                      const std::function<bool(int)>& step,
-                                      std::vector<std::array<double, 2>>* tilt_gain,
-                                      FieldDirection direction) const {
+std::vector<ImageStack> ScenePipeline::ComputeDirectionPsfs(const std::vector<FieldDirection>& directions,
+                                                           std::vector<int>* distinct,
+                                                           std::vector<double>* window_fraction,
+                                                           std::vector<std::vector<double>>* strehl,
+                                                           SimulationCounters* counters,
+                                                           const std::function<bool(int)>& step,
+                                                           std::vector<std::array<double, 2>>* tilt_gain) const {
+  const int D = int(directions.size());
   const SceneSpec& s = scene_;
   const Index n = s.telescope.pupil_px;
   const Image amplitude = s.telescope.PupilAmplitude();
@@ -711,8 +718,9 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
   sampling.pixel_scale_rad = geometry_.hr_pixel_rad;
   sampling.rows = sampling.cols = geometry_.psf_size;
 
-  std::vector<Image> raw(distinct_count_);
-  std::vector<double> raw_strehl(distinct_count_);
+  // raw[k][d], raw_strehl[k][d]: direction k's distinct PSF d.
+  std::vector<std::vector<Image>> raw(D, std::vector<Image>(distinct_count_));
+  std::vector<std::vector<double>> raw_strehl(D, std::vector<double>(distinct_count_));
   if (s.ao.mode == AoSpec::Mode::kClosedLoop) {
     // Static aberrations are non-common-path (science camera only); the DM offsets go through the WFS
     // reference, as a real-time computer applies them.
@@ -722,7 +730,9 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
     if (spec.atmosphere && field_max_angle_rad_ > 0.0) spec.atmosphere->max_field_angle_rad = field_max_angle_rad_;
     ClosedLoopOptions lo;
     lo.science = sampling;
-    lo.science_direction = direction;
+    // Every direction in one loop (closed_loop.hpp, "Off axis"): the loop does not depend on them.
+    lo.science_direction = directions.front();
+    lo.extra_science_directions.assign(directions.begin() + 1, directions.end());
     lo.psf_every_steps = s.ao.psf_every_steps;
     lo.science_static_opd_m = static_opd;
     lo.dm_gain = s.ao.dm_gain;
@@ -740,7 +750,7 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
       bool go = true;
       const std::vector<ClosedLoopResult> results = loop->RunSubExposures(
           offsets, s.ao.time_per_frame_s, s.ao.settling_s,
-          step ? std::function<bool(int)>([&](int) { return go = step(1); }) : std::function<bool(int)>());
+          step ? std::function<bool(int)>([&](int) { return go = step(D); }) : std::function<bool(int)>());
       if (!go) return {};
       const double w = 1.0 / runs;
       for (int i = 0; i < s.Exposures(); ++i) {
@@ -748,52 +758,59 @@ ImageStack ScenePipeline::ComputePsfs(std::vector<int>* distinct, std::vector<do
           (*tilt_gain)[i][0] += w * results[i].tilt_gain[0];
           (*tilt_gain)[i][1] += w * results[i].tilt_gain[1];
         }
-        raw[i] = run == 0 ? Image(w * results[i].psf) : Image(raw[i] + w * results[i].psf);
-        raw_strehl[i] += w * results[i].psf_strehl;
+        for (int k = 0; k < D; ++k) {
+          const ClosedLoopResult& res = k == 0 ? results[i] : results[i].extra_directions[std::size_t(k - 1)];
+          raw[k][i] = run == 0 ? Image(w * res.psf) : Image(raw[k][i] + w * res.psf);
+          raw_strehl[k][i] += w * res.psf_strehl;
+        }
         if (counters) counters->loop_steps += results[i].steps + results[i].settling_steps;
       }
     }
     if (tilt_gain && s.ao.offset_calibration != OffsetCalibration::kOnSky) tilt_gain->clear();
   } else {
-    std::unique_ptr<PsfCalculator> diffraction;
-    std::unique_ptr<AnalyticAoPsfCalculator> analytic;
-    if (s.ao.mode == AoSpec::Mode::kAnalytic)
-      analytic = std::make_unique<AnalyticAoPsfCalculator>(
-          AnalyticAoAt(s.telescope, direction, "ScenePipeline", "psf_field"), n, sampling);
-    else diffraction = std::make_unique<PsfCalculator>(n, s.telescope.aperture.pupil.diameter_m, sampling);
-    const double residual_strehl = analytic ? analytic->Compute(amplitude, Image::Zero(n, n)).strehl : 1.0;
-    for (int d = 0; d < distinct_count_; ++d) {
-      const int i = int(std::find(distinct_.begin(), distinct_.end(), d) - distinct_.begin());
-      const Image opd = ExposureOpd(s, s.ExposureOffset(i), static_opd, dm.get());
-      if (analytic) {
-        AnalyticAoPsf p = analytic->Compute(amplitude, opd);
-        raw[d] = std::move(p.psf);
-        // The residual's long-exposure Strehl times that of the static OPD about its own centre.
-        raw_strehl[d] = residual_strehl * StrehlFromPupil(amplitude, WithoutTilt(opd, amplitude), sampling.wavelength_m);
-      } else {
-        raw[d] = diffraction->Compute(amplitude, opd);
-        raw_strehl[d] = StrehlFromPupil(amplitude, WithoutTilt(opd, amplitude), sampling.wavelength_m);
+    for (int k = 0; k < D; ++k) {
+      std::unique_ptr<PsfCalculator> diffraction;
+      std::unique_ptr<AnalyticAoPsfCalculator> analytic;
+      if (s.ao.mode == AoSpec::Mode::kAnalytic)
+        analytic = std::make_unique<AnalyticAoPsfCalculator>(
+            AnalyticAoAt(s.telescope, directions[std::size_t(k)], "ScenePipeline", "psf_field"), n, sampling);
+      else diffraction = std::make_unique<PsfCalculator>(n, s.telescope.aperture.pupil.diameter_m, sampling);
+      const double residual_strehl = analytic ? analytic->Compute(amplitude, Image::Zero(n, n)).strehl : 1.0;
+      for (int d = 0; d < distinct_count_; ++d) {
+        const int i = int(std::find(distinct_.begin(), distinct_.end(), d) - distinct_.begin());
+        const Image opd = ExposureOpd(s, s.ExposureOffset(i), static_opd, dm.get());
+        if (analytic) {
+          AnalyticAoPsf p = analytic->Compute(amplitude, opd);
+          raw[k][d] = std::move(p.psf);
+          // The residual's long-exposure Strehl times that of the static OPD about its own centre.
+          raw_strehl[k][d] = residual_strehl * StrehlFromPupil(amplitude, WithoutTilt(opd, amplitude), sampling.wavelength_m);
+        } else {
+          raw[k][d] = diffraction->Compute(amplitude, opd);
+          raw_strehl[k][d] = StrehlFromPupil(amplitude, WithoutTilt(opd, amplitude), sampling.wavelength_m);
+        }
+        if (step && !step(1)) return {};
       }
-      if (step && !step(1)) return {};
     }
   }
-  if (counters) counters->psfs_computed += distinct_count_;
-  ImageStack psfs;
+  if (counters) counters->psfs_computed += D * distinct_count_;
+  std::vector<ImageStack> out(D);
   if (window_fraction) window_fraction->clear();
-  if (strehl) strehl->clear();
-  for (int i = 0; i < s.Exposures(); ++i) {
-    const Image& p = raw[distinct_[i]];
-    if (p.size() == 0 || !AllFinite(p) || !(p.sum() > 0))
-      throw NumericalError("ScenePipeline: the PSF of exposure " + std::to_string(i) + " is empty, not finite or has no light");
-    // An intensity is >= 0; the analytic model's PSF (an MFT of a truncated OTF) has wings that dip below 0
-    // by ~1e-7 of the peak. Left in, they make frames slightly negative and the detector would clip them,
-    // breaking flux conservation at that level.
-    psfs.push_back(NormaliseToUnitSum(p.cwiseMax(0.0)));
-    if (window_fraction) window_fraction->push_back(p.sum());
-    if (strehl) strehl->push_back(raw_strehl[distinct_[i]]);
+  if (strehl) strehl->assign(D, {});
+  for (int k = 0; k < D; ++k) {
+    for (int i = 0; i < s.Exposures(); ++i) {
+      const Image& p = raw[k][distinct_[i]];
+      if (p.size() == 0 || !AllFinite(p) || !(p.sum() > 0))
+        throw NumericalError("ScenePipeline: the PSF of exposure " + std::to_string(i) + " is empty, not finite or has no light");
+      // An intensity is >= 0; the analytic model's PSF (an MFT of a truncated OTF) has wings that dip below 0
+      // by ~1e-7 of the peak. Left in, they make frames slightly negative and the detector would clip them,
+      // breaking flux conservation at that level.
+      out[k].push_back(NormaliseToUnitSum(p.cwiseMax(0.0)));
+      if (window_fraction && k == 0) window_fraction->push_back(p.sum());
+      if (strehl) (*strehl)[k].push_back(raw_strehl[k][distinct_[i]]);
+    }
   }
   if (distinct) *distinct = distinct_;
-  return psfs;
+  return out;
 }
 
 std::vector<ImageStack> ScenePipeline::ComputeFieldPsfs(std::vector<std::vector<double>>* strehl,
@@ -804,15 +821,10 @@ std::vector<ImageStack> ScenePipeline::ComputeFieldPsfs(std::vector<std::vector<
 std::vector<ImageStack> ScenePipeline::ComputeFieldPsfs(std::vector<std::vector<double>>* strehl,
                                                        SimulationCounters* counters,
                                                        const std::function<bool(int)>& step) const {
-  std::vector<ImageStack> out;
-  if (strehl) strehl->clear();
-  for (const FieldDirection& d : field_directions_) {
-    std::vector<double> st;
-    ImageStack p = ComputePsfs(nullptr, nullptr, &st, counters, step, nullptr, d);
-    if (p.empty()) return {};  // stopped
-    out.push_back(std::move(p));
-    if (strehl) strehl->push_back(std::move(st));
-  }
+  std::vector<std::vector<double>> st;
+  std::vector<ImageStack> out = ComputeDirectionPsfs(field_directions_, nullptr, nullptr, &st, counters, step, nullptr);
+  if (out.empty()) return {};  // stopped
+  if (strehl) *strehl = std::move(st);
   return out;
 }
 
@@ -880,10 +892,17 @@ Simulation ScenePipeline::Run(const ProgressCallback& progress) const {
   t = Clock::now();
   const int steps0 = c.loop_steps;
   bool go = true;
-  sim.psfs = ComputePsfs(&sim.distinct_psf, &sim.psf_window_fraction, &sim.strehl, &c,
-                         progress ? std::function<bool(int)>([&](int n) { return go = advance(n); })
-                                  : std::function<bool(int)>(),
-                         &sim.tilt_gain);
+  {
+    std::vector<std::vector<double>> st;
+    std::vector<ImageStack> on_axis = ComputeDirectionPsfs(
+        {FieldDirection{}}, &sim.distinct_psf, &sim.psf_window_fraction, &st, &c,
+        progress ? std::function<bool(int)>([&](int n) { return go = advance(n); }) : std::function<bool(int)>(),
+        &sim.tilt_gain);
+    if (go) {
+      sim.psfs = std::move(on_axis.front());
+      sim.strehl = std::move(st.front());
+    }
+  }
   if (!go) {
     stop(&sim);
     return sim;

@@ -68,6 +68,14 @@ TEST(AnisoplanatismErrorsTest, ClosedLoopRefusesADirectionItsAtmosphereCannotSer
   EXPECT_THAT(e, HasSubstr("10 arcsec"));
   o.science_direction = {kNaN, 0.0};
   EXPECT_THAT(ErrorOf([&] { s.MakeLoop(o); }), HasSubstr("science_direction = (nan"));
+  // The further directions of one loop, each named.
+  o.science_direction = {};
+  o.extra_science_directions = {{0.0, 5.0 * kArcsec}, {25.0 * kArcsec, 0.0}};
+  const std::string e2 = ErrorOf([&] { s.MakeLoop(o); });
+  EXPECT_THAT(e2, HasSubstr("extra_science_directions"));
+  EXPECT_THAT(e2, HasSubstr("25 arcsec"));
+  o.extra_science_directions = {{0.0, 5.0 * kArcsec}, {0.0, kNaN}};
+  EXPECT_THAT(ErrorOf([&] { s.MakeLoop(o); }), HasSubstr("extra_science_directions[1] = (0, nan"));
 }
 
 TEST(AnisoplanatismErrorsTest, AnalyticModelRefusesDirectionsItsGridCannotResolve) {

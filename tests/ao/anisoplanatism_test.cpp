@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <vector>
 
 #include "aosr/ao/analytic_ao.hpp"
 #include "aosr/ao/anisoplanatism.hpp"
@@ -14,6 +15,8 @@
 
 namespace aosr {
 namespace AOSR_TEST_NS {
+
+constexpr double kArcsec = kPi / (180.0 * 3600.0);
 
 TEST(AnisoplanatismTest, ZeroDirectionIsTheOnAxisPathToTheByte) {
   Atmosphere a(test::PaperAtmosphere(3), 64, 8.0);
@@ -68,6 +71,60 @@ TEST(AnisoplanatismTest, OnAxisClosedLoopIsUnchangedByAFieldReadyLoopOption) {
   const ClosedLoopResult a = run(false), b = run(true);
   EXPECT_TRUE((a.psf == b.psf).all());
   EXPECT_EQ(a.strehl, b.strehl);
+}
+
+// What a direction reads does not depend on which directions were read before it: the screens hold the rows
+// of the time asked, whatever the direction (Atmosphere::Prepare), so the interpolation's rounding is the same.
+TEST(AnisoplanatismTest, ADirectionReadsTheSameBytesWhicheverDirectionsWereReadBeforeIt) {
+  AtmosphereOptions o = test::PaperAtmosphere(5);
+  o.max_field_angle_rad = 40.0 * kArcsec;
+  Atmosphere alone(o, 128, 8.0), beside(o, 128, 8.0);
+  const FieldDirection d{-12.0 * kArcsec, 5.0 * kArcsec};
+  const std::vector<FieldDirection> others = {{36.0 * kArcsec, 0.0}, {0.0, -36.0 * kArcsec}, {-25.0 * kArcsec, 25.0 * kArcsec}};
+  int differ = 0;
+  for (int step = 0; step < 200; ++step) {
+    const double t = (step + 0.5) / 800.0;
+    for (const FieldDirection& other : others) beside.Opd(t, other);
+    differ += !(alone.Opd(t, d) == beside.Opd(t, d)).all();
+  }
+  EXPECT_EQ(differ, 0) << "of 200 steps";
+}
+
+// A field of directions in one loop (extra_science_directions) gives each direction the bytes of a loop run
+// for it alone: the loop does not depend on the science direction, and the screens hold the same rows at a
+// given time whichever directions read them (Atmosphere::Prepare).
+TEST(AnisoplanatismTest, ManyDirectionsInOneLoopAreEachTheBytesOfTheirOwnLoop) {
+  ControllerOptions control;
+  const Index n = 64;
+  const std::vector<FieldDirection> field = {{30.0 * kArcsec, 0.0}, {0.0, 0.0}, {-20.0 * kArcsec, 25.0 * kArcsec}};
+  auto loop = [&](FieldDirection primary, std::vector<FieldDirection> extra) {
+    test::LoopSystem s = test::MakePaperSystem(SensorKind::kIdeal, true, 7, control, n, 40.0 * kArcsec);
+    ClosedLoopOptions o = test::KBandScience(2);
+    o.science = {2.2e-6, 2.2e-6 / 16.0, 32, 32};
+    o.science_direction = primary;
+    o.extra_science_directions = std::move(extra);
+    // Two sub-exposures: each result carries every direction.
+    const Image flat = Image::Zero(n, n);
+    return s.MakeLoop(o)->RunSubExposures({flat, flat}, 0.02, 0.01);
+  };
+  const std::vector<ClosedLoopResult> joint = loop(field[0], {field[1], field[2]});
+  ASSERT_EQ(joint.size(), 2u);
+  for (std::size_t k = 0; k < field.size(); ++k) {
+    const std::vector<ClosedLoopResult> alone = loop(field[k], {});
+    for (std::size_t i = 0; i < 2; ++i) {
+      ASSERT_EQ(joint[i].extra_directions.size(), 2u);
+      EXPECT_TRUE(alone[i].extra_directions.empty());
+      const ClosedLoopResult& j = k == 0 ? joint[i] : joint[i].extra_directions[k - 1];
+      EXPECT_TRUE((j.psf == alone[i].psf).all()) << "direction " << k << ", exposure " << i;
+      EXPECT_EQ(j.strehl, alone[i].strehl) << k;
+      EXPECT_EQ(j.residual_rms_m, alone[i].residual_rms_m) << k;
+      EXPECT_EQ(j.psf_strehl, alone[i].psf_strehl) << k;
+      EXPECT_EQ(j.steps, alone[i].steps);
+      EXPECT_EQ(j.tilt_gain[0], alone[i].tilt_gain[0]);
+    }
+  }
+  // The directions differ (the test is not comparing one PSF with itself).
+  EXPECT_GT((joint[0].psf - joint[0].extra_directions[0].psf).abs().maxCoeff(), 1e-3 * joint[0].psf.maxCoeff());
 }
 
 }  // namespace

@@ -22,7 +22,9 @@
 // strehl and the PSF are then the science direction's; residual_opd_m() stays the sensor's. Cost: one more
 // Atmosphere::Opd per recorded frame (~0.17 ms for the paper's system). Any number of directions: one loop
 // per direction with the same atmosphere seed and sensor gives the same commands (the loop does not depend on
-// theta), so the directions of a field grid see the same correction; the scene layer can run them in parallel.
+// theta), so the directions of a field grid see the same correction. One loop records them all more cheaply
+// (ClosedLoopOptions::extra_science_directions: per direction and recorded frame, only its Atmosphere::Opd and its
+// science stage), with the same bytes per direction.
 // On axis (theta = 0, the default) nothing of this runs and the results are the same bytes as before.
 //
 // The sensor sees the residual of the same instant the science camera sees; the lag from a measurement to
@@ -139,6 +141,11 @@ struct ClosedLoopOptions {
   // Direction of the science camera from the guide star [rad] (header, "Off axis"); finite, and within the
   // atmosphere's max_field_angle_rad. Default (0, 0): on axis.
   FieldDirection science_direction;
+  // Further science directions [rad] recorded by the same run, each within the atmosphere's
+  // max_field_angle_rad (a field of directions: one loop for all of them, header "Off axis"). Each gets its
+  // residual, Strehl series and PSF in ClosedLoopResult::extra_directions, the same bytes as a loop whose
+  // science_direction it is. Default none.
+  std::vector<FieldDirection> extra_science_directions;
 
   // True when every field is in range; otherwise false and `why` names the bad field. Image shapes are
   // checked by the ClosedLoop constructor (they depend on the pupil grid).
@@ -172,6 +179,9 @@ struct ClosedLoopResult {
   // RunSubExposures with kOnSky: the diagonal (y, x) of the tip/tilt gain G the offset was calibrated with;
   // else 1.
   double tilt_gain[2] = {1.0, 1.0};
+  // One per ClosedLoopOptions::extra_science_directions, in order: that direction's residual_rms_m, strehl,
+  // long_exposure_strehl, psf and psf_strehl (the other fields as this result's; their extra_directions empty).
+  std::vector<ClosedLoopResult> extra_directions;
   // RMS over the recorded frames of residual_rms_m [m].
   double RmsResidualM() const;
   // "1000 frames (+80 settling) at 800 Hz: residual 93.1 nm RMS, LE Strehl 0.871 at 2200 nm, PSF of 1000
@@ -218,7 +228,11 @@ class ClosedLoop {
 
  private:
   struct Recorder;
-  void ScienceStage(bool psf_frame);
+  struct Track;
+  // Step 5 for one science direction: w its residual OPD (n x n [m]), into `track`.
+  void ScienceStage(const double* w, bool psf_frame, Track* track);
+  // The recorded statistics and PSF of one direction.
+  void FinishTrack(const Track& track, int steps, ClosedLoopResult* out);
   void BeginRecording();
   ClosedLoopResult FinishRecording(int settling_steps, double start_time_s);
   // Records `steps` frames from now (BeginRecording, Step(true), FinishRecording); `settling_steps` is what the
@@ -243,7 +257,6 @@ class ClosedLoop {
   double sum_amplitude_ = 0.0, energy_ = 0.0;
   ComplexImage field_;  // 2n x 2n, zero outside the lit pixels
   ComplexImage spectrum_;  // its DFT, reused every PSF frame
-  Image accumulator_;   // sum of |DFT E|^2 over PSF frames
   std::unique_ptr<MatrixFourierTransform> lattice_mft_;
   std::unique_ptr<Recorder> recorder_;
   // Offset calibration (OffsetCalibration): P = (A^T A)^-1 A^T, 2 x n_measurements, rows (y, x), the

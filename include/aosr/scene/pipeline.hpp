@@ -201,13 +201,16 @@ class ScenePipeline {
   const std::vector<FieldDirection>& field_directions() const { return field_directions_; }
 
  private:
-  // ComputePsfs, calling `step` after each distinct PSF (each sub-exposure of the closed loop); a `step`
-  // that returns false stops it early (the PSFs returned are then empty).
-  ImageStack ComputePsfs(std::vector<int>* distinct, std::vector<double>* window_fraction,
-                         std::vector<double>* strehl, SimulationCounters* counters,
-                         const std::function<bool(int)>& step,
-                         std::vector<std::array<double, 2>>* tilt_gain = nullptr,
-                         FieldDirection direction = {}) const;
+  // ComputePsfs for each of `directions`: out[k] and (*strehl)[k] direction k's (window_fraction and tilt_gain
+  // are directions[0]'s). The closed loop records them all in one run (closed_loop.hpp, "Off axis"); the
+  // analytic and diffraction PSFs are computed per direction. Calls `step` after each distinct PSF (with the
+  // number of directions after each sub-exposure of the closed loop); a `step` that returns false stops it
+  // early (then it returns no PSFs).
+  std::vector<ImageStack> ComputeDirectionPsfs(const std::vector<FieldDirection>& directions, std::vector<int>* distinct,
+                                               std::vector<double>* window_fraction,
+                                               std::vector<std::vector<double>>* strehl, SimulationCounters* counters,
+                                               const std::function<bool(int)>& step,
+                                               std::vector<std::array<double, 2>>* tilt_gain) const;
   std::vector<ImageStack> ComputeFieldPsfs(std::vector<std::vector<double>>* strehl, SimulationCounters* counters,
                                            const std::function<bool(int)>& step) const;
   void Compile();
