@@ -12,6 +12,7 @@
 #include "aosr/core/error.hpp"
 #include "aosr/optics/pupil.hpp"
 #include "aosr/core/fft.hpp"
+#include "aosr/core/parallel.hpp"
 #include "fast_trig.hpp"
 
 namespace aosr {
@@ -174,10 +175,6 @@ ClosedLoop::ClosedLoop(const Image& amplitude, double diameter_m, Atmosphere* at
       energy_ += a * a;
     }
   }
-  field_ = ComplexImage::Zero(m, m);
-  phase_.assign(lit_pupil_.size(), 0.0);
-  cos_.assign(lit_pupil_.size(), 0.0);
-  sin_.assign(lit_pupil_.size(), 0.0);
   if (options_.compute_psf) {
     // The (2n-1)^2 lag lattice k D/n, centred at (n-1, n-1), onto the science grid (analytic_ao.hpp).
     MftGeometry g;
@@ -265,25 +262,49 @@ void ClosedLoop::Step(bool record) {
   }
   const auto t4 = Clock::now();
   // 5. Science (off axis: the science direction's turbulence under the same DM, header "Off axis"), for each
-  // direction recorded.
+  // direction recorded. The atmosphere is read for each direction first (it holds the screens' state); then
+  // the directions' science stages run in parallel, in groups of consecutive directions, each group with its
+  // own work arrays and each direction into its own accumulators: the bytes do not depend on the threads.
   if (record) {
     if (!recorder_) BeginRecording();
     Recorder& r = *recorder_;
     const bool psf_frame = options_.compute_psf && r.steps % options_.psf_every_steps == 0;
-    for (std::size_t k = 0; k < r.tracks.size(); ++k) {
+    const Index D = static_cast<Index>(r.tracks.size());
+    science_residual_.resize(r.tracks.size());
+    std::vector<const double*> w(r.tracks.size());
+    for (Index k = 0; k < D; ++k) {
       const FieldDirection& d = k == 0 ? options_.science_direction : options_.extra_science_directions[k - 1];
       if (d.IsZero()) {
-        ScienceStage(residual_.data(), psf_frame, &r.tracks[k]);
+        w[k] = residual_.data();
         continue;
       }
-      science_residual_ = dm_opd_;
+      Image& res = science_residual_[k];
+      res = dm_opd_;
       if (atmosphere_ != nullptr) {
         atmosphere_->Opd(t, d, &science_turbulence_);
-        science_residual_ += science_turbulence_;
+        res += science_turbulence_;
       }
-      if (options_.common_static_opd_m.size() > 0) science_residual_ += options_.common_static_opd_m;
-      ScienceStage(science_residual_.data(), psf_frame, &r.tracks[k]);
+      if (options_.common_static_opd_m.size() > 0) res += options_.common_static_opd_m;
+      w[k] = res.data();
     }
+    const Index groups = std::min<Index>(D, DefaultThreads());
+    if (scratch_.size() < static_cast<std::size_t>(groups)) {
+      const Index m = 2 * n;
+      scratch_.resize(groups);
+      for (Scratch& sc : scratch_) {
+        if (sc.field.size() > 0) continue;
+        sc.phase.assign(lit_pupil_.size(), 0.0);
+        sc.cos.assign(lit_pupil_.size(), 0.0);
+        sc.sin.assign(lit_pupil_.size(), 0.0);
+        sc.field = ComplexImage::Zero(m, m);
+      }
+    }
+    auto run_group = [&](Index g) {
+      for (Index k = g * D / groups; k < (g + 1) * D / groups; ++k)
+        ScienceStage(w[k], psf_frame, &r.tracks[k], &scratch_[g]);
+    };
+    if (groups == 1) run_group(0);
+    else ParallelFor(groups, groups, run_group);
     if (clipped) ++r.clipped_frames;
     ++r.steps;
   }
@@ -297,8 +318,9 @@ void ClosedLoop::Step(bool record) {
   ++frame_;
 }
 
-void ClosedLoop::ScienceStage(const double* w, bool psf_frame, Track* track) {
+void ClosedLoop::ScienceStage(const double* w, bool psf_frame, Track* track, Scratch* scratch) const {
   Track& r = *track;
+  Scratch& sc = *scratch;
   // Residual RMS over the pupil, amplitude-weighted, piston removed (the science direction's).
   double s1 = 0.0, s2 = 0.0;
   for (std::size_t j = 0; j < lit_pupil_.size(); ++j) {
@@ -314,15 +336,15 @@ void ClosedLoop::ScienceStage(const double* w, bool psf_frame, Track* track) {
   const double* wn = ncp ? options_.science_static_opd_m.data() : nullptr;
   const long lit = static_cast<long>(lit_pupil_.size());
   if (ncp) {
-    for (long j = 0; j < lit; ++j) phase_[j] = k * (w[lit_pupil_[j]] + wn[lit_pupil_[j]]);
+    for (long j = 0; j < lit; ++j) sc.phase[j] = k * (w[lit_pupil_[j]] + wn[lit_pupil_[j]]);
   } else {
-    for (long j = 0; j < lit; ++j) phase_[j] = k * w[lit_pupil_[j]];
+    for (long j = 0; j < lit; ++j) sc.phase[j] = k * w[lit_pupil_[j]];
   }
-  internal::SinCosBatch(phase_.data(), lit, cos_.data(), sin_.data());
-  Complex* field = field_.data();
+  internal::SinCosBatch(sc.phase.data(), lit, sc.cos.data(), sc.sin.data());
+  Complex* field = sc.field.data();
   double re = 0.0, im = 0.0;
   for (long j = 0; j < lit; ++j) {
-    const double er = lit_amp_[j] * cos_[j], ei = lit_amp_[j] * sin_[j];
+    const double er = lit_amp_[j] * sc.cos[j], ei = lit_amp_[j] * sc.sin[j];
     field[lit_field_[j]] = Complex(er, ei);
     re += er;
     im += ei;
@@ -331,8 +353,8 @@ void ClosedLoop::ScienceStage(const double* w, bool psf_frame, Track* track) {
   const double strehl = std::norm(on_axis) / (sum_amplitude_ * sum_amplitude_);
   r.strehl.push_back(strehl);
   if (psf_frame) {
-    FftForwardInto(field_, &spectrum_);
-    r.accumulator += spectrum_.abs2();
+    FftForwardInto(sc.field, &sc.spectrum);
+    r.accumulator += sc.spectrum.abs2();
     ++r.psf_frames;
     r.psf_strehl_sum += strehl;
   }

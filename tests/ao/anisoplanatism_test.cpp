@@ -10,6 +10,7 @@
 #include "aosr/ao/anisoplanatism.hpp"
 #include "aosr/ao/atmosphere.hpp"
 #include "aosr/ao/closed_loop.hpp"
+#include "aosr/core/parallel.hpp"
 #include "aosr/optics/pupil.hpp"
 #include "loop_fixture.hpp"
 
@@ -109,6 +110,18 @@ TEST(AnisoplanatismTest, ManyDirectionsInOneLoopAreEachTheBytesOfTheirOwnLoop) {
   };
   const std::vector<ClosedLoopResult> joint = loop(field[0], {field[1], field[2]});
   ASSERT_EQ(joint.size(), 2u);
+  // The directions' science stages in parallel (two groups of directions): the same bytes.
+  const int saved = DefaultThreads();
+  SetDefaultThreads(2);
+  const std::vector<ClosedLoopResult> parallel = loop(field[0], {field[1], field[2]});
+  SetDefaultThreads(saved);
+  for (std::size_t i = 0; i < 2; ++i) {
+    EXPECT_TRUE((parallel[i].psf == joint[i].psf).all());
+    for (std::size_t k = 0; k < 2; ++k) {
+      EXPECT_TRUE((parallel[i].extra_directions[k].psf == joint[i].extra_directions[k].psf).all()) << k;
+      EXPECT_EQ(parallel[i].extra_directions[k].strehl, joint[i].extra_directions[k].strehl) << k;
+    }
+  }
   for (std::size_t k = 0; k < field.size(); ++k) {
     const std::vector<ClosedLoopResult> alone = loop(field[k], {});
     for (std::size_t i = 0; i < 2; ++i) {

@@ -229,8 +229,14 @@ class ClosedLoop {
  private:
   struct Recorder;
   struct Track;
-  // Step 5 for one science direction: w its residual OPD (n x n [m]), into `track`.
-  void ScienceStage(const double* w, bool psf_frame, Track* track);
+  // The science stage's work arrays: one per group of directions that runs in parallel.
+  struct Scratch {
+    std::vector<double> phase, cos, sin;  // per lit pixel
+    ComplexImage field;                    // 2n x 2n, zero outside the lit pixels
+    ComplexImage spectrum;                 // its DFT
+  };
+  // Step 5 for one science direction: w its residual OPD (n x n [m]), into `track`, with `scratch`.
+  void ScienceStage(const double* w, bool psf_frame, Track* track, Scratch* scratch) const;
   // The recorded statistics and PSF of one direction.
   void FinishTrack(const Track& track, int steps, ClosedLoopResult* out);
   void BeginRecording();
@@ -248,15 +254,14 @@ class ClosedLoop {
   Controller* controller_;
   long frame_ = 0;
   Image turbulence_, dm_opd_, residual_;
-  Image science_turbulence_, science_residual_;  // off axis only (header, "Off axis")
+  Image science_turbulence_;                  // off axis only (header, "Off axis")
+  std::vector<Image> science_residual_;       // per recorded direction off axis: its residual of this frame
   Vector measurement_, clipped_;
   // Science path.
   std::vector<Index> lit_pupil_, lit_field_;  // lit pupil pixels and their index in the 2n x 2n field
   std::vector<double> lit_amp_;
-  std::vector<double> phase_, cos_, sin_;  // per lit pixel (scratch)
   double sum_amplitude_ = 0.0, energy_ = 0.0;
-  ComplexImage field_;  // 2n x 2n, zero outside the lit pixels
-  ComplexImage spectrum_;  // its DFT, reused every PSF frame
+  std::vector<Scratch> scratch_;  // one per parallel group of directions (made on first use)
   std::unique_ptr<MatrixFourierTransform> lattice_mft_;
   std::unique_ptr<Recorder> recorder_;
   // Offset calibration (OffsetCalibration): P = (A^T A)^-1 A^T, 2 x n_measurements, rows (y, x), the
