@@ -17,6 +17,11 @@ target PSF), and the wall time of each. Writes bench/results/wide_field.md and b
     PYTHONPATH=build/python /usr/bin/python3 bench/wide_field.py [--quick]
 
 --quick: a 256^2 crop of the scene (the same guide star and grid spacing), for a check in a minute or two.
+
+--closed-loop: the same field with its PSFs from the closed-loop Monte-Carlo (data/scenes/wide-field-k-closed-loop.json),
+where the analytic model the reconstructors can use without an oracle (model_psfs 'nominal') is not the simulation's
+own PSF: each method with the single PSF, the field's tiles with the oracle's PSFs, with the nominal ones and with a
+3 x 3 stars grid, and the nominal nodes against the oracle's. Writes bench/results/wide_field_closed_loop.md.
 """
 import argparse
 import json
@@ -129,13 +134,16 @@ def centred_crop(a, size):
 
 def node_errors(ds, stars, r):
     """Per true grid node: RMS of (stars model interpolated there − the simulation's PSF) over the central 8 x 8
-    camera px and over the common window, relative to the true PSF's peak (frame 0's PSFs, same offset in both)."""
+    camera px and over the common window, relative to the true PSF's peak (frame 0's PSFs, same offset in both).
+    stars None: the field's nominal PSFs at the same nodes instead."""
     field = ds.psf_field
     hr = ds.truth.shape
     out = []
     for g, (y, x) in enumerate(field["nodes_hr_px"]):
         truth = field["psfs"][g][0]
-        if stars["grid"] == (1, 1):
+        if stars is None:
+            est = field["nominal_psfs"][g][0]
+        elif stars["grid"] == (1, 1):
             est = stars["psfs"][0]
         else:
             est = sum(w * stars["field_psfs"][k][0] for k, w in bilinear(stars["grid"], hr, y, x))
@@ -151,10 +159,14 @@ def node_errors(ds, stars, r):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results", "wide_field.md"))
+    ap.add_argument("--closed-loop", action="store_true")
+    ap.add_argument("--out")
     args = ap.parse_args()
+    scene_name = "wide-field-k-closed-loop" if args.closed_loop else "wide-field-k"
+    if args.out is None:
+        args.out = os.path.join(ROOT, "bench", "results", "wide_field_closed_loop.md" if args.closed_loop else "wide_field.md")
 
-    scene = aosr.read_json(os.path.join(ROOT, "data", "scenes", "wide-field-k.json"))
+    scene = aosr.read_json(os.path.join(ROOT, "data", "scenes", scene_name + ".json"))
     if args.quick:
         scene["detector"]["frame_px"] = 256
         scene["objects"][0]["count"] = 375
@@ -196,6 +208,13 @@ def main():
     # galaxies and blends; reject_extended).
     stars_options = {"stars": {"grid": (1, 1)}, "stars 3x3": {"grid": (3, 3)},
                      "stars 5x5": {"grid": (5, 5), "reject_extended": True}}
+    if args.closed_loop:
+        # The tiles with the oracle's PSFs, with the analytic model's (no oracle) and with a stars grid.
+        runs = [run for run in runs if run[2] in ("none", "tiles") and not run[3]]
+        runs += [("tikhonov", "tikhonov", "nominal", 0), ("linear", "linear", "nominal", 0), ("tv", "tv", "nominal", 0),
+                 ("tikhonov", "tikhonov", "stars 3x3", 0), ("linear", "linear", "stars 3x3", 0)]
+        runs.sort(key=lambda run: ["drizzle", "tikhonov", "linear", "tv"].index(run[0]))
+        stars_options = {"stars 3x3": stars_options["stars 3x3"]}
     # The stars models' nodes against the simulation's PSF grid (the issue's 2 % RMS of the peak).
     star_models = {}
     for name, options in stars_options.items():
@@ -203,11 +222,16 @@ def main():
         st = aosr.stars_psf(ds, **options)
         star_models[name] = {"report": st["report"], "seconds": time.time() - t, "errors": node_errors(ds, st, r)}
         print(name, st["report"], f"{time.time() - t:.1f} s", flush=True)
+    if args.closed_loop:
+        star_models["nominal"] = {"report": "the analytic model at each node (the dataset's nominal_psfs)",
+                                  "seconds": 0.0, "errors": node_errors(ds, None, r)}
     results = []
     for label, method, pf, tile in runs:
         t = time.time()
         if pf.startswith("stars"):
             rec = aosr.reconstruct(ds, method, model_psfs="stars", stars=stars_options[pf])
+        elif pf == "nominal":
+            rec = aosr.reconstruct(ds, method, psf_field="tiles", model_psfs="nominal")
         else:
             rec = aosr.reconstruct(ds, method, psf_field=pf, tile=tile)
         if tile:
@@ -223,11 +247,16 @@ def main():
 
     # ---- The table and the picture. --------------------------------------------------------------------
     lines = ["# Wide fields: reconstructions across the field (issue 31)", "",
-             f"Scene `data/scenes/wide-field-k.json`{' (--quick crop)' if args.quick else ''}: {hr[1] // r}^2 camera "
+             f"Scene `data/scenes/{scene_name}.json`{' (--quick crop)' if args.quick else ''}: {hr[1] // r}^2 camera "
              f"pixels of lambda/D at K ({hr[1] // r * hr_arcsec * r:.1f} arcsec), N = {scene['frames']}, r = {r}, guide star "
              f"at ({gx:g}, {gy:g}) arcsec from the centre, PSF grid {field['grid'][0]} x {field['grid'][1]} "
-             f"(analytic AO, bilinear between nodes). Simulated in {t_sim:.1f} s.",
-             "", "Command: `PYTHONPATH=build/python /usr/bin/python3 bench/wide_field.py" + (" --quick" if args.quick else "") + "`",
+             f"({'closed-loop Monte-Carlo' if args.closed_loop else 'analytic'} AO, bilinear between nodes). "
+             f"Simulated in {t_sim:.1f} s.",
+             ] + (["", "PSF model `nominal`: the field's tiles with the analytic AO model's PSF at each node (the "
+                   "dataset's `nominal_psfs`: no oracle); `tiles`: the same tiles with the simulation's own PSFs."]
+                  if args.closed_loop else []) + [
+             "", "Command: `PYTHONPATH=build/python /usr/bin/python3 bench/wide_field.py" + (" --quick" if args.quick else "") +
+             (" --closed-loop" if args.closed_loop else "") + "`",
              "", "Aligned PSNR [dB] in rings around the guide star (radius in arcsec; each ring aligned on its own), "
              "and the wall time (2 threads):", ""]
     head = "| method | PSF model | " + " | ".join(
@@ -246,10 +275,11 @@ def main():
         if res["bias"]:
             lines.append(f"- {res['psf_field']}: " + ", ".join(
                 f"{100 * b:+.2f} % ({n})" for b, n in res["bias"]))
-    lines += ["", "PSFs from the field's own stars against the simulation's PSF grid: per grid node, the RMS of (stars "
+    lines += ["", "PSFs from the field's own stars" + (" and from the analytic model" if args.closed_loop else "") +
+              " against the simulation's PSF grid: per grid node, the RMS of (the "
               "model at the node − true PSF) relative to the true peak, over the central 8 x 8 camera px / the whole "
               "window (frame 0; the issue's target is 2 % at every node):", "",
-              "| stars model | fit | worst node, core | median node, core | worst node, window | time [s] |",
+              "| model | fit | worst node, core | median node, core | worst node, window | time [s] |",
               "|---|---|---|---|---|---|"]
     for name, m in star_models.items():
         core = sorted(e[0] for e in m["errors"])
@@ -264,7 +294,7 @@ def main():
                "x": [0.5 * (lo + hi) * hr_arcsec for lo, hi, _ in res["rings"]],
                "y": [p for _, _, p in res["rings"]]} for res in results]
     aosr.write_figure(os.path.splitext(args.out)[0] + ".png",
-                      [{"title": "wide-field-k: aligned PSNR in rings around the guide star",
+                      [{"title": f"{scene_name}: aligned PSNR in rings around the guide star",
                         "x": {"label": "distance from the guide star [arcsec]"}, "y": {"label": "aligned PSNR [dB]"},
                         "series": series}], columns=1)
     print("wrote", args.out)
