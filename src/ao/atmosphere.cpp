@@ -7,6 +7,7 @@
 #include "aosr/ao/random.hpp"
 #include "aosr/ao/von_karman.hpp"
 #include "aosr/core/error.hpp"
+#include "aosr/core/parallel.hpp"
 
 namespace aosr {
 namespace {
@@ -288,6 +289,41 @@ void Atmosphere::Opd(double t_s, const FieldDirection& direction, Image* opd) {
     Accumulate(*layer, t_s, sx, sy, opd->data());
   }
   if (options_.antithetic) *opd = -*opd;
+}
+
+void Atmosphere::Opd(double t_s, const std::vector<FieldDirection>& directions, std::vector<Image>* opds) {
+  const char* fn = "Atmosphere::Opd";
+  CheckArgument(opds != nullptr, fn, "opds", "null", "a vector to write into");
+  CheckArgument(std::isfinite(t_s) && t_s >= 0.0, fn, "t_s", t_s, ">= 0 and finite [s]");
+  for (std::size_t k = 0; k < directions.size(); ++k)
+    CheckFieldDirection(directions[k], ("Atmosphere::Opd (directions[" + std::to_string(k) + "])").c_str());
+  const double dx = diameter_m_ / static_cast<double>(pupil_n_);
+  auto shift = [&](const LayerState& layer, const FieldDirection& d, double* sx, double* sy) {
+    *sx = d.IsZero() ? 0.0 : layer.altitude_m * d.x_rad / dx;
+    *sy = d.IsZero() ? 0.0 : layer.altitude_m * d.y_rad / dx;
+  };
+  // Advance the screens (serially: Prepare may extrude); then every read is const (Accumulate).
+  for (auto& layer : layers_) {
+    if (!layer->active) continue;
+    for (const FieldDirection& d : directions) {
+      double sx, sy;
+      shift(*layer, d, &sx, &sy);
+      Prepare(*layer, t_s, -(sx * layer->cos_t + sy * layer->sin_t), fn);
+    }
+  }
+  opds->resize(directions.size());
+  ParallelFor(static_cast<Index>(directions.size()), [&](Index k) {
+    Image& opd = (*opds)[static_cast<std::size_t>(k)];
+    if (opd.rows() != pupil_n_ || opd.cols() != pupil_n_) opd.resize(pupil_n_, pupil_n_);
+    opd.setZero();
+    for (const auto& layer : layers_) {
+      if (!layer->active) continue;
+      double sx, sy;
+      shift(*layer, directions[static_cast<std::size_t>(k)], &sx, &sy);
+      Accumulate(*layer, t_s, sx, sy, opd.data());
+    }
+    if (options_.antithetic) opd = -opd;
+  });
 }
 
 Image Atmosphere::Opd(double t_s, const FieldDirection& direction) {

@@ -262,31 +262,26 @@ void ClosedLoop::Step(bool record) {
   }
   const auto t4 = Clock::now();
   // 5. Science (off axis: the science direction's turbulence under the same DM, header "Off axis"), for each
-  // direction recorded. The atmosphere is read for each direction first (it holds the screens' state); then
-  // the directions' science stages run in parallel, in groups of consecutive directions, each group with its
-  // own work arrays and each direction into its own accumulators: the bytes do not depend on the threads.
+  // direction recorded: the atmosphere read for every direction at once, then the directions' residuals and
+  // science stages in parallel, in groups of consecutive directions, each group with its own work arrays and
+  // each direction into its own accumulators: the bytes do not depend on the threads.
   if (record) {
     if (!recorder_) BeginRecording();
     Recorder& r = *recorder_;
     const bool psf_frame = options_.compute_psf && r.steps % options_.psf_every_steps == 0;
     const Index D = static_cast<Index>(r.tracks.size());
-    science_residual_.resize(r.tracks.size());
-    std::vector<const double*> w(r.tracks.size());
+    auto direction = [&](Index k) -> const FieldDirection& {
+      return k == 0 ? options_.science_direction : options_.extra_science_directions[static_cast<std::size_t>(k - 1)];
+    };
+    off_axis_.clear();
+    std::vector<Index> turbulence_of(static_cast<std::size_t>(D), -1);  // index into science_turbulence_
     for (Index k = 0; k < D; ++k) {
-      const FieldDirection& d = k == 0 ? options_.science_direction : options_.extra_science_directions[k - 1];
-      if (d.IsZero()) {
-        w[k] = residual_.data();
-        continue;
-      }
-      Image& res = science_residual_[k];
-      res = dm_opd_;
-      if (atmosphere_ != nullptr) {
-        atmosphere_->Opd(t, d, &science_turbulence_);
-        res += science_turbulence_;
-      }
-      if (options_.common_static_opd_m.size() > 0) res += options_.common_static_opd_m;
-      w[k] = res.data();
+      if (direction(k).IsZero()) continue;
+      turbulence_of[k] = static_cast<Index>(off_axis_.size());
+      off_axis_.push_back(direction(k));
     }
+    if (atmosphere_ != nullptr && !off_axis_.empty()) atmosphere_->Opd(t, off_axis_, &science_turbulence_);
+    science_residual_.resize(r.tracks.size());
     const Index groups = std::min<Index>(D, DefaultThreads());
     if (scratch_.size() < static_cast<std::size_t>(groups)) {
       const Index m = 2 * n;
@@ -300,8 +295,17 @@ void ClosedLoop::Step(bool record) {
       }
     }
     auto run_group = [&](Index g) {
-      for (Index k = g * D / groups; k < (g + 1) * D / groups; ++k)
-        ScienceStage(w[k], psf_frame, &r.tracks[k], &scratch_[g]);
+      for (Index k = g * D / groups; k < (g + 1) * D / groups; ++k) {
+        if (turbulence_of[k] < 0) {
+          ScienceStage(residual_.data(), psf_frame, &r.tracks[k], &scratch_[g]);
+          continue;
+        }
+        Image& res = science_residual_[k];
+        res = dm_opd_;
+        if (atmosphere_ != nullptr) res += science_turbulence_[static_cast<std::size_t>(turbulence_of[k])];
+        if (options_.common_static_opd_m.size() > 0) res += options_.common_static_opd_m;
+        ScienceStage(res.data(), psf_frame, &r.tracks[k], &scratch_[g]);
+      }
     };
     if (groups == 1) run_group(0);
     else ParallelFor(groups, groups, run_group);

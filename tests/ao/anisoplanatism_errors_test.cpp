@@ -40,6 +40,9 @@ TEST(AnisoplanatismErrorsTest, AtmosphereRefusesDirectionsOutsideItsScreens) {
   // On-axis-only screens refuse any direction with a layer above the ground...
   Atmosphere on_axis(test::PaperAtmosphere(1), 32, 8.0);
   EXPECT_THAT(ErrorOf([&] { on_axis.Opd(0.0, FieldDirection{1e-7, 0.0}); }), HasSubstr("max_field_angle_rad = 0"));
+  std::vector<Image> opds;
+  EXPECT_THAT(ErrorOf([&] { on_axis.Opd(0.0, {FieldDirection{}, FieldDirection{1e-7, 0.0}}, &opds); }),
+              HasSubstr("directions[1]"));
   // ... but ground layers are the same in every direction.
   AtmosphereOptions ground = test::PaperAtmosphere(1);
   for (Layer& l : ground.layers) l.altitude_m = 0.0;

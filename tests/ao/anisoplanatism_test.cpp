@@ -82,13 +82,26 @@ TEST(AnisoplanatismTest, ADirectionReadsTheSameBytesWhicheverDirectionsWereReadB
   Atmosphere alone(o, 128, 8.0), beside(o, 128, 8.0);
   const FieldDirection d{-12.0 * kArcsec, 5.0 * kArcsec};
   const std::vector<FieldDirection> others = {{36.0 * kArcsec, 0.0}, {0.0, -36.0 * kArcsec}, {-25.0 * kArcsec, 25.0 * kArcsec}};
-  int differ = 0;
+  Atmosphere together(o, 128, 8.0);
+  std::vector<FieldDirection> all = others;
+  all.push_back(d);
+  all.push_back(FieldDirection{});
+  const int saved = DefaultThreads();
+  SetDefaultThreads(2);  // the many-directions call reads them in parallel
+  int differ = 0, differ_together = 0;
+  std::vector<Image> opds;
   for (int step = 0; step < 200; ++step) {
     const double t = (step + 0.5) / 800.0;
     for (const FieldDirection& other : others) beside.Opd(t, other);
-    differ += !(alone.Opd(t, d) == beside.Opd(t, d)).all();
+    const Image mine = alone.Opd(t, d);
+    differ += !(mine == beside.Opd(t, d)).all();
+    together.Opd(t, all, &opds);
+    differ_together += !(mine == opds[3]).all() || !(opds[4] == alone.Opd(t)).all() ||
+                       !(opds[0] == beside.Opd(t, others[0])).all();
   }
+  SetDefaultThreads(saved);
   EXPECT_EQ(differ, 0) << "of 200 steps";
+  EXPECT_EQ(differ_together, 0) << "of 200 steps";
 }
 
 // A field of directions in one loop (extra_science_directions) gives each direction the bytes of a loop run

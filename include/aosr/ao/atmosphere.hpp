@@ -140,6 +140,10 @@ class Atmosphere {
   // were built for (CheckFieldDirection), and as Opd(t_s) for a bad time.
   void Opd(double t_s, const FieldDirection& direction, Image* opd);
   Image Opd(double t_s, const FieldDirection& direction);
+  // The OPDs seen from several directions at one time, into (*opds)[k] (resized): each the bytes of
+  // Opd(t_s, directions[k], ...). The screens are advanced once, then the directions are read in parallel
+  // (DefaultThreads()). Throws as Opd for a bad time or direction (naming its index).
+  void Opd(double t_s, const std::vector<FieldDirection>& directions, std::vector<Image>* opds);
   // OPD [m] of layer `layer` alone (0-based) at t_s; zero for a layer with cn2_fraction 0.
   Image LayerOpd(int layer, double t_s);
   // Throws InvalidArgument (as `function`, argument `direction`) unless the direction is finite and every

@@ -254,8 +254,10 @@ class ClosedLoop {
   Controller* controller_;
   long frame_ = 0;
   Image turbulence_, dm_opd_, residual_;
-  Image science_turbulence_;                  // off axis only (header, "Off axis")
-  std::vector<Image> science_residual_;       // per recorded direction off axis: its residual of this frame
+  // Off axis only (header, "Off axis"): the recorded directions that are not the guide star's, their
+  // turbulence and (per recorded direction) their residual of this frame.
+  std::vector<FieldDirection> off_axis_;
+  std::vector<Image> science_turbulence_, science_residual_;
   Vector measurement_, clipped_;
   // Science path.
   std::vector<Index> lit_pupil_, lit_field_;  // lit pupil pixels and their index in the 2n x 2n field
