@@ -175,6 +175,13 @@ ClosedLoop::ClosedLoop(const Image& amplitude, double diameter_m, Atmosphere* at
       energy_ += a * a;
     }
   }
+  // The recorded directions (science_direction, then the extra ones) that are off axis, read from the atmosphere
+  // together each frame.
+  for (std::size_t k = 0; k <= options_.extra_science_directions.size(); ++k) {
+    const FieldDirection& d = k == 0 ? options_.science_direction : options_.extra_science_directions[k - 1];
+    turbulence_of_.push_back(d.IsZero() ? -1 : static_cast<Index>(off_axis_.size()));
+    if (!d.IsZero()) off_axis_.push_back(d);
+  }
   if (options_.compute_psf) {
     // The (2n-1)^2 lag lattice k D/n, centred at (n-1, n-1), onto the science grid (analytic_ao.hpp).
     MftGeometry g;
@@ -270,16 +277,6 @@ void ClosedLoop::Step(bool record) {
     Recorder& r = *recorder_;
     const bool psf_frame = options_.compute_psf && r.steps % options_.psf_every_steps == 0;
     const Index D = static_cast<Index>(r.tracks.size());
-    auto direction = [&](Index k) -> const FieldDirection& {
-      return k == 0 ? options_.science_direction : options_.extra_science_directions[static_cast<std::size_t>(k - 1)];
-    };
-    off_axis_.clear();
-    std::vector<Index> turbulence_of(static_cast<std::size_t>(D), -1);  // index into science_turbulence_
-    for (Index k = 0; k < D; ++k) {
-      if (direction(k).IsZero()) continue;
-      turbulence_of[k] = static_cast<Index>(off_axis_.size());
-      off_axis_.push_back(direction(k));
-    }
     if (atmosphere_ != nullptr && !off_axis_.empty()) atmosphere_->Opd(t, off_axis_, &science_turbulence_);
     science_residual_.resize(r.tracks.size());
     const Index groups = std::min<Index>(D, DefaultThreads());
@@ -296,13 +293,13 @@ void ClosedLoop::Step(bool record) {
     }
     auto run_group = [&](Index g) {
       for (Index k = g * D / groups; k < (g + 1) * D / groups; ++k) {
-        if (turbulence_of[k] < 0) {
+        if (turbulence_of_[k] < 0) {
           ScienceStage(residual_.data(), psf_frame, &r.tracks[k], &scratch_[g]);
           continue;
         }
         Image& res = science_residual_[k];
         res = dm_opd_;
-        if (atmosphere_ != nullptr) res += science_turbulence_[static_cast<std::size_t>(turbulence_of[k])];
+        if (atmosphere_ != nullptr) res += science_turbulence_[static_cast<std::size_t>(turbulence_of_[k])];
         if (options_.common_static_opd_m.size() > 0) res += options_.common_static_opd_m;
         ScienceStage(res.data(), psf_frame, &r.tracks[k], &scratch_[g]);
       }

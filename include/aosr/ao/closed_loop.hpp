@@ -254,9 +254,11 @@ class ClosedLoop {
   Controller* controller_;
   long frame_ = 0;
   Image turbulence_, dm_opd_, residual_;
-  // Off axis only (header, "Off axis"): the recorded directions that are not the guide star's, their
-  // turbulence and (per recorded direction) their residual of this frame.
+  // Off axis only (header, "Off axis"): the recorded directions that are not the guide star's, each recorded
+  // direction's index among them (-1: on axis), their turbulence and (per recorded direction) their residual of
+  // this frame.
   std::vector<FieldDirection> off_axis_;
+  std::vector<Index> turbulence_of_;
   std::vector<Image> science_turbulence_, science_residual_;
   Vector measurement_, clipped_;
   // Science path.
