@@ -491,6 +491,33 @@ namespace AOSR_TEST_NS {
 using tikhonov_internal::FourierSystem;
 using tikhonov_internal::PriorSymbolImage;
 
+// The prior's symbol image (built once per tile of a whole detector, the parametric spectrum's quarter mirrored)
+// is the per-frequency symbol to the bit, on even and odd grids, for every prior and spectrum slope.
+TEST(TikhonovTest, PriorSymbolImageIsThePerFrequencySymbolToTheBit) {
+  for (const Shape hr : {Shape{12, 16}, Shape{13, 7}, Shape{1, 9}, Shape{10, 1}})
+    for (TikhonovPrior prior : {TikhonovPrior::kIdentity, TikhonovPrior::kGradient, TikhonovPrior::kLaplacian,
+                                TikhonovPrior::kPowerSpectrum, TikhonovPrior::kFitted})
+      for (double slope : {2.0, 3.1}) {
+        TikhonovOptions o;
+        o.prior = prior;
+        o.spectrum_slope = slope;
+        o.spectrum_corner = 0.07;
+        const Image p = PriorSymbolImage(o, hr);
+        ASSERT_EQ(ShapeOf(p), hr);
+        for (Index fy = 0; fy < hr.rows; ++fy)
+          for (Index fx = 0; fx < hr.cols; ++fx)
+            ASSERT_EQ(p(fy, fx), TikhonovPriorSymbol(o, hr, fy, fx))
+                << ToString(prior) << ", slope " << slope << ", " << ToString(hr) << " at " << fy << ", " << fx;
+      }
+  // A measured spectrum need not be symmetric: it is read per frequency.
+  TikhonovOptions o;
+  o.prior = TikhonovPrior::kPowerSpectrum;
+  o.object_power_spectrum = test::RandomImage({6, 5}, 3).abs() + 0.5;
+  const Image p = PriorSymbolImage(o, {6, 5});
+  for (Index fy = 0; fy < 6; ++fy)
+    for (Index fx = 0; fx < 5; ++fx) EXPECT_EQ(p(fy, fx), 1.0 / o.object_power_spectrum(fy, fx));
+}
+
 // The spectral residual and trace (one SVD per bin, then sums over singular values) are the per-bin solves'
 // to rounding, for every prior (the DC bin of the gradient/Laplacian is solved directly), for N < r², N = r²
 // and N > r², over twelve decades of λ, and with rank-deficient bins (two identical frames).
