@@ -61,10 +61,10 @@ def get_client(client=None, n_workers=2, threads_per_worker=1, **cluster_kwargs)
     if client is None:
         cluster_kwargs.setdefault("dashboard_address", None)
         cluster_kwargs.setdefault("processes", True)
-        env = _allocator_environment()
-        if env and cluster_kwargs["processes"]:
-            cluster_kwargs.setdefault("env", env)
-        with LocalCluster(n_workers=n_workers, threads_per_worker=threads_per_worker, **cluster_kwargs) as cluster:
+        env = _allocator_environment() if cluster_kwargs["processes"] and "env" not in cluster_kwargs else {}
+        with _pre_spawn_environment(env):
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=threads_per_worker, **cluster_kwargs)
+        with cluster:
             with Client(cluster) as c:
                 yield c
         return
@@ -73,6 +73,37 @@ def get_client(client=None, n_workers=2, threads_per_worker=1, **cluster_kwargs)
             yield c
         return
     yield client
+
+
+@contextlib.contextmanager
+def _pre_spawn_environment(env):
+    """Gives new worker processes ``env`` in their starting environment. glibc reads GLIBC_TUNABLES once, when a
+    process starts, and Dask 2022.12's ``LocalCluster(env=...)`` sets its variables inside the worker after that
+    (nanny.py: ``os.environ.update(env)`` in the new process), so the workers never had the huge pages this asks
+    for. Only ``distributed.nanny.pre-spawn-environ`` is set before the spawn; each nanny keeps the value it read
+    at its start, for the workers it restarts too. (The nanny writes those variables into the client's own
+    ``os.environ``; this puts them back once the workers have started.)"""
+    if not env:
+        yield
+        return
+    import dask
+
+    key = "distributed.nanny.pre-spawn-environ"
+    # A variable the client already has would win over the config's value (nanny.py, _get_env_variables): ours
+    # (which extends the client's own GLIBC_TUNABLES, _allocator_environment) is set for the spawn, then undone.
+    # The nanny also writes the variables into this process's os.environ as it spawns; they are put back as they
+    # were once the workers have started (a worker restarted later sets them again).
+    saved = {k: os.environ.get(k) for k in env}
+    try:
+        os.environ.update({k: v for k, v in env.items() if saved[k] is not None})
+        with dask.config.set({key: dict(dask.config.get(key, default={}) or {}, **env)}):
+            yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _allocator_environment():

@@ -306,3 +306,27 @@ def test_reconstruct_tiles_never_overwrites_an_input(batch):
 def test_reconstruct_tiles_bad_arguments(batch, kwargs, needle):
     with pytest.raises((aosr.InvalidArgument, aosr.ResourceError), match=needle):
         ad.reconstruct_tiles(batch[0], None, "tikhonov", client="serial", **kwargs)
+
+
+def test_local_cluster_workers_start_with_the_allocator_tunables():
+    # glibc reads GLIBC_TUNABLES when a process starts: the variable must be in the workers' starting environment
+    # (/proc/self/environ), not only put into os.environ once the worker runs (Dask 2022.12's LocalCluster(env=)).
+    if not os.path.exists("/proc/self/environ"):
+        pytest.skip("no /proc")
+    expected = ad._allocator_environment().get("GLIBC_TUNABLES")
+    if expected is None:
+        pytest.skip("the environment chose its own malloc settings")
+
+    def starting_environment():
+        with open("/proc/self/environ", "rb") as f:
+            pairs = [item.split(b"=", 1) for item in f.read().split(b"\0") if b"=" in item]
+        return {k.decode(): v.decode() for k, v in pairs}
+
+    before = os.environ.get("GLIBC_TUNABLES")
+    with ad.get_client(None, n_workers=1) as client:
+        environments = list(client.run(starting_environment).values())
+    # glibc parses the variable in place at start-up, cutting /proc's copy at its first ':'.
+    assert environments and all(e.get("GLIBC_TUNABLES") and expected.startswith(e["GLIBC_TUNABLES"])
+                                for e in environments), [e.get("GLIBC_TUNABLES") for e in environments]
+    assert "glibc.malloc.hugetlb=1" in expected
+    assert os.environ.get("GLIBC_TUNABLES") == before   # the client's own environment is as it was
