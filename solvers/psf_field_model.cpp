@@ -8,6 +8,7 @@
 #include <utility>
 
 #include "aosr/core/error.hpp"
+#include "aosr/core/parallel.hpp"
 
 namespace aosr {
 
@@ -72,6 +73,38 @@ TilingOptions FieldTiling(const DatasetProblem& problem, TilingOptions tiling) {
 }
 
 }  // namespace
+
+void FitDatasetTilingToMemory(const DatasetProblem& problem, const ReconstructOptions& options, double limit_bytes,
+                              TilingOptions* tiling) {
+  if (!problem.field)
+    throw InvalidArgument("FitDatasetTilingToMemory", "problem.field", "none",
+                          "a dataset problem without a whole-grid model (DatasetProblemOptions::whole_grid_model false)");
+  const FieldData& field = *problem.field;
+  if (!problem.psf_field) {
+    FitTilingToMemory(field, options, limit_bytes, tiling);
+    return;
+  }
+  const int window = ChooseRegularisationWindow(field, options.method, limit_bytes);
+  if (tiling->tile == 0) {
+    // The tiles that fit (ResourceError when none does). The field's own tiles (half the node spacing) are
+    // usually smaller; a coarse grid over a large detector asks for larger ones than the memory allows.
+    TilingOptions fit = *tiling;
+    FitTilingToMemory(field, options, limit_bytes, &fit);
+    const int own = SuggestFieldTile(problem.psf_field->grid, field.r, field.lr);
+    if (fit.tile < own) {
+      *tiling = fit;
+    } else {
+      // Smaller tiles than the plan's: side by side where the plan's overlap lets them fit (the bytes do not
+      // depend on it, only the peak memory).
+      const bool aux = options.method == ReconstructionMethod::kTikhonov && options.tikhonov.compute_std;
+      const int overlap = fit.overlap >= 0 ? fit.overlap : std::max(fit.max_overlap, 0);
+      tiling->parallel_tiles =
+          tiling->parallel_tiles &&
+          EstimateTiledBytes(field, options.method, own, std::min(overlap, own), DefaultThreads(), aux) <= limit_bytes;
+    }
+  }
+  tiling->regularisation_window = FieldRegularisationWindow(window);
+}
 
 Reconstruction ReconstructDataset(const DatasetProblem& problem, const ReconstructOptions& options,
                                   TilingOptions tiling, TilingSummary* summary) {

@@ -653,8 +653,7 @@ void BindSolvers(py::module_& m) {
           const DatasetProblem dp = ProblemFromDataset(*d, dpo);
           warning = dp.warning;
           if (!dpo.whole_grid_model) {  // (a field model by tiles has dp.field too, and fits)
-            if (dp.psf_field) tiling.regularisation_window = FieldRegularisationWindow(ChooseRegularisationWindow(*dp.field, o.method, limit.bytes));
-            else FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
+            FitDatasetTilingToMemory(dp, o, limit.bytes, &tiling);
             out->by_tiles_for_memory = tiling;
             out->memory_limit_bytes = limit.bytes;
           }

@@ -235,13 +235,8 @@ void BindTiles(py::module_& m) {
           if (!key.empty() && phase == "solve") tiling.model_store = cache.models;
           const DatasetProblem& dp = *problem;
           if (phase == "plan") {
-            // As aosr.reconstruct under a memory limit: a field model sets its own tiles (ReconstructDataset: half
-            // the PSF grid's spacing, or `tile`) and chooses its regularisation on the central window.
-            if (dp.psf_field)
-              tiling.regularisation_window =
-                  FieldRegularisationWindow(ChooseRegularisationWindow(*dp.field, o.method, limit.bytes));
-            else
-              FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
+            // As aosr.reconstruct under a memory limit (a field model's own tiles where they are smaller).
+            FitDatasetTilingToMemory(dp, o, limit.bytes, &tiling);
             tiling.plan_only = true;
           }
           out->rec = ReconstructDataset(dp, o, tiling, &ts);

@@ -350,9 +350,8 @@ void RunReconstruct(const ReconstructArgs& a) {
   std::unique_ptr<FitsRowWriter> image_writer, aux_writer;
   const std::string streamed_aux_path = ReconstructionAuxPath(a.out, o.method);
   if (streamed) {
-    // A field model sets its own tiles (ReconstructDataset); otherwise the tiles are chosen to fit.
-    if (dp.psf_field) tiling.regularisation_window = FieldRegularisationWindow(ChooseRegularisationWindow(*dp.field, o.method, limit.bytes));
-    else FitTilingToMemory(*dp.field, o, limit.bytes, &tiling);
+    // The tiles chosen to fit (a field model's own where they are smaller).
+    FitDatasetTilingToMemory(dp, o, limit.bytes, &tiling);
     if (!a.json)
       std::fprintf(stderr,
                    "aosr reconstruct: the whole grid (%s) needs about %s, more than the memory limit %s (%s): "

@@ -113,6 +113,59 @@ TEST(PsfFieldModelTest, TilesWithLocalPsfsBeatTheGuideStarsPsfOffAxis) {
   EXPECT_TRUE(AllFinite(with_operator.image));
 }
 
+// Under a memory limit (a dataset without a whole-grid model, as a whole detector is run), a field model's own
+// tiles (half the node spacing) are kept where they fit, and the tiles that fit are used where they are smaller:
+// the tiles' estimated peak stays under the limit. Not even the smallest tile: ResourceError.
+TEST(PsfFieldModelTest, AFieldModelsTilesFitTheMemoryLimit) {
+  nlohmann::json j = WideScene();
+  j["frames"] = 2;
+  j["detector"]["frame_px"] = 192;
+  const SceneSpec scene = ParseScene(j, "<test>");
+  const Dataset d = DatasetFromSimulation(scene, ScenePipeline(scene).Run());
+  ReconstructOptions o;
+  o.method = ReconstructionMethod::kTikhonov;
+  DatasetProblemOptions dpo;
+  dpo.method = o.method;
+  dpo.whole_grid_model = false;
+  const DatasetProblem dp = ProblemFromDataset(d, dpo);
+  ASSERT_TRUE(dp.psf_field.has_value() && dp.field);
+  const int own = SuggestFieldTile(dp.psf_field->grid, d.r, d.frame);
+  ASSERT_EQ(own, 96);
+  // A generous limit: the field's own tiles (tile 0: ReconstructDataset's SuggestFieldTile).
+  TilingOptions roomy;
+  FitDatasetTilingToMemory(dp, o, 1e12, &roomy);
+  EXPECT_EQ(roomy.tile, 0);
+  EXPECT_EQ(roomy.regularisation_window, kFieldRegularisationWindow);
+  // The smallest limit whose memory plan chooses tiles smaller than the field's own.
+  double limit = 0;
+  TilingOptions fit;
+  for (double bytes = 1e6; bytes < 1e9 && limit == 0; bytes *= 1.25) {
+    TilingOptions t;
+    try {
+      FitTilingToMemory(*dp.field, o, bytes, &t);
+    } catch (const ResourceError&) {
+      continue;
+    }
+    if (t.tile < own) limit = bytes, fit = t;
+  }
+  ASSERT_GT(limit, 0);
+  TilingOptions tight;
+  FitDatasetTilingToMemory(dp, o, limit, &tight);
+  EXPECT_EQ(tight.tile, fit.tile);
+  EXPECT_LT(tight.tile, own);
+  TilingSummary ts;
+  const Reconstruction rec = ReconstructDataset(dp, o, tight, &ts);
+  EXPECT_EQ(ts.tile, fit.tile);
+  EXPECT_TRUE(AllFinite(rec.image));
+  const int concurrent = tight.parallel_tiles ? DefaultThreads() : 1;
+  EXPECT_LE(EstimateTiledBytes(*dp.field, o.method, ts.tile, ts.overlap, concurrent, o.tikhonov.compute_std), limit)
+      << "tile " << ts.tile << ", overlap " << ts.overlap;
+  // The field's own tiles would not have fitted (what the CLI ran before: tiles of 96 under this limit).
+  EXPECT_GT(EstimateTiledBytes(*dp.field, o.method, own, ts.overlap, 1, o.tikhonov.compute_std), limit);
+  TilingOptions none;
+  EXPECT_THROW(FitDatasetTilingToMemory(dp, o, 1e4, &none), ResourceError);
+}
+
 TEST(PsfFieldModelErrorsTest, WhatCannotUseAFieldModelSaysSo) {
   nlohmann::json j = WideScene();
   j["frames"] = 2;

@@ -57,6 +57,15 @@ inline int FieldRegularisationWindow(int window) {
 // has one node along it. `lr`: the camera frame.
 int SuggestFieldTile(const PsfFieldGrid& grid, int r, Shape lr);
 
+// Completes *tiling for a dataset run without a whole-grid model (DatasetProblem::field) under limit_bytes, as
+// `aosr reconstruct`, aosr.reconstruct and aosr.distributed plan it. Without a field model: FitTilingToMemory.
+// With one: its own tile (tiling.tile, or SuggestFieldTile when 0), but never larger than the tiles that fit
+// (FitTilingToMemory's choice, whose overlap plan and parallelism then come with it), and tiles run one at a time
+// when the field's tiles would not fit side by side; the regularisation on FieldRegularisationWindow of the
+// memory plan's window. ResourceError (ChooseTiling's) when not even the smallest tile fits.
+void FitDatasetTilingToMemory(const DatasetProblem& problem, const ReconstructOptions& options, double limit_bytes,
+                              TilingOptions* tiling);
+
 // The one entry point of a dataset reconstruction, for the CLI and Python alike: with a field model
 // (DatasetProblem::psf_field) by tiles with local PSFs (tiling.tile 0: SuggestFieldTile), or with the
 // space-variant operator (the regularisation the tiles' plan fixes, so that it solves the tiles' problem
