@@ -50,12 +50,21 @@ def test_field_models_beat_the_guide_stars_psf(field_dataset):
 
 def test_the_memory_plan_names_the_window_a_field_model_uses():
     # Under a memory limit a field model's λ is chosen on the memory plan's window, at most 256 camera px
-    # (psf_field_model.hpp, kFieldRegularisationWindow); the plan reports the window used.
-    ds = aosr.simulate(aosr.Scene(field_scene(frame_px=96)))
-    rec = aosr.reconstruct(ds, "tikhonov", memory_limit="2M")
-    w = rec.memory_plan["regularisation_window"]
-    assert 0 < w <= 256
+    # (psf_field_model.hpp, kFieldRegularisationWindow); the plan reports the window used. The whole grid
+    # (36 MB) does not fit in 14 MiB, and neither do the field's own tiles (80 camera px, half the node spacing):
+    # the tiles are the memory plan's (FitDatasetTilingToMemory).
+    ds = aosr.simulate(aosr.Scene(field_scene(frame_px=160)))
+    rec = aosr.reconstruct(ds, "tikhonov", memory_limit="14M")
+    plan = rec.memory_plan
+    assert plan["whole_grid_bytes"] > 14 * 2**20
+    assert 16 <= plan["tile"] < 80, plan
+    w = plan["regularisation_window"]
+    assert 0 < w < 160
     assert f"central {w} x {w} camera px" in rec.summary["message"], rec.summary["message"]
+    assert f"tiles of <= {plan['tile']} camera px" in rec.summary["message"], rec.summary["message"]
+    # Where not even the smallest tile fits, the limit is refused by name (the field's tiles used to run past it).
+    with pytest.raises(aosr.ResourceError, match="more than the limit of 2 MiB"):
+        aosr.reconstruct(ds, "tikhonov", memory_limit="2M")
 
 
 def test_same_bits_as_the_cli(field_dataset, cli, tmp_path):
