@@ -300,6 +300,53 @@ TEST_F(ReconstructCliTest, ResumeGivesTheBytesOfAnUninterruptedRun) {
   EXPECT_THAT(r.out, HasSubstr("only with --tile"));
 }
 
+// The real thing behind the test above: the process killed by a signal while it solves its tiles (SIGKILL: no
+// handler, no cleanup; SIGINT: the Ctrl-C path, which stops cleanly with status 130 and writes nothing). Each
+// time the tiles it had finished are the ones a rerun with --resume takes over (none solved again), a tile it was
+// writing when killed leaves no file under a tile's name (checkpoints are renamed into place), and the rerun's
+// file has the bytes of an uninterrupted run. TV on 1 thread with tiles of 12 camera px (16 tiles, ~50 ms each),
+// killed as soon as the first checkpoint appears, so the signal lands mid-run.
+TEST_F(ReconstructCliTest, KilledOrInterruptedRunsResumeWithTheBytesOfAnUninterruptedRun) {
+  auto bytes = [](const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string cmd = "reconstruct " + Data() + " -m tv --tile 12 --threads 1 --json -o ";
+  CliRun r = RunCli(cmd + Out("tv-plain"));
+  ASSERT_EQ(r.status, 0) << r.out;
+  ASSERT_EQ(nlohmann::json::parse(r.out)["tiling"]["tiles"], nlohmann::json::array({4, 4}));
+  for (const std::string signal : {"KILL", "INT"}) {
+    const fs::path dir = dir_ / ("tiles-" + signal);
+    const std::string out = Out("tv-" + signal);
+    // Start the run, wait for its first finished tile (or its end), send the signal, report the exit status.
+    r = aosr::test::RunShell("(" + std::string(AOSR_CLI_PATH) + " " + cmd + out + " --resume " + dir.string() +
+                             " > /dev/null 2> " + (dir_ / "err.txt").string() + " & p=$!; " +
+                             "while kill -0 $p 2> /dev/null && ! ls " + dir.string() +
+                             "/tile_*.bin > /dev/null 2>&1; do sleep 0.005; done; kill -" + signal +
+                             " $p; wait $p; echo status=$?)");
+    ASSERT_EQ(r.status, 0) << r.out;
+    EXPECT_THAT(r.out, HasSubstr(signal == "KILL" ? "status=137" : "status=130")) << signal << ": " << r.out;
+    EXPECT_FALSE(fs::exists(out)) << signal;
+    if (signal == "INT") {
+      std::ifstream err(dir_ / "err.txt");
+      const std::string text((std::istreambuf_iterator<char>(err)), std::istreambuf_iterator<char>());
+      EXPECT_THAT(text, HasSubstr("interrupted")) << text;
+      EXPECT_THAT(text, HasSubstr("nothing written")) << text;
+    }
+    int finished = 0;
+    for (const auto& e : fs::directory_iterator(dir)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind("tile_", 0) == 0 && e.path().extension() == ".bin") ++finished;
+    }
+    EXPECT_GE(finished, 1) << signal;
+    EXPECT_LT(finished, 16) << signal << ": the signal came after the last tile";
+    r = RunCli(cmd + out + " --resume " + dir.string());
+    ASSERT_EQ(r.status, 0) << r.out;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["tiling"]["tiles_resumed"], finished) << signal;
+    EXPECT_EQ(bytes(out), bytes(Out("tv-plain"))) << signal;
+  }
+}
+
 // Progress (src/cli/progress_bar.hpp): --progress writes it to stderr, as whole lines when stderr is a file,
 // and never to stdout (the JSON stays clean); without it, with stderr not a terminal (a file here), a
 // successful run writes nothing to stderr.
