@@ -5,6 +5,8 @@
 #  * ccache, when installed and no launcher is set: a file compiled before with the same flags is not compiled
 #    again (rebuilds, a second build folder, another worktree of the checkout). Precompiled headers need ccache's
 #    pch_defines and time_macros sloppiness and GCC's -fpch-preprocess (ccache's manual, "Precompiled headers").
+#    Its depend mode: a miss (every file of a first build, and of CI's) costs no extra preprocessor run, which
+#    was 0.3-0.8 s per unity batch; the include list comes from the compiler's own -MD file, which Ninja asks for.
 #  * mold (else lld), when installed: linking the ~40 executables and the Python module is a large share of an
 #    incremental build; GNU ld takes seconds per test executable, mold a fraction of one.
 #  * One precompiled header (the standard library, Eigen, JSON, GoogleTest) shared by all test executables
@@ -23,7 +25,8 @@ if(NOT CMAKE_CXX_COMPILER_LAUNCHER AND NOT DEFINED ENV{CMAKE_CXX_COMPILER_LAUNCH
   find_program(AOSR_CCACHE ccache)
   if(AOSR_CCACHE)
     set(CMAKE_CXX_COMPILER_LAUNCHER ${CMAKE_COMMAND} -E env
-        "CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime" ${AOSR_CCACHE})
+        "CCACHE_SLOPPINESS=pch_defines,time_macros,include_file_mtime,include_file_ctime" CCACHE_DEPEND=1
+        ${AOSR_CCACHE})
     # ccache's preprocessor mode sees a precompiled header only through -fpch-preprocess (no effect without -E).
     if(AOSR_FAST_BUILD AND CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
       add_compile_options(-fpch-preprocess)
@@ -71,4 +74,13 @@ function(aosr_unity target)
   if(AOSR_FAST_BUILD)
     set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_MODE BATCH UNITY_BUILD_BATCH_SIZE ${batch})
   endif()
+endfunction()
+
+# aosr_glue_optimisation(TARGET): -O2 instead of Release's -O3 for code that parses, prints and binds (the CLI's
+# commands, the Python bindings), where -O3's extra vectorisation and unrolling buy nothing: the numerical work
+# they call is in the libraries, compiled at -O3. It is 15 % of these targets' compile time (bench/results/build.md,
+# stop 57). The arithmetic is IEEE either way (no -ffast-math, no FMA contraction on x86-64's baseline), so the
+# results are the same bits.
+function(aosr_glue_optimisation target)
+  target_compile_options(${target} PRIVATE $<$<CONFIG:Release>:-O2>)
 endfunction()
