@@ -60,6 +60,16 @@ nlohmann::json WideScene() {
           {"objects", {{{"type", "stars"}, {"count", 40}, {"flux_range_e", {2e4, 2e5}}, {"margin_px", 6.0}}}}};
 }
 
+// WideScene with `frames` frames of `frame_px` camera px, simulated into a dataset (the smaller fields the error,
+// memory and reproducibility tests need).
+Dataset WideDataset(int frames, int frame_px) {
+  nlohmann::json j = WideScene();
+  j["frames"] = frames;
+  j["detector"]["frame_px"] = frame_px;
+  const SceneSpec scene = ParseScene(j, "<test>");
+  return DatasetFromSimulation(scene, ScenePipeline(scene).Run());
+}
+
 TEST(PsfFieldModelTest, TilesWithLocalPsfsBeatTheGuideStarsPsfOffAxis) {
   const SceneSpec scene = ParseScene(WideScene(), "<test>");
   const Simulation sim = ScenePipeline(scene).Run();
@@ -117,11 +127,7 @@ TEST(PsfFieldModelTest, TilesWithLocalPsfsBeatTheGuideStarsPsfOffAxis) {
 // tiles (half the node spacing) are kept where they fit, and the tiles that fit are used where they are smaller:
 // the tiles' estimated peak stays under the limit. Not even the smallest tile: ResourceError.
 TEST(PsfFieldModelTest, AFieldModelsTilesFitTheMemoryLimit) {
-  nlohmann::json j = WideScene();
-  j["frames"] = 2;
-  j["detector"]["frame_px"] = 192;
-  const SceneSpec scene = ParseScene(j, "<test>");
-  const Dataset d = DatasetFromSimulation(scene, ScenePipeline(scene).Run());
+  const Dataset d = WideDataset(2, 192);
   ReconstructOptions o;
   o.method = ReconstructionMethod::kTikhonov;
   DatasetProblemOptions dpo;
@@ -164,14 +170,14 @@ TEST(PsfFieldModelTest, AFieldModelsTilesFitTheMemoryLimit) {
   EXPECT_GT(EstimateTiledBytes(*dp.field, o.method, own, ts.overlap, 1, o.tikhonov.compute_std), limit);
   TilingOptions none;
   EXPECT_THROW(FitDatasetTilingToMemory(dp, o, 1e4, &none), ResourceError);
+  // A problem without FieldData (a whole-grid model only) has nothing to plan: named, not a crash.
+  const DatasetProblem whole_grid_only;
+  EXPECT_THAT([&] { FitDatasetTilingToMemory(whole_grid_only, o, 1e12, &none); },
+              ::testing::ThrowsMessage<InvalidArgument>(HasSubstr("problem.field")));
 }
 
 TEST(PsfFieldModelErrorsTest, WhatCannotUseAFieldModelSaysSo) {
-  nlohmann::json j = WideScene();
-  j["frames"] = 2;
-  j["detector"]["frame_px"] = 32;
-  const SceneSpec scene = ParseScene(j, "<test>");
-  const Dataset d = DatasetFromSimulation(scene, ScenePipeline(scene).Run());
+  const Dataset d = WideDataset(2, 32);
   DatasetProblemOptions dpo;
   dpo.psf_field = DatasetPsfField::kTiles;
   dpo.method = ReconstructionMethod::kDrizzle;
@@ -223,15 +229,11 @@ namespace AOSR_TEST_NS {
 // Reproducible: the field's simulation and both field models give the same bytes on 1 and 2 threads (tiles are
 // solved in parallel and blended in tile order; the operator's sum runs in node order).
 TEST(PsfFieldModelStabilityTest, SameBytesOnOneAndTwoThreads) {
-  nlohmann::json j = WideScene();
-  j["frames"] = 2;
-  j["detector"]["frame_px"] = 48;
   const int saved = DefaultThreads();
   std::vector<Image> images;
   for (int threads : {1, 2}) {
     SetDefaultThreads(threads);
-    const SceneSpec scene = ParseScene(j, "<test>");
-    const Dataset d = DatasetFromSimulation(scene, ScenePipeline(scene).Run());
+    const Dataset d = WideDataset(2, 48);
     images.push_back(d.frames[1]);
     ReconstructOptions o;
     o.method = ReconstructionMethod::kTikhonov;
