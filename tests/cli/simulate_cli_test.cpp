@@ -170,7 +170,7 @@ TEST_F(SimulateCliTest, MemoryBoundsRefuseWhatCannotFitAndSayHowMuch) {
 }
 
 TEST_F(SimulateCliTest, UnderUlimitTheBudgetIsWhatTheLimitLeaves) {
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(AOSR_TEST_ASAN)
   GTEST_SKIP() << "AddressSanitizer reserves terabytes of address space: ulimit -v cannot apply";
 #endif
   const std::string cli = AOSR_CLI_PATH;

@@ -96,7 +96,7 @@ TEST_F(MemoryTest, PeakResidentSizeGrowsWithWhatIsTouched) {
 // them in once, not on every pass. glibc's defaults trim the heap's free top above twice the largest block
 // freed so far (16 MiB here), so the 24 MiB freed each pass would be faulted in again: ~6000 faults a pass.
 TEST_F(MemoryTest, TunedAllocatorReusesFreedImageSizedBlocks) {
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#if defined(AOSR_TEST_ASAN) || defined(AOSR_TEST_TSAN)
   GTEST_SKIP() << "a sanitizer's allocator replaces glibc's";
 #else
   const char* opt_out = std::getenv("AOSR_MALLOC_TUNING");

@@ -14,6 +14,23 @@
 #include "aosr/core/error.hpp"
 #include "aosr/core/image.hpp"
 
+// AOSR_TEST_ASAN / AOSR_TEST_TSAN: 1 in an AddressSanitizer / ThreadSanitizer build. GCC defines
+// __SANITIZE_ADDRESS__; clang 14 (scripts/sanitize.sh's compiler) answers only through __has_feature.
+#if defined(__SANITIZE_ADDRESS__)
+#define AOSR_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define AOSR_TEST_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_THREAD__)
+#define AOSR_TEST_TSAN 1
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+#define AOSR_TEST_TSAN 1
+#endif
+#endif
+
 namespace aosr::test {
 
 // Runs `f` and returns the message of the exception of type E it throws; "no exception" if none, and

@@ -154,6 +154,14 @@ void PrepareSimulationOutput(const std::string& dir, const SceneSpec& scene);
 // bad-pixel map): what WriteSimulation refuses to overwrite. Absolute or relative as the scene resolved them.
 std::vector<std::string> SceneInputFiles(const SceneSpec& scene);
 
+// Dataset::psf_field's contents (below).
+struct DatasetFieldPsfs {
+  PsfFieldGrid grid;
+  std::vector<ImageStack> psfs;
+  std::vector<ImageStack> nominal_psfs;
+  double guide_star_x_arcsec = 0.0, guide_star_y_arcsec = 0.0;
+};
+
 // A dataset as the reconstructors use it. Images are in the manifest's units (top of the file).
 struct Dataset {
   std::string manifest_path;  // the manifest that was read
@@ -174,12 +182,9 @@ struct Dataset {
   // The PSF across the field (core/psf_field.hpp), when the manifest has a psf_field section or its scene a
   // psf_field: the grid on the HR frame, per node k the frames' PSFs psfs[k][i] (unit sum, the psfs' shape) and,
   // when given, the nominal model's. psfs above are then the guide star's direction (a single-PSF model).
-  struct PsfField {
-    PsfFieldGrid grid;
-    std::vector<ImageStack> psfs;
-    std::vector<ImageStack> nominal_psfs;
-    double guide_star_x_arcsec = 0.0, guide_star_y_arcsec = 0.0;
-  };
+  // (Defined before Dataset: a nested struct with member initialisers is not yet default-constructible inside
+  // its enclosing class, which std::optional's traits see there; clang rejects emplace() on it.)
+  using PsfField = DatasetFieldPsfs;
   std::optional<PsfField> psf_field;
   std::vector<DmOffset> offsets;  // N DM offsets (all zero when unknown)
   // The phase (slot) of each frame, 0..slot_count-1 (the manifest's sequence.slots; else slots[i] = i and
