@@ -77,10 +77,12 @@ function(aosr_unity target)
 endfunction()
 
 # aosr_glue_optimisation(TARGET): -O2 instead of Release's -O3 for code that parses, prints and binds (the CLI's
-# commands, the Python bindings), where -O3's extra vectorisation and unrolling buy nothing: the numerical work
-# they call is in the libraries, compiled at -O3. It is 15 % of these targets' compile time (bench/results/build.md,
-# stop 57). The arithmetic is IEEE either way (no -ffast-math, no FMA contraction on x86-64's baseline), so the
-# results are the same bits.
+# commands, the Python bindings) or checks (the test executables), where -O3's extra vectorisation and unrolling buy
+# nothing: the numerical work they call is in the libraries, compiled at -O3. It is 15 % of these targets' compile
+# time (bench/results/build.md, stops 57 and 58). The arithmetic is IEEE either way (no -ffast-math, no FMA
+# contraction on x86-64's baseline), so the results are the same bits. Not lower: an executable's own copies of the
+# header templates (Eigen's kernels) are the ones the linker keeps, so the libraries run them inside that executable
+# (stop 50: test code at -O0 slowed the sanitizer stage's tests by a quarter); at -O2 those kernels run as fast.
 function(aosr_glue_optimisation target)
   target_compile_options(${target} PRIVATE $<$<CONFIG:Release>:-O2>)
 endfunction()
