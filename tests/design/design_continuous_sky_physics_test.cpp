@@ -158,7 +158,7 @@ TEST(ContinuousSkyPhysicsTest, ConvergesAsTheSkyGridRefines) {
     for (int k = 0; k < 4; ++k) {
       const double gain = 10 * std::log10(j[1][k] / j[0][k]), gain16 = 10 * std::log10(j[1][3] / j[0][3]);
       std::printf("ao %d: gain at s = %d: %+.4f dB\n", int(ao), ss[k], gain);
-      if (ss[k] >= 4) EXPECT_NEAR(gain, gain16, 0.02) << "s = " << ss[k];
+      if (ss[k] >= 4) { EXPECT_NEAR(gain, gain16, 0.02) << "s = " << ss[k]; }
     }
   }
 }

@@ -147,7 +147,7 @@ TEST(SequencePhysics, WhatLeavesTheFrameIsGone) {
     const bool on = 28.25 + 8 * sim.times_s[i] <= 31.5;
     EXPECT_EQ(on, i < 2) << "exposure " << i;
     EXPECT_NEAR(sim.truth_frames[i].sum(), on ? 1e4 : 0.0, 1e-9 * 1e4) << "exposure " << i;
-    if (!on) EXPECT_EQ(sim.expected_e[i].abs().maxCoeff(), 0.0) << "exposure " << i << ": nothing comes back";
+    if (!on) { EXPECT_EQ(sim.expected_e[i].abs().maxCoeff(), 0.0) << "exposure " << i << ": nothing comes back"; }
   }
   nlohmann::json edge = {{"type", "slanted-edge"}, {"variation", {{"velocity_px_per_s", {0.0, 100.0}}}}};
   j = Scene({edge});

@@ -140,7 +140,7 @@ TEST(QuickLook, EveryFileIsAccountedForAndOutputsEqualTheEngineFedDirectly) {
     ++outputs;
     EXPECT_TRUE((ref->image == e->output->image).all()) << "output " << ref->index;
     EXPECT_EQ(ref->frames, e->output->frames);
-    if (e->written_output >= 0) EXPECT_GT(e->latency_s, 0.0);
+    if (e->written_output >= 0) { EXPECT_GT(e->latency_s, 0.0); }
     last = ref->image;
   }
   // Sliding window: an output for every used frame from the 4th on.

@@ -139,7 +139,7 @@ TEST(TilingTest, AutomaticOverlapMeetsTheToleranceForLinearMethods) {
       return n == 1;
     };
     for (const TileWindow& w : ts.tiles) EXPECT_TRUE(smooth(2 * w.rows) && smooth(2 * w.cols)) << w.rows << " x " << w.cols;
-    if (m == ReconstructionMethod::kTikhonov) EXPECT_THAT(ts.overlap_rule, ::testing::HasSubstr("raised to 39"));
+    if (m == ReconstructionMethod::kTikhonov) { EXPECT_THAT(ts.overlap_rule, ::testing::HasSubstr("raised to 39")); }
   }
 }
 
@@ -795,7 +795,7 @@ TEST(TilingTest, MemoryPlanLeavesTheMeasuredOverlapRoomToGrow) {
     EXPECT_GE(t.max_overlap, 2 * rule);
     EXPECT_LE(EstimateTiledBytes(f, o.method, t.tile, t.max_overlap, concurrent, false), limit);
     // Measured: tile 64 both times; max overlap 24 at the plan's own limit, 33 with 30 % more.
-    if (scale > 1) EXPECT_GT(t.max_overlap, 2 * rule) << "the room the tiles leave is used";
+    if (scale > 1) { EXPECT_GT(t.max_overlap, 2 * rule) << "the room the tiles leave is used"; }
   }
 }
 
