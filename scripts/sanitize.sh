@@ -9,7 +9,7 @@
 # the cli suite included (it runs the sanitized aosr executable on whole scenes; SANITIZE_CLI=0 leaves it
 # out for a quicker local run), plus every `fuzz_*` target when fuzz/ defines some (label `fuzz`) and the
 # randomised end-to-end campaign `aosr_campaign` (label `campaign`, CAMPAIGN_RUNS runs). Left out to fit
-# CI's budget (the sanitizer build costs ~3x the Release build's CPU): the `physics` and `slow` suites (long
+# CI's budget (instrumented tests took ~3x their Release CPU when GCC built them): the `physics` and `slow` suites (long
 # statistical oracles) and the long tests of scripts/sanitize_skip.txt (each >= 19 s here, its code run by
 # shorter tests of this stage). The measured time is in docs/development.md.
 #
