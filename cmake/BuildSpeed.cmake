@@ -12,14 +12,19 @@
 #  * One precompiled header (the standard library, Eigen, JSON, GoogleTest) shared by all test executables
 #    (REUSE_FROM), built once.
 #  * Unity builds (aosr_unity) of the libraries, the engine, the Python module and the test executables: a few
-#    files compiled as one, in small batches so that a compile error still names its file (CMake includes the
-#    sources by path, so diagnostics and __FILE__ keep it).
+#    files compiled as one (CMake includes the sources by path, so a compile error, diagnostics and __FILE__ still
+#    name the file). The libraries in batches of 6, so that touching one numerical file recompiles a few; each
+#    test executable as one translation unit, because the test files instantiate the same GoogleTest, Eigen and
+#    JSON templates and that is most of their compile: 0.80x the CPU of batches of 6 with GCC and with clang's
+#    sanitizer build (bench/results/build.md, "Stop 59"). Touching a test file recompiles its whole executable
+#    (solvers_unit_tests: ~110 s); -DAOSR_UNITY_BATCH_TESTS=6 gives the smaller batches while editing tests.
 #
 # AOSR_FAST_BUILD=OFF turns the precompiled headers and unity builds off (e.g. to check that every file includes
 # what it uses); ccache and the linker follow what is installed (CMAKE_CXX_COMPILER_LAUNCHER and
 # AOSR_LINKER override them).
 option(AOSR_FAST_BUILD "Precompiled headers and unity builds of the test suites (bench/results/build.md)" ON)
-set(AOSR_UNITY_BATCH 6 CACHE STRING "Test files compiled together in one unity translation unit")
+set(AOSR_UNITY_BATCH 6 CACHE STRING "Library, engine and module files compiled together in one unity translation unit")
+set(AOSR_UNITY_BATCH_TESTS 0 CACHE STRING "Test files compiled together in one unity translation unit (0: all of an executable's)")
 
 if(NOT CMAKE_CXX_COMPILER_LAUNCHER AND NOT DEFINED ENV{CMAKE_CXX_COMPILER_LAUNCHER})
   find_program(AOSR_CCACHE ccache)
