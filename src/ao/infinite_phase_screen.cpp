@@ -4,6 +4,9 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <list>
+#include <mutex>
+#include <utility>
 #include <unordered_map>
 
 #include "aosr/ao/phase_screen.hpp"
@@ -44,10 +47,22 @@ bool InfinitePhaseScreenOptions::IsValid(std::string* why) const {
   return false;
 }
 
-InfinitePhaseScreen::InfinitePhaseScreen(const InfinitePhaseScreenOptions& options, std::uint64_t seed)
-    : options_(options), noise_(DeriveSeed(seed, 1)) {
-  std::string why;
-  if (!options.IsValid(&why)) throw InvalidArgument("InfinitePhaseScreen: invalid options." + why);
+struct InfinitePhaseScreen::Stencil {
+  struct Point {
+    Index distance;  // rows before the new row (>= 1)
+    Index column;
+  };
+  std::vector<Point> points;
+  Eigen::MatrixXd a;  // width x |Z|
+  Eigen::MatrixXd b;  // width x width
+
+  explicit Stencil(const InfinitePhaseScreenOptions& options);
+  std::size_t Bytes() const {
+    return sizeof(Point) * points.size() + sizeof(double) * static_cast<std::size_t>(a.size() + b.size());
+  }
+};
+
+InfinitePhaseScreen::Stencil::Stencil(const InfinitePhaseScreenOptions& options) {
   const Index w = options.width;
   const Index len = options.length;
 
@@ -60,10 +75,10 @@ InfinitePhaseScreen::InfinitePhaseScreen(const InfinitePhaseScreenOptions& optio
     if (d >= 3) {
       while (stride < d) stride *= 2;
     }
-    for (Index c = 0; c < w; c += stride) stencil_.push_back({d, c});
-    if ((w - 1) % stride != 0) stencil_.push_back({d, w - 1});
+    for (Index c = 0; c < w; c += stride) points.push_back({d, c});
+    if ((w - 1) % stride != 0) points.push_back({d, w - 1});
   }
-  const Index nz = static_cast<Index>(stencil_.size());
+  const Index nz = static_cast<Index>(points.size());
 
   // Covariance of two pixels (drow, dcol) apart, memoised (many pairs share a separation).
   std::unordered_map<std::int64_t, double> cache;
@@ -74,8 +89,8 @@ InfinitePhaseScreen::InfinitePhaseScreen(const InfinitePhaseScreenOptions& optio
     auto it = cache.find(key);
     if (it != cache.end()) return it->second;
     const double r =
-        options_.pixel_scale_m * std::hypot(static_cast<double>(drow), static_cast<double>(dcol));
-    const double v = VonKarmanCovariance(r, options_.r0_m, options_.L0_m);
+        options.pixel_scale_m * std::hypot(static_cast<double>(drow), static_cast<double>(dcol));
+    const double v = VonKarmanCovariance(r, options.r0_m, options.L0_m);
     cache.emplace(key, v);
     return v;
   };
@@ -83,11 +98,11 @@ InfinitePhaseScreen::InfinitePhaseScreen(const InfinitePhaseScreenOptions& optio
   for (Index p = 0; p < nz; ++p) {
     for (Index q = p; q < nz; ++q) {
       czz(p, q) = czz(q, p) =
-          cov(stencil_[p].distance - stencil_[q].distance, stencil_[p].column - stencil_[q].column);
+          cov(points[p].distance - points[q].distance, points[p].column - points[q].column);
     }
   }
   for (Index c = 0; c < w; ++c) {
-    for (Index p = 0; p < nz; ++p) cxz(c, p) = cov(stencil_[p].distance, c - stencil_[p].column);
+    for (Index p = 0; p < nz; ++p) cxz(c, p) = cov(points[p].distance, c - points[p].column);
     for (Index k = c; k < w; ++k) cxx(c, k) = cxx(k, c) = cov(0, c - k);
   }
   // A = C_XZ C_ZZ^-1 (C_ZZ is SPD for distinct points; LDLT if round-off makes Cholesky fail).
@@ -98,13 +113,65 @@ InfinitePhaseScreen::InfinitePhaseScreen(const InfinitePhaseScreenOptions& optio
   } else {
     at = czz.ldlt().solve(cxz.transpose());
   }
-  a_ = at.transpose();
-  Eigen::MatrixXd bbt = cxx - a_ * cxz.transpose();
+  a = at.transpose();
+  Eigen::MatrixXd bbt = cxx - a * cxz.transpose();
   bbt = 0.5 * (bbt + bbt.transpose());
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(bbt);
   if (eig.info() != Eigen::Success)
     throw NumericalError("InfinitePhaseScreen: eigendecomposition of B B^T failed");
-  b_ = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+  b = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+namespace {
+
+// Screens with the same options share their stencil: a simulation builds the same screens again (the two runs
+// of an antithetic pair, a test's reference run), and the set-up is O(width^3): ~0.25 s for 184 columns, about
+// 8x that under the sanitizers, where it was most of some tests' time. The cache holds the most recently used
+// stencils up to kStencilCacheBytes, so a run through many screen shapes keeps a bounded amount alive. A
+// stencil is computed by the same code whether or not it is cached, so the bytes do not depend on the cache.
+constexpr std::size_t kStencilCacheBytes = std::size_t{32} << 20;
+
+bool SameOptions(const InfinitePhaseScreenOptions& a, const InfinitePhaseScreenOptions& b) {
+  return a.width == b.width && a.length == b.length && a.pixel_scale_m == b.pixel_scale_m && a.r0_m == b.r0_m &&
+         a.L0_m == b.L0_m;
+}
+
+}  // namespace
+
+InfinitePhaseScreen::InfinitePhaseScreen(const InfinitePhaseScreenOptions& options, std::uint64_t seed)
+    : options_(options), noise_(DeriveSeed(seed, 1)) {
+  std::string why;
+  if (!options.IsValid(&why)) throw InvalidArgument("InfinitePhaseScreen: invalid options." + why);
+  const Index w = options.width;
+  const Index len = options.length;
+
+  // Most recently used first. Built outside the lock: two threads may build the same stencil at once, and
+  // either copy has the same bytes.
+  static std::mutex mutex;
+  static std::list<std::pair<InfinitePhaseScreenOptions, std::shared_ptr<const Stencil>>> cache;
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    for (auto it = cache.begin(); it != cache.end(); ++it) {
+      if (SameOptions(it->first, options)) {
+        stencil_ = it->second;
+        cache.splice(cache.begin(), cache, it);
+        break;
+      }
+    }
+  }
+  if (stencil_ == nullptr) {
+    auto built = std::make_shared<const Stencil>(options);
+    stencil_ = built;
+    if (built->Bytes() <= kStencilCacheBytes) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      cache.emplace_front(options, std::move(built));
+      std::size_t bytes = 0;
+      for (auto it = cache.begin(); it != cache.end();) {
+        bytes += it->second->Bytes();
+        it = bytes > kStencilCacheBytes ? cache.erase(it) : std::next(it);
+      }
+    }
+  }
 
   // Initial window from an FFT screen twice the larger side (its large-scale bias is smallest well inside).
   PhaseScreenOptions fft;
@@ -117,7 +184,7 @@ InfinitePhaseScreen::InfinitePhaseScreen(const InfinitePhaseScreenOptions& optio
   buffer_.topRows(len) = initial.topLeftCorner(len, w);
   buffer_.bottomRows(len).setZero();
   start_ = 0;
-  z_.resize(nz);
+  z_.resize(stencil_size());
   g_.resize(w);
 }
 
@@ -132,16 +199,19 @@ void InfinitePhaseScreen::Extrude(Index rows) {
       start_ = 0;
     }
     const Index e = start_ + len;  // the new row
-    for (std::size_t i = 0; i < stencil_.size(); ++i) {
-      z_(static_cast<Index>(i)) = buffer_(e - stencil_[i].distance, stencil_[i].column);
+    const auto& points = stencil_->points;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      z_(static_cast<Index>(i)) = buffer_(e - points[i].distance, points[i].column);
     }
     noise_.Fill(g_.data(), w);
     Eigen::Map<Vector> row(buffer_.data() + e * w, w);
-    row.noalias() = a_ * z_;
-    row.noalias() += b_ * g_;
+    row.noalias() = stencil_->a * z_;
+    row.noalias() += stencil_->b * g_;
     ++start_;
     ++rows_extruded_;
   }
 }
+
+Index InfinitePhaseScreen::stencil_size() const { return static_cast<Index>(stencil_->points.size()); }
 
 }  // namespace aosr

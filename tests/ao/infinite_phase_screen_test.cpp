@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <thread>
+
 namespace aosr {
 namespace AOSR_TEST_NS {
 
@@ -50,6 +53,58 @@ TEST(InfinitePhaseScreenTest, SeedDeterminesTheWholeRun) {
   c.Extrude(57);
   EXPECT_TRUE((Image(a.Window()) == Image(b.Window())).all());
   EXPECT_GT((Image(a.Window()) - Image(c.Window())).abs().maxCoeff(), 0.01);
+}
+
+// Screens with the same options share one stencil (A, B) per process; each keeps its own window and noise.
+TEST(InfinitePhaseScreenTest, SharedStencilLeavesEachScreenItsOwnState) {
+  InfinitePhaseScreen a(Small(), 11), b(Small(), 11);
+  const Image b_before = b.Window();
+  a.Extrude(41);
+  EXPECT_TRUE((Image(b.Window()) == b_before).all());  // extruding a does not move b
+  b.Extrude(41);
+  EXPECT_TRUE((Image(a.Window()) == Image(b.Window())).all());
+  EXPECT_EQ(a.stencil_size(), b.stencil_size());
+}
+
+// The stencil is looked up by every option: a screen with twice r0 and the same seed is the first one times
+// 2^(-5/6) (the phase's r0^(-5/6) scaling; A does not depend on r0, B scales so), which a stencil of the other
+// r0 would break on every extruded row. Another L0 changes the screen.
+TEST(InfinitePhaseScreenTest, StencilOfAnotherR0OrL0IsNeverReused) {
+  InfinitePhaseScreenOptions twice = Small();
+  twice.r0_m = 2.0 * Small().r0_m;
+  InfinitePhaseScreenOptions outer = Small();
+  outer.L0_m = 2.0 * Small().L0_m;
+  InfinitePhaseScreen a(Small(), 3), b(twice, 3), c(outer, 3);
+  a.Extrude(30);
+  b.Extrude(30);
+  c.Extrude(30);
+  const Image expected = std::pow(2.0, -5.0 / 6.0) * Image(a.Window());
+  EXPECT_LT((Image(b.Window()) - expected).abs().maxCoeff(), 1e-9 * expected.abs().maxCoeff());
+  EXPECT_GT((Image(c.Window()) - Image(a.Window())).abs().maxCoeff(), 1e-3 * expected.abs().maxCoeff());
+}
+
+// Two threads building a screen of new options at once (both may compute the stencil) give the serial bytes.
+TEST(InfinitePhaseScreenTest, ScreensBuiltOnTwoThreadsAtOnceGiveTheSerialBytes) {
+  InfinitePhaseScreenOptions o = Small();
+  o.width = 27;  // options no other test builds, so the stencil is not cached yet
+  o.r0_m = 0.137;
+  Image parallel[2];
+  std::thread t0([&] {
+    InfinitePhaseScreen s(o, 21);
+    s.Extrude(25);
+    parallel[0] = s.Window();
+  });
+  std::thread t1([&] {
+    InfinitePhaseScreen s(o, 21);
+    s.Extrude(25);
+    parallel[1] = s.Window();
+  });
+  t0.join();
+  t1.join();
+  InfinitePhaseScreen serial(o, 21);
+  serial.Extrude(25);
+  EXPECT_TRUE((parallel[0] == Image(serial.Window())).all());
+  EXPECT_TRUE((parallel[1] == Image(serial.Window())).all());
 }
 
 }  // namespace

@@ -44,6 +44,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -93,19 +94,16 @@ class InfinitePhaseScreen {
   // infinite strip whose rows 0 .. length-1 were the initial window.
   std::int64_t rows_extruded() const { return rows_extruded_; }
   // Stencil size |Z| (for reports).
-  Index stencil_size() const { return static_cast<Index>(stencil_.size()); }
+  Index stencil_size() const;
   const InfinitePhaseScreenOptions& options() const { return options_; }
 
  private:
-  struct StencilPoint {
-    Index distance;  // rows before the new row (>= 1)
-    Index column;
-  };
+  // The stencil and the matrices A (width x |Z|) and B (width x width): they depend on the options only, not
+  // on the seed, and screens with the same options share one read-only copy (infinite_phase_screen.cpp).
+  struct Stencil;
 
   InfinitePhaseScreenOptions options_;
-  std::vector<StencilPoint> stencil_;
-  Eigen::MatrixXd a_;  // width x |Z|
-  Eigen::MatrixXd b_;  // width x width
+  std::shared_ptr<const Stencil> stencil_;
   Image buffer_;       // capacity rows x width; the window is rows [start_, start_ + length)
   Index start_ = 0;
   std::int64_t rows_extruded_ = 0;
