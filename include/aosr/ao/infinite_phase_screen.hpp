@@ -55,8 +55,8 @@ namespace aosr {
 
 struct InfinitePhaseScreenOptions {
   // Columns of the screen (across the extrusion direction) [pixels]; 4 .. 2048. The stencil and the matrix
-  // B grow with it: set-up is O(width^3) (~0.25 s for 184 columns). 128: a 128-pixel pupil with wind along an
-  // axis needs ~134.
+  // B grow with it: set-up is O(width^3) (~0.25 s for 184 columns), once per process for the same options (the
+  // stencil is shared). 128: a 128-pixel pupil with wind along an axis needs ~134.
   Index width = 128;
   // Rows kept in the window [pixels]; 4 .. 2048. Also the depth of the stencil (how far back a new row is
   // conditioned), so it should be about the width for isotropic large scales. The buffer holds 2 x length
