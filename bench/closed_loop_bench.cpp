@@ -48,7 +48,7 @@ struct Args {
 
 Args Parse(int argc, char** argv) {
   Args a;
-  for (int i = 1; i < argc; ++i) {
+  for (int i = 1; i < argc; i += 2) {  // --key value pairs
     const std::string key = argv[i];
     const char* value = i + 1 < argc ? argv[i + 1] : nullptr;
     if (value == nullptr) {
@@ -71,7 +71,6 @@ Args Parse(int argc, char** argv) {
                    "[--psf-every K] [--pupil N] [--seed S]\n");
       std::exit(2);
     }
-    ++i;
   }
   return a;
 }

@@ -71,7 +71,7 @@ bool ModalFitOptions::IsValid(std::string* why) const {
 
 ModalImageModel::ModalImageModel(const CalibrationOptics& optics, const Image& mode_shape,
                                  std::vector<int> static_modes, Shape window, int padding_px, int oversampling)
-    : optics_(optics), static_modes_(std::move(static_modes)), window_(window), padding_px_(padding_px) {
+    : optics_(optics), static_modes_(std::move(static_modes)), window_(window) {
   const char* fn = "ModalImageModel";
   std::string why;
   if (!optics.IsValid(&why)) throw InvalidArgument(std::string(fn) + ": invalid optics: " + why);

@@ -78,7 +78,7 @@ bool VideoOptions::IsValid(std::string* why) const {
 // ---- SlotFilter ---------------------------------------------------------------------------------------------
 
 SlotFilter::SlotFilter(Shape lr, int r, const ImageStack& responses)
-    : lr_(lr), hr_{lr.rows * r, lr.cols * r}, r_(r), n_(int(responses.size())) {
+    : lr_(lr), hr_{lr.rows * r, lr.cols * r}, n_(int(responses.size())) {
   constexpr const char* kFn = "SlotFilter";
   CheckArgument(r >= 1 && lr.rows > 0 && lr.cols > 0, kFn, "lr, r", ToString(lr) + ", " + std::to_string(r),
                 "a non-empty LR shape and r >= 1");

@@ -364,7 +364,7 @@ TEST_F(ReconstructCliTest, ProgressGoesToStderrOnlyWhenAskedOrOnATerminal) {
   };
   CliRun r = run("--json --progress");
   ASSERT_EQ(r.status, 0) << r.out << read(err);
-  EXPECT_NO_THROW(nlohmann::json::parse(r.out)) << r.out;
+  EXPECT_NO_THROW((void)nlohmann::json::parse(r.out)) << r.out;
   EXPECT_THAT(r.out, Not(HasSubstr("[aosr]")));
   const std::string progress = read(err);
   EXPECT_THAT(progress, HasSubstr("[aosr] pilot 0/1"));

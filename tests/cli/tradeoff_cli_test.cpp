@@ -249,7 +249,7 @@ TEST_F(TradeoffCliTest, ProgressGoesToStderrOnlyWhenAsked) {
   };
   CliRun r = run("--progress");
   ASSERT_EQ(r.status, 0) << r.out << ReadText(err);
-  EXPECT_NO_THROW(nlohmann::json::parse(r.out)) << r.out;
+  EXPECT_NO_THROW((void)nlohmann::json::parse(r.out)) << r.out;
   const std::string progress = ReadText(err);
   for (const char* line : {"[aosr] pilot 0/1", "[aosr] tv 4/4", "[aosr] map 4/4"})
     EXPECT_THAT(progress, HasSubstr(line)) << progress;

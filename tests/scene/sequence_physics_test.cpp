@@ -24,7 +24,8 @@ namespace AOSR_TEST_NS {
 
 using testing_io::TempDir;
 
-// N = 4 phases of a raster, 32² camera frames at r = 2, no noise; frame time 1 s / 4 = 0.25 s.
+// N = 4 phases of a raster, 32² camera frames at r = 2, no noise; frame time 1 s / 4 = 0.25 s. `objects` is a JSON
+// array: one object goes in as json::array({object}), since a braced single json is a copy to clang, an array to GCC.
 nlohmann::json Scene(nlohmann::json objects) {
   return {{"name", "sequence"},
           {"telescope", "paper-8m"},
@@ -117,10 +118,10 @@ TEST(SequencePhysics, MovingExtendedComponentIsItsTruthShifted) {
   // 4 camera px / s at r = 2: 8 HR px / s, 2 HR px per 0.25 s exposure; t0 = 0.125 s: 1 HR px.
   nlohmann::json galaxies = {{"type", "galaxies"}, {"count", 4}, {"half_light_radius_px", {0.4, 0.8}},
                              {"sersic_n_range", {0.5, 1.0}}, {"margin_px", 10.0}, {"flux", {{"total_e", 1e5}}}};
-  nlohmann::json j = Scene({galaxies});
+  nlohmann::json j = Scene(nlohmann::json::array({galaxies}));
   const Simulation still = ScenePipeline(ParseScene(j, "<test>")).Run();
   galaxies["variation"] = {{"velocity_px_per_s", {0.0, 4.0}}};
-  j = Scene({galaxies});
+  j = Scene(nlohmann::json::array({galaxies}));
   j["sequence"] = {{"frames", 6}};
   const Simulation sim = ScenePipeline(ParseScene(j, "<test>")).Run();
   ASSERT_EQ(sim.truth_frames.size(), 6u);
@@ -150,7 +151,7 @@ TEST(SequencePhysics, WhatLeavesTheFrameIsGone) {
     if (!on) { EXPECT_EQ(sim.expected_e[i].abs().maxCoeff(), 0.0) << "exposure " << i << ": nothing comes back"; }
   }
   nlohmann::json edge = {{"type", "slanted-edge"}, {"variation", {{"velocity_px_per_s", {0.0, 100.0}}}}};
-  j = Scene({edge});
+  j = Scene(nlohmann::json::array({edge}));
   j["sequence"] = {{"frames", 5}, {"frame_interval_s", 1e9}};
   const Simulation far = ScenePipeline(ParseScene(j, "<test>")).Run();
   EXPECT_GT(far.truth_frames[0].sum(), 0.0) << "exposure 0 (t = 0.125 s) has moved 12.5 camera px: still there";
@@ -164,7 +165,7 @@ TEST(SequencePhysics, PlanetRepeatsAfterItsPeriod) {
   nlohmann::json planet = {{"type", "planet"}, {"radius_px", 9.0}, {"rotation_period_s", 1.0}, {"limb_darkening", 0.4},
                            {"pole_angle_deg", 20.0}, {"sub_observer_latitude_deg", 10.0},
                            {"texture", {{"spots", 6}, {"spot_radius_deg", 12.0}}}, {"flux", {{"total_e", 2e5}}}};
-  nlohmann::json j = Scene({planet});
+  nlohmann::json j = Scene(nlohmann::json::array({planet}));
   j["sequence"] = {{"frames", 8}};  // Δ = 0.25 s: exposure j + 4 is one period after j
   const Simulation sim = ScenePipeline(ParseScene(j, "<test>")).Run();
   ASSERT_EQ(sim.truth_frames.size(), 8u);
@@ -175,14 +176,14 @@ TEST(SequencePhysics, PlanetRepeatsAfterItsPeriod) {
   }
   EXPECT_GT(MaxAbs(sim.truth_frames[1] - sim.truth_frames[0]), 0.05 * peak) << "the spots move";
   planet["texture"] = {{"spots", 0}};
-  j = Scene({planet});
+  j = Scene(nlohmann::json::array({planet}));
   j["sequence"] = {{"frames", 5}};
   const Simulation bands = ScenePipeline(ParseScene(j, "<test>")).Run();
   // Bands only: the same light at every rotation, the total_e its normalisation gave at t = 0.
   for (int i = 0; i < 5; ++i) EXPECT_NEAR(bands.truth_frames[i].sum(), 2e5, 1e-6 * 2e5) << "exposure " << i;
   // A planet that does not turn is a static component: the sequence's truth is the cycle's, with the same flux.
   planet["rotation_period_s"] = 0.0;
-  j = Scene({planet});
+  j = Scene(nlohmann::json::array({planet}));
   const Simulation still = ScenePipeline(ParseScene(j, "<test>")).Run();
   EXPECT_NEAR(still.truth.sum(), 2e5, 1e-9 * 2e5);
   EXPECT_LT(MaxAbs(still.truth - bands.truth_frames[0]), 1e-9 * MaxAbs(still.truth)) << "the same face at every time";

@@ -144,7 +144,6 @@ class ModalImageModel {
   CalibrationOptics optics_;
   std::vector<int> static_modes_;
   Shape window_;
-  int padding_px_ = 8;
   int q_ = 1;
   Shape fine_;                // MFT output (fine samples)
   Image amplitude_;           // A on the pupil grid

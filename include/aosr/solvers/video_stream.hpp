@@ -133,7 +133,7 @@ class SlotFilter {
 
  private:
   Shape lr_, hr_;
-  int r_ = 1, n_ = 0;
+  int n_ = 0;
   Index hr_half_cols_ = 0;
   std::vector<Complex> weights_;   // per HR half-spectrum bin, n_ values (bin-major, slot-minor)
   std::vector<Complex> spectra_;   // the slots' full LR spectra: per LR bin (row-major), n_ values (slot-minor)
