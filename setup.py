@@ -50,7 +50,10 @@ class CMakeBuild(build_ext):
 
     def run(self):
         if not os.path.exists(os.path.join(BUILD, "CMakeCache.txt")):
-            self.spawn(["cmake", "-S", ROOT, "-B", BUILD, "-DCMAKE_BUILD_TYPE=Release",
+            # The compiler scripts/setup.sh chooses: clang 14 when it is installed and CXX does not name another.
+            compiler = ([] if os.environ.get("CXX") or not shutil.which("clang++-14")
+                        else ["-DCMAKE_CXX_COMPILER=clang++-14"])
+            self.spawn(["cmake", "-S", ROOT, "-B", BUILD, "-DCMAKE_BUILD_TYPE=Release", *compiler,
                         "-DAOSR_BUILD_TESTS=OFF", "-DAOSR_BUILD_BENCH=OFF", "-DAOSR_BUILD_FUZZ=OFF",
                         "-DAOSR_BUILD_PYTHON=ON", f"-DPython3_EXECUTABLE={sys.executable}"])
         jobs = os.environ.get("CMAKE_BUILD_PARALLEL_LEVEL") or str(min(os.cpu_count() or 1, 2))
