@@ -347,30 +347,76 @@ Eigen::MatrixXd NodePriorMatrix(const PsfFieldGrid& grid, int degree, double var
   return (pd - p0) + (id - pd) * (ratio * ratio);
 }
 
-// The preconditioner of the h solve: for many stars at random sub-pixel phases AᵀWA acts on h nearly as a
-// convolution with the pixel box's autocorrelation, d · |B(f)|² / r⁴ in Fourier (d its diagonal: mean |B|² =
-// r⁴), so its inverse plus the ridge is one K × K FFT pair per field node (the nodes' coupling, through the
-// stars they share, is left out: block diagonal); the backgrounds get 1 / Σ w_i.
+// The diagonal of AᵀWA over each node's K² pixels, with the stars at their nearest HR pixel (the model
+// interpolates them; the preconditioner needs the shape, not the value): d_g(v, u) = Σ_i Σ_j w_g(p_j)² f_j²
+// W_i(the camera pixel of p_j + o_i + (v, u) − K/2), normalised to 1 at the centre. The stars' own photon noise
+// in W makes it 10-20x smaller in the core than in the wings for bright stars.
+Eigen::MatrixXd DataDiagonalShape(const std::vector<Star>& stars, const PsfFieldGrid& grid, int nodes,
+                                  const std::vector<FrameOffset>& offsets, const ImageStack& w, Shape hr, int r, Index k) {
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(k * k, nodes);
+  Vector one(k * k);
+  for (const Star& st : stars) {
+    one.setZero();
+    for (std::size_t i = 0; i < offsets.size(); ++i) {
+      const Image& wi = w[i];
+      const Index py = Index(std::lround(st.y + offsets[i].dy)) - k / 2, px = Index(std::lround(st.x + offsets[i].dx)) - k / 2;
+      for (Index v = 0; v < k; ++v) {
+        const Index yy = py + v;
+        if (yy < 0 || yy >= hr.rows) continue;
+        const Index cy = yy / r;
+        for (Index u = std::max<Index>(0, -px); u < std::min<Index>(k, hr.cols - px); ++u) one(v * k + u) += wi(cy, (px + u) / r);
+      }
+    }
+    one *= st.f * st.f;
+    if (nodes <= 1) {
+      out.col(0) += one;
+      continue;
+    }
+    for (const PsfFieldGrid::Weight& wt : grid.Weights(st.y, st.x)) out.col(wt.node) += wt.weight * wt.weight * one;
+  }
+  const Index centre = (k / 2) * k + k / 2;
+  for (int g = 0; g < nodes; ++g) out.col(g) /= std::max(out(centre, g), 1e-300);
+  return out;
+}
+
+// The preconditioner of the h solve, node by node: for many stars at random sub-pixel phases AᵀWA acts on a
+// node's PSF nearly as a convolution with the pixel box's autocorrelation, D_g β(f) in Fourier (β = |B(f)|² / r⁴,
+// mean 1; D_g the centre pixel's diagonal), so with the centre's ridge R_g and prior weight c₀ Q_gg its inverse is
+// one K x K FFT pair per node. The operator's diagonal is far from constant over the window, though: the stars' own
+// photon noise makes the data's 10-20x smaller in the core than in the wings (DataDiagonalShape), and the ridge and
+// the prior grow into the wings as s(p) and s(p)², s = 1 + (ρ / 2r)². So the circulant sits between two diagonal
+// scalings, P = Σ^-½ F⁻¹ [1 / (D_g β + R_g + c₀ Q_gg)] F Σ^-½ with Σ(p) the diagonal at p over the centre's: the
+// standard preconditioner for a convolution with a slowly varying coefficient. The nodes' coupling, through the
+// stars they share and through the prior, is left out: a preconditioner that keeps it (a G x G generalised
+// eigenproblem over the nodes) took more iterations than this one (bench/results/wide_field.md, "Stop 61").
+// The backgrounds get 1 / Σ w_i.
 class PsfPreconditioner final : public LinearOperator {
  public:
-  PsfPreconditioner(Index k, int r, const std::vector<double>& diag, const std::vector<double>& ridge,
-                    std::vector<double> background_diag)
-      : LinearOperator(Index(diag.size()) * k * k + Index(background_diag.size()),
-                       Index(diag.size()) * k * k + Index(background_diag.size()), "PsfPreconditioner"),
+  // Per node g: data D_g, ridge R_g and prior c₀ Q_gg at the centre; shape: s(p); data_shape: the data's diagonal
+  // over its centre value (K² x G).
+  PsfPreconditioner(Index k, int r, const Vector& data, const Vector& ridge, const Vector& prior, const Vector& shape,
+                    const Eigen::MatrixXd& data_shape, std::vector<double> background_diag)
+      : LinearOperator(data.size() * k * k + Index(background_diag.size()),
+                       data.size() * k * k + Index(background_diag.size()), "PsfPreconditioner"),
         k_(k),
         background_diag_(std::move(background_diag)) {
-    for (std::size_t g = 0; g < diag.size(); ++g) {
+    auto box2 = [&](Index f) {
+      const double a = kPi * double(f) / double(k);
+      if (f == 0) return double(r) * r;
+      const double sn = std::sin(a * r) / std::sin(a);
+      return sn * sn;
+    };
+    scale_.resize(k * k, data.size());
+    for (Index g = 0; g < data.size(); ++g) {
+      const double centre = data(g) + ridge(g) + prior(g);
+      for (Index p = 0; p < k * k; ++p) {
+        const double dp = data(g) * data_shape(p, g) + ridge(g) * shape(p) + prior(g) * shape(p) * shape(p);
+        scale_(p, g) = 1.0 / std::sqrt(std::max(dp / centre, 1e-300));
+      }
       Image inverse(k, k / 2 + 1);
-      for (Index v = 0; v < k; ++v)
-        for (Index u = 0; u <= k / 2; ++u) {
-          auto box2 = [&](Index f) {
-            const double a = kPi * double(f) / double(k);
-            if (f == 0) return double(r) * r;
-            const double sn = std::sin(a * r) / std::sin(a);
-            return sn * sn;
-          };
-          inverse(v, u) = 1.0 / (diag[g] * box2(v) * box2(u) / double(r * r) / double(r * r) + ridge[g]);
-        }
+      for (Index fy = 0; fy < k; ++fy)
+        for (Index fx = 0; fx <= k / 2; ++fx)
+          inverse(fy, fx) = 1.0 / (data(g) * box2(fy) * box2(fx) / double(r * r) / double(r * r) + ridge(g) + prior(g));
       inverse_.push_back(std::move(inverse));
     }
   }
@@ -379,16 +425,17 @@ class PsfPreconditioner final : public LinearOperator {
   void ApplyImpl(ConstRef x, Ref y) const override {
     const Index k2 = k_ * k_, gk2 = Index(inverse_.size()) * k2;
     for (std::size_t g = 0; g < inverse_.size(); ++g) {
-      const Image img = ToImage(x.segment(Index(g) * k2, k2), {k_, k_});
-      ComplexImage s = FftR2C(img);
+      const auto sg = scale_.col(Index(g));
+      ComplexImage s = FftR2C(ToImage(x.segment(Index(g) * k2, k2).cwiseProduct(sg), {k_, k_}));
       s *= inverse_[g].cast<Complex>();
-      y.segment(Index(g) * k2, k2) = AsVector(FftC2R(s, k_));
+      y.segment(Index(g) * k2, k2) = AsVector(FftC2R(s, k_)).cwiseProduct(sg);
     }
     for (std::size_t i = 0; i < background_diag_.size(); ++i)
       y(gk2 + Index(i)) = x(gk2 + Index(i)) / background_diag_[i];
   }
   void ApplyAdjointImpl(ConstRef y, Ref x) const override { ApplyImpl(y, x); }  // symmetric
   Index k_;
+  Eigen::MatrixXd scale_;  // Σ(p)^-½, K² x G
   std::vector<Image> inverse_;
   std::vector<double> background_diag_;
 };
@@ -436,6 +483,10 @@ std::string StarsPsfResult::BriefReport() const {
                 "per pixel near the stars), %d rounds",
                 used, saturated, dropped, rejected, static_cast<long long>(psf.rows()), chi2_per_dof, chi2_near_stars, rounds);
   std::string out = buf;
+  if (!cg_converged) {
+    std::snprintf(buf, sizeof buf, "; the final h solve NOT converged (%d CG iterations: raise cg_iterations)", cg_iterations_last);
+    out += buf;
+  }
   if (grid.nodes() > 1) {
     double least = node_stars.empty() ? 0.0 : *std::min_element(node_stars.begin(), node_stars.end());
     std::snprintf(buf, sizeof buf, "; varying over a %d x %d grid (fewest stars at a node %.1f)", grid.ny(), grid.nx(), least);
@@ -695,23 +746,22 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     for (Index i = 0; i < n; ++i) wy[i] = (valid[i] > 0).select(y[i], 0.0) * w[i];
     field->Backward(wy, rhs);
     // Each node's ridge scales with its own centre diagonal (its stars' light), the backgrounds get none.
-    std::vector<double> diag(static_cast<std::size_t>(nodes)), ridge(static_cast<std::size_t>(nodes));
-    Vector ridge_vector = Vector::Zero(gk2 + n);
+    Vector data(nodes), ridge(nodes), ridge_vector = Vector::Zero(gk2 + n);
     for (int g = 0; g < nodes; ++g) {
       Vector delta = Vector::Zero(gk2 + n), column(gk2 + n);
       const Index centre = Index(g) * k * k + (k / 2) * k + k / 2;
       delta(centre) = 1.0;
       field->Normal(delta, w, column);
-      diag[std::size_t(g)] = column(centre);
-      ridge[std::size_t(g)] = options.regularisation * diag[std::size_t(g)];
-      ridge_vector.segment(Index(g) * k * k, k * k) = ridge[std::size_t(g)] * AsVector(ridge_shape);
+      data(g) = column(centre);
+      ridge(g) = options.regularisation * data(g);
+      ridge_vector.segment(Index(g) * k * k, k * k) = ridge(g) * AsVector(ridge_shape);
     }
     // The nodes' coupling (StarFieldNormal, header: a Gaussian prior on each node's difference from the mean).
     const StarFieldNormal normal(field.get(), &w, ridge_vector, nodes, coupling, node_prior);
+    Vector prior = Vector::Zero(nodes);  // c₀ Q_gg
     if (nodes > 1)
-      for (std::size_t g = 0; g < ridge.size(); ++g)
-        ridge[g] += coupling((k / 2) * k + k / 2) *
-                    (node_prior.size() > 0 ? node_prior(Index(g), Index(g)) : 1.0 - 1.0 / nodes);
+      for (int g = 0; g < nodes; ++g)
+        prior(g) = coupling((k / 2) * k + k / 2) * (node_prior.size() > 0 ? node_prior(g, g) : 1.0 - 1.0 / nodes);
     if (u.size() != gk2 + n) {
       u = Vector::Zero(gk2 + n);
       for (Index i = 0; i < n; ++i) u(gk2 + i) = bg[i];
@@ -723,9 +773,12 @@ StarsPsfResult EstimateStarsPsf(const ImageStack& y_in, const ImageStack& valid_
     if (nodes > 1 && !final_solve) cg.tolerance = std::max(options.cg_tolerance, 1e-3);
     std::vector<double> bdiag(n);
     for (Index i = 0; i < n; ++i) bdiag[i] = std::max(w[i].sum(), 1e-300);
-    const PsfPreconditioner pre(k, r, diag, ridge, bdiag);
+    const PsfPreconditioner pre(k, r, data, ridge, prior, AsVector(ridge_shape),
+                                DataDiagonalShape(stars, grid, nodes, offsets, w, hr, int(r), k), bdiag);
     const SolverSummary sum = PreconditionedConjugateGradient(normal, pre, rhs, &u, cg);
+    res.cg_iterations_total += sum.iterations;
     res.cg_iterations_last = sum.iterations;
+    res.cg_converged = sum.termination == Termination::kConverged;
     h = u.head(gk2);
     for (Index i = 0; i < n; ++i) bg[i] = u(gk2 + i);
   };

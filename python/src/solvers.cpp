@@ -384,6 +384,8 @@ py::dict StarsPsfDict(const StarsPsfResult& s) {
   d["dof"] = s.dof;
   d["rounds"] = s.rounds;
   d["cg_iterations_last"] = s.cg_iterations_last;
+  d["cg_converged"] = s.cg_converged;
+  d["cg_iterations_total"] = s.cg_iterations_total;
   d["seconds"] = s.seconds;
   d["report"] = s.BriefReport();
   if (s.grid.nodes() > 1) {

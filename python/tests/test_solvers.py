@@ -293,6 +293,9 @@ def test_stars_psf_matches_the_cli(cli, tmp_path):
     assert est["psf"].sum() == pytest.approx(1.0, abs=1e-12)
     assert est["stars_used"] >= 10 and est["stars"].shape == (est["stars_used"], 3)
     assert 0.5 < est["chi2_per_dof"] < 2 and est["chi2_near_stars"] > 0
+    assert est["cg_converged"] and est["cg_iterations_total"] >= est["cg_iterations_last"] > 0
+    capped = aosr.stars_psf(ds, cg_iterations=3)  # a capped h solve is reported, not hidden
+    assert not capped["cg_converged"] and "NOT converged" in capped["report"]
     truth = aosr.open_dataset(ds).psfs
     k = est["psfs"].shape[1]
     c = truth.shape[1] // 2

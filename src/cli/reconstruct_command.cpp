@@ -498,6 +498,9 @@ void RunReconstruct(const ReconstructArgs& a) {
                       {"chi2_near_stars", st.chi2_near_stars},
                       {"dof", st.dof},
                       {"rounds", st.rounds},
+                      {"cg_converged", st.cg_converged},
+                      {"cg_iterations_last", st.cg_iterations_last},
+                      {"cg_iterations_total", st.cg_iterations_total},
                       {"background_e", st.background_e},
                       {"seconds", st.seconds}};
     if (st.grid.nodes() > 1)

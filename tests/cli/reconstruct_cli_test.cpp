@@ -430,6 +430,8 @@ TEST(ReconstructCliStars, ModelPsfsFromTheStarsInTheFrames) {
   EXPECT_EQ(s["psf_size_hr_px"].get<int>(), 64);
   EXPECT_GT(s["chi2_per_dof"].get<double>(), 0.5);
   EXPECT_LT(s["chi2_per_dof"].get<double>(), 2.0);
+  EXPECT_TRUE(s["cg_converged"].get<bool>());
+  EXPECT_GE(s["cg_iterations_total"].get<int>(), s["cg_iterations_last"].get<int>());
   EXPECT_EQ(s["path"], psf);
   const aosr::FitsData cube = aosr::ReadFits(psf);
   ASSERT_EQ(cube.planes.size(), 4u);

@@ -126,6 +126,11 @@ TEST(StarsPsfField, NodesOfAVaryingPsfAreRecoveredWhereOnePsfFails) {
   EXPECT_NEAR(stars_on_nodes, double(res.used), 1e-9);
   EXPECT_GE(res.used, 115);
   EXPECT_EQ(res.rounds, 2 * o.rounds);  // one PSF first, then the grid
+  // The final h solve meets cg_tolerance within cg_iterations (before the preconditioner scaled the wings it
+  // stopped at 300 iterations here, and only cg_iterations_last showed it).
+  EXPECT_TRUE(res.cg_converged) << res.BriefReport();
+  EXPECT_LT(res.cg_iterations_last, o.cg_iterations);
+  EXPECT_GE(res.cg_iterations_total, res.cg_iterations_last);
   // The model fits the frames: χ² per pixel near the stars at the noise.
   EXPECT_LT(res.chi2_near_stars, 1.25) << res.BriefReport();
   // The psf and psfs are the field centre's: the nodes' mean (bilinear at the centre of a 2 x 2 grid).
@@ -221,8 +226,12 @@ TEST(StarsPsfField, APolynomialPriorOnTheNodesBeatsTheMeanOnASmoothField) {
   const double e0 = worst_node(mean_tied), e2 = worst_node(smooth);
   std::printf("%s\n%s\nworst node: mean-tied %.2f %%, degree 2 %.2f %%\n", mean_tied.BriefReport().c_str(),
               smooth.BriefReport().c_str(), 100 * e0, 100 * e2);
-  EXPECT_LT(e2, 0.5 * e0);
-  EXPECT_LT(e2, 0.02);
+  // Both fits converged (the mean-tied one's final h solve used to stop at 300 iterations at 2.37 %; converged, it
+  // is 1.78 %, and the polynomial prior still takes a third of its error away at the worst node).
+  EXPECT_TRUE(mean_tied.cg_converged) << mean_tied.BriefReport();
+  EXPECT_TRUE(smooth.cg_converged) << smooth.BriefReport();
+  EXPECT_LT(e2, 0.65 * e0);
+  EXPECT_LT(e2, 0.0125);
   // Both still fit the frames (the prior does not fight the data).
   EXPECT_LT(smooth.chi2_near_stars, 1.3) << smooth.BriefReport();
 }

@@ -90,6 +90,7 @@ TEST(StarsPsfPhysics, NoisyStarFieldGivesTheOraclePsfWithinTwoPercentOfItsPeak) 
   ASSERT_EQ(int(s.psfs.size()), d.size());
   EXPECT_GE(s.used, 20);  // of 60 stars, the ones above 5 σ
   EXPECT_LT(s.chi2_per_dof, 3.0);
+  EXPECT_TRUE(s.cg_converged) << s.BriefReport();
   for (int i = 0; i < d.size(); ++i) {
     const double e = RmsOverPeak(s.psfs[i], d.psfs[i]);
     std::printf("frame %d: RMS difference / oracle peak %.4f\n", i, e);

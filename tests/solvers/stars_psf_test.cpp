@@ -76,6 +76,16 @@ TEST(StarsPsf, GaussianFieldWithASaturatedStar) {
     EXPECT_NEAR(c.dy, f.offsets[i].dy, 0.02);
     EXPECT_NEAR(c.dx, f.offsets[i].dx, 0.02);
   }
+  EXPECT_TRUE(s.cg_converged) << s.BriefReport();
+  EXPECT_EQ(s.BriefReport().find("NOT converged"), std::string::npos);
+  EXPECT_GE(s.cg_iterations_total, s.cg_iterations_last);
+  // An h solve held to too few CG iterations is reported, not hidden behind the cap.
+  StarsPsfOptions capped = o;
+  capped.cg_iterations = 3;
+  const StarsPsfResult c = EstimateStarsPsf(f.y, f.valid, {}, f.offsets, 2, capped);
+  EXPECT_FALSE(c.cg_converged);
+  EXPECT_EQ(c.cg_iterations_last, 3);
+  EXPECT_NE(c.BriefReport().find("NOT converged (3 CG iterations"), std::string::npos) << c.BriefReport();
 }
 
 

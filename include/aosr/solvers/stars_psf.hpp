@@ -192,6 +192,8 @@ struct StarsPsfResult {
   Index dof = 0;
   int rounds = 0;
   int cg_iterations_last = 0;         // iterations of the final h solve
+  bool cg_converged = true;           // the final h solve met cg_tolerance (false: it stopped at cg_iterations)
+  int cg_iterations_total = 0;        // over every h solve of every round
   double seconds = 0.0;
   std::string BriefReport() const;    // "stars PSF: 123 stars (2 saturated, 5 dropped), K = 64 HR px, chi2/dof ..."
 };
